@@ -1,0 +1,35 @@
+//! Command-line interface: one file per subcommand, each a thin layer that parses
+//! arguments, calls the library and prints. Errors go to stderr with a non-zero exit.
+
+use clap::{Parser, Subcommand};
+
+pub mod inspect;
+
+/// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
+#[derive(Parser, Debug)]
+#[command(name = "furfit", version, about, long_about = None)]
+pub struct Cli {
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+pub enum Command {
+    /// Print sample counts, angle ranges, channels and metadata of profile files.
+    Inspect(inspect::Args),
+}
+
+/// Parse the command line, run, print errors; the exit code says whether it worked.
+pub fn main() -> std::process::ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Inspect(a) => inspect::run(a),
+    };
+    match result {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            std::process::ExitCode::FAILURE
+        }
+    }
+}

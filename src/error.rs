@@ -1,0 +1,63 @@
+//! Library error type. Every variant names the place that is wrong: a file with line and
+//! column, an array in an npz archive, or a parameter with its bound. The binary adds
+//! context with `anyhow`; the library never panics on user input.
+
+use std::path::PathBuf;
+
+/// Result alias used across the library.
+pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Errors a user can cause with bad input or a bad environment.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// The file system refused an operation on `path`.
+    #[error("{}: {source}", path.display())]
+    Io {
+        path: PathBuf,
+        #[source]
+        source: std::io::Error,
+    },
+    /// A text file is malformed at a known line (1-based) and column.
+    /// `column` is a human label: "column 3 (phi)" or "column 12".
+    #[error("{}:{line}: {column}: {msg}", file.display())]
+    Parse {
+        file: PathBuf,
+        line: usize,
+        column: String,
+        msg: String,
+    },
+    /// A binary array file (npy/npz) is malformed; `array` names the array.
+    #[error("{}: array '{array}': {msg}", file.display())]
+    Array {
+        file: PathBuf,
+        array: String,
+        msg: String,
+    },
+    /// A parameter is outside its hard bound, or a parameter file is malformed.
+    #[error("parameter '{key}': {msg}")]
+    Param { key: String, msg: String },
+    /// A file as a whole is unusable (empty, unknown format, no valid sample ...).
+    #[error("{}: {msg}", file.display())]
+    File { file: PathBuf, msg: String },
+    /// Invalid option or argument that is not tied to a file.
+    #[error("{0}")]
+    Invalid(String),
+}
+
+impl Error {
+    /// Wrap an I/O error with the path it concerns.
+    pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
+        Error::Io {
+            path: path.into(),
+            source,
+        }
+    }
+
+    /// A whole-file error.
+    pub fn file(file: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
+        Error::File {
+            file: file.into(),
+            msg: msg.into(),
+        }
+    }
+}

@@ -1,0 +1,21 @@
+//! furfit: fit, check and preview the 5-lobe fur fiber BCSDF of Yan et al. 2017
+//! ("An Efficient and Practical Near and Far Field Fur Reflectance Model", the seed paper
+//! `000_85b68d9b3972f7ab.txt`) with the conventions of `shared/spec/MODEL.md`.
+//!
+//! The pipeline, module by module (see `ARCHITECTURE.md`):
+//! [`params`] -> [`profile`] (load) -> [`model`] (near / far / multi-scale BCSDF) ->
+//! [`fit`] -> [`report`]; [`simulate`] is the independent virtual goniometer that makes
+//! `measurements/`; [`render`] previews fitted fur. The binary's [`cli`] only parses
+//! arguments and prints.
+
+pub mod cli;
+pub mod error;
+pub mod grid;
+pub mod io;
+pub mod model;
+pub mod params;
+pub mod profile;
+
+pub use error::{Error, Result};
+pub use params::{FurParams, ParamId};
+pub use profile::{Profile, Sample};

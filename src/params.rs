@@ -1,0 +1,509 @@
+//! The ten fur fiber parameters (seed Table 1), their hard bounds (MODEL.md), the seed
+//! Table 4 presets, and the JSON parameter-file format of DATA.md.
+//!
+//! Inside the library every angle is in radians; files and the command line use degrees.
+//! Lengths (absorption and scattering coefficients) are per unit fiber radius.
+
+use crate::error::{Error, Result};
+use serde_json::{Map, Value};
+use std::path::Path;
+
+/// Number of model parameters.
+pub const N_PARAMS: usize = 10;
+
+/// One of the ten parameters, in the fixed order used by vectors and tables.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ParamId {
+    Eta,
+    Kappa,
+    Alpha,
+    BetaM,
+    BetaN,
+    SigmaCA,
+    SigmaMS,
+    SigmaMA,
+    G,
+    L,
+}
+
+impl ParamId {
+    /// All parameters in file/table order (MODEL.md's table).
+    pub const ALL: [ParamId; N_PARAMS] = [
+        ParamId::Eta,
+        ParamId::Kappa,
+        ParamId::Alpha,
+        ParamId::BetaM,
+        ParamId::BetaN,
+        ParamId::SigmaCA,
+        ParamId::SigmaMS,
+        ParamId::SigmaMA,
+        ParamId::G,
+        ParamId::L,
+    ];
+
+    /// Position in [`ParamId::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The specification (name, unit, bounds) of this parameter.
+    pub fn spec(self) -> &'static ParamSpec {
+        &SPECS[self.index()]
+    }
+
+    /// Look a parameter up by its file key (`eta`, `beta_m`, ...).
+    pub fn from_name(name: &str) -> Option<ParamId> {
+        ParamId::ALL.into_iter().find(|p| p.spec().name == name)
+    }
+}
+
+/// Name, unit and hard bounds of one parameter. Bounds are in file units (degrees for
+/// angles); `lower_open`/`upper_open` say whether the bound itself is excluded.
+#[derive(Clone, Copy, Debug)]
+pub struct ParamSpec {
+    pub name: &'static str,
+    pub meaning: &'static str,
+    pub unit: &'static str,
+    pub lower: f64,
+    pub lower_open: bool,
+    pub upper: f64,
+    pub upper_open: bool,
+    /// Angle in degrees in files, radians inside.
+    pub is_angle: bool,
+}
+
+impl ParamSpec {
+    /// Is `v` (file units) inside the hard bounds?
+    pub fn contains(&self, v: f64) -> bool {
+        if !v.is_finite() {
+            return false;
+        }
+        let lo = if self.lower_open {
+            v > self.lower
+        } else {
+            v >= self.lower
+        };
+        let hi = if self.upper_open {
+            v < self.upper
+        } else {
+            v <= self.upper
+        };
+        lo && hi
+    }
+
+    /// The bound as interval notation, e.g. `(1, 3]`.
+    pub fn bound_text(&self) -> String {
+        let up = if self.upper.is_infinite() {
+            "inf".to_string()
+        } else {
+            fmt_num(self.upper)
+        };
+        format!(
+            "{}{}, {}{}",
+            if self.lower_open { '(' } else { '[' },
+            fmt_num(self.lower),
+            up,
+            if self.upper_open || self.upper.is_infinite() {
+                ')'
+            } else {
+                ']'
+            }
+        )
+    }
+
+    /// File units -> internal units.
+    pub fn to_internal(&self, v: f64) -> f64 {
+        if self.is_angle {
+            v.to_radians()
+        } else {
+            v
+        }
+    }
+
+    /// Internal units -> file units.
+    pub fn to_file(&self, v: f64) -> f64 {
+        if self.is_angle {
+            v.to_degrees()
+        } else {
+            v
+        }
+    }
+}
+
+fn fmt_num(v: f64) -> String {
+    if v.fract() == 0.0 {
+        format!("{}", v as i64)
+    } else {
+        format!("{v}")
+    }
+}
+
+const INF: f64 = f64::INFINITY;
+
+/// Hard bounds exactly as MODEL.md's table.
+pub const SPECS: [ParamSpec; N_PARAMS] = [
+    spec("eta", "IOR of cortex and medulla", "-", 1.0, true, 3.0, false, false),
+    spec("kappa", "medulla radius / fiber radius", "-", 0.0, false, 1.0, true, false),
+    spec("alpha", "cuticle scale tilt", "deg", -20.0, false, 20.0, false, true),
+    spec("beta_m", "longitudinal roughness", "deg", 0.0, true, 60.0, false, true),
+    spec("beta_n", "azimuthal roughness", "deg", 0.0, true, 90.0, false, true),
+    spec("sigma_c_a", "cortex absorption", "1/radius", 0.0, false, INF, true, false),
+    spec("sigma_m_s", "medulla scattering", "1/radius", 0.0, false, INF, true, false),
+    spec("sigma_m_a", "medulla absorption", "1/radius", 0.0, false, INF, true, false),
+    spec("g", "HG anisotropy in the medulla", "-", -1.0, true, 1.0, true, false),
+    spec("l", "cuticle layers", "-", 0.0, true, 10.0, false, false),
+];
+
+#[allow(clippy::too_many_arguments)]
+const fn spec(
+    name: &'static str,
+    meaning: &'static str,
+    unit: &'static str,
+    lower: f64,
+    lower_open: bool,
+    upper: f64,
+    upper_open: bool,
+    is_angle: bool,
+) -> ParamSpec {
+    ParamSpec {
+        name,
+        meaning,
+        unit,
+        lower,
+        lower_open,
+        upper,
+        upper_open,
+        is_angle,
+    }
+}
+
+/// The ten parameters of the 5-lobe fur BCSDF, in internal units (radians, 1/radius).
+/// Construct through [`FurParams::from_file_units`] or [`FurParams::new_checked`] so the
+/// hard bounds are enforced once, at the boundary.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FurParams {
+    pub eta: f64,
+    pub kappa: f64,
+    pub alpha: f64,
+    pub beta_m: f64,
+    pub beta_n: f64,
+    pub sigma_c_a: f64,
+    pub sigma_m_s: f64,
+    pub sigma_m_a: f64,
+    pub g: f64,
+    pub l: f64,
+}
+
+impl FurParams {
+    /// Internal-unit vector in [`ParamId::ALL`] order.
+    pub fn to_array(&self) -> [f64; N_PARAMS] {
+        [
+            self.eta,
+            self.kappa,
+            self.alpha,
+            self.beta_m,
+            self.beta_n,
+            self.sigma_c_a,
+            self.sigma_m_s,
+            self.sigma_m_a,
+            self.g,
+            self.l,
+        ]
+    }
+
+    /// From an internal-unit vector; no validation (use [`FurParams::validate`]).
+    pub fn from_array(a: [f64; N_PARAMS]) -> Self {
+        FurParams {
+            eta: a[0],
+            kappa: a[1],
+            alpha: a[2],
+            beta_m: a[3],
+            beta_n: a[4],
+            sigma_c_a: a[5],
+            sigma_m_s: a[6],
+            sigma_m_a: a[7],
+            g: a[8],
+            l: a[9],
+        }
+    }
+
+    /// Value of one parameter, internal units.
+    pub fn get(&self, id: ParamId) -> f64 {
+        self.to_array()[id.index()]
+    }
+
+    /// Set one parameter, internal units; no validation.
+    pub fn set(&mut self, id: ParamId, v: f64) {
+        let mut a = self.to_array();
+        a[id.index()] = v;
+        *self = FurParams::from_array(a);
+    }
+
+    /// File-unit vector (degrees for angles).
+    pub fn to_file_units(&self) -> [f64; N_PARAMS] {
+        let mut a = self.to_array();
+        for id in ParamId::ALL {
+            a[id.index()] = id.spec().to_file(a[id.index()]);
+        }
+        a
+    }
+
+    /// From file units (degrees), validated against the hard bounds.
+    pub fn from_file_units(a: [f64; N_PARAMS]) -> Result<Self> {
+        for id in ParamId::ALL {
+            check_bound(id, a[id.index()])?;
+        }
+        let mut b = a;
+        for id in ParamId::ALL {
+            b[id.index()] = id.spec().to_internal(a[id.index()]);
+        }
+        Ok(FurParams::from_array(b))
+    }
+
+    /// Internal units, validated.
+    pub fn new_checked(a: [f64; N_PARAMS]) -> Result<Self> {
+        let p = FurParams::from_array(a);
+        p.validate()?;
+        Ok(p)
+    }
+
+    /// Check every parameter against its hard bound; the error names the key and bound.
+    pub fn validate(&self) -> Result<()> {
+        for (id, v) in ParamId::ALL.into_iter().zip(self.to_file_units()) {
+            check_bound(id, v)?;
+        }
+        Ok(())
+    }
+
+    /// A seed Table 4 preset by name (`bobcat`, `cat`, `deer`, `dog`, `mouse`, `rabbit`,
+    /// `raccoon`, `red-fox`, `springbok`, `human`). Also accepts `red_fox`/`redfox`.
+    pub fn preset(name: &str) -> Option<FurParams> {
+        let key = name.to_ascii_lowercase().replace(['_', ' '], "-");
+        let key = if key == "redfox" { "red-fox".to_string() } else { key };
+        PRESETS
+            .iter()
+            .find(|p| p.name == key)
+            .map(|p| FurParams::from_file_units(p.values).expect("presets are within bounds"))
+    }
+
+    /// Parse a parameter JSON object (DATA.md "Parameter files"). Returns the parameters
+    /// and the optional exposure (default 1). `origin` names the source in errors.
+    pub fn from_json_value(v: &Value) -> Result<(FurParams, f64)> {
+        let obj = v.as_object().ok_or_else(|| Error::Param {
+            key: "<file>".into(),
+            msg: "a parameter file must be a JSON object".into(),
+        })?;
+        // A fit file: take its `params` object (and its exposure).
+        if let Some(inner) = obj.get("params") {
+            let (p, _) = FurParams::from_json_value(inner)?;
+            let k = match obj.get("exposure") {
+                Some(e) => parse_exposure(e)?,
+                None => 1.0,
+            };
+            return Ok((p, k));
+        }
+        let mut vals = [f64::NAN; N_PARAMS];
+        let mut seen = [false; N_PARAMS];
+        let mut exposure = 1.0;
+        for (key, val) in obj {
+            if key == "exposure" {
+                exposure = parse_exposure(val)?;
+                continue;
+            }
+            let id = ParamId::from_name(key).ok_or_else(|| Error::Param {
+                key: key.clone(),
+                msg: format!(
+                    "unknown key (expected one of: {})",
+                    ParamId::ALL.map(|p| p.spec().name).join(", ")
+                ),
+            })?;
+            let x = json_number(val).ok_or_else(|| Error::Param {
+                key: key.clone(),
+                msg: format!("expected a number, found {val}"),
+            })?;
+            vals[id.index()] = x;
+            seen[id.index()] = true;
+        }
+        if let Some(missing) = ParamId::ALL.into_iter().find(|p| !seen[p.index()]) {
+            return Err(Error::Param {
+                key: missing.spec().name.into(),
+                msg: "missing key".into(),
+            });
+        }
+        Ok((FurParams::from_file_units(vals)?, exposure))
+    }
+
+    /// The parameter JSON object (file units), keys in table order.
+    pub fn to_json_value(&self) -> Value {
+        let mut m = Map::new();
+        for (id, v) in ParamId::ALL.into_iter().zip(self.to_file_units()) {
+            m.insert(id.spec().name.into(), Value::from(v));
+        }
+        Value::Object(m)
+    }
+
+    /// Load parameters from a preset name, a parameter JSON file or a fit JSON file.
+    /// Returns parameters and exposure.
+    pub fn load(spec: &str) -> Result<(FurParams, f64)> {
+        if let Some(p) = FurParams::preset(spec) {
+            if !Path::new(spec).exists() {
+                return Ok((p, 1.0));
+            }
+        }
+        let path = Path::new(spec);
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::NotFound {
+                Error::Invalid(format!(
+                    "'{spec}' is neither a parameter/fit file nor a preset (presets: {})",
+                    PRESETS.map(|p| p.name).join(", ")
+                ))
+            } else {
+                Error::io(path, e)
+            }
+        })?;
+        let v: Value = serde_json::from_str(&text).map_err(|e| Error::Parse {
+            file: path.into(),
+            line: e.line(),
+            column: format!("column {}", e.column()),
+            msg: format!("invalid JSON: {e}"),
+        })?;
+        FurParams::from_json_value(&v).map_err(|e| match e {
+            Error::Param { key, msg } => Error::Param {
+                key,
+                msg: format!("{msg} (in {})", path.display()),
+            },
+            other => other,
+        })
+    }
+}
+
+fn json_number(v: &Value) -> Option<f64> {
+    v.as_f64()
+}
+
+fn parse_exposure(v: &Value) -> Result<f64> {
+    match json_number(v) {
+        Some(k) if k.is_finite() && k > 0.0 => Ok(k),
+        _ => Err(Error::Param {
+            key: "exposure".into(),
+            msg: format!("must be a finite number > 0, found {v}"),
+        }),
+    }
+}
+
+fn check_bound(id: ParamId, v: f64) -> Result<()> {
+    let s = id.spec();
+    if s.contains(v) {
+        Ok(())
+    } else {
+        Err(Error::Param {
+            key: s.name.into(),
+            msg: format!(
+                "value {v} is outside its hard bound {} {}",
+                s.bound_text(),
+                s.unit
+            ),
+        })
+    }
+}
+
+/// A named preset: seed Table 4, file units, in [`ParamId::ALL`] order
+/// (eta, kappa, alpha, beta_m, beta_n, sigma_c_a, sigma_m_s, sigma_m_a, g, l).
+///
+/// The paper labels the absorption/scattering rows "diameter^-1" but states that "all
+/// length-related parameters are calculated assuming the azimuthal section of every fiber is
+/// a unit circle"; we take the numbers as they stand, per unit radius, as MODEL.md says.
+#[derive(Clone, Copy, Debug)]
+pub struct Preset {
+    pub name: &'static str,
+    pub values: [f64; N_PARAMS],
+    /// NRMSE the paper reports for its own fit (Table 4, "ours"), as a fraction.
+    pub paper_nrmse: f64,
+    /// NRMSE the paper reports for Yan et al. 2015 (Table 4), as a fraction.
+    pub paper_nrmse_yan2015: f64,
+}
+
+/// Seed Table 4, column by column.
+pub const PRESETS: [Preset; 10] = [
+    preset("bobcat", [1.69, 0.88, 5.48, 11.64, 7.49, 0.64, 1.69, 0.17, 0.44, 0.47], 0.068, 0.072),
+    preset("cat", [1.36, 0.87, 3.65, 5.66, 1.34, 0.06, 2.47, 0.12, 0.60, 0.44], 0.064, 0.053),
+    preset("deer", [1.60, 0.91, 3.52, 7.00, 4.53, 1.39, 2.51, 0.09, 0.46, 0.45], 0.071, 0.079),
+    preset("dog", [1.58, 0.68, 2.94, 5.77, 18.94, 0.01, 2.44, 0.00, 0.26, 0.60], 0.073, 0.091),
+    preset("mouse", [1.35, 0.66, 0.55, 8.39, 2.80, 0.04, 1.34, 0.06, 0.36, 2.36], 0.047, 0.085),
+    preset("rabbit", [1.47, 0.79, 3.14, 11.91, 10.52, 0.24, 0.78, 0.10, 0.12, 1.03], 0.060, 0.084),
+    preset("raccoon", [1.19, 0.65, 1.81, 7.44, 6.88, 0.25, 2.30, 0.14, 0.08, 2.00], 0.097, 0.101),
+    preset("red-fox", [1.49, 0.86, 2.64, 9.45, 17.63, 0.39, 3.15, 0.21, 0.79, 0.68], 0.062, 0.063),
+    preset("springbok", [1.48, 0.82, 4.61, 8.02, 11.46, 0.32, 2.45, 0.31, 0.19, 0.46], 0.081, 0.070),
+    preset("human", [1.20, 0.36, 0.70, 2.05, 3.75, 0.41, 3.49, 0.00, 0.28, 1.79], 0.161, 0.193),
+];
+
+const fn preset(name: &'static str, values: [f64; N_PARAMS], ours: f64, yan: f64) -> Preset {
+    Preset {
+        name,
+        values,
+        paper_nrmse: ours,
+        paper_nrmse_yan2015: yan,
+    }
+}
+
+/// Find a preset's record (for the paper's NRMSE) by name.
+pub fn preset_record(name: &str) -> Option<&'static Preset> {
+    let key = name.to_ascii_lowercase().replace(['_', ' '], "-");
+    PRESETS.iter().find(|p| p.name == key)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_load_and_are_in_bounds() {
+        for p in PRESETS {
+            let fp = FurParams::preset(p.name).unwrap();
+            fp.validate().unwrap();
+            // Degrees in, radians inside: alpha round trips to 1e-12 deg (float rounding).
+            assert!((fp.alpha.to_degrees() - p.values[2]).abs() < 1e-12);
+        }
+        assert!(FurParams::preset("Red Fox").is_some());
+        assert!(FurParams::preset("unicorn").is_none());
+    }
+
+    #[test]
+    fn bound_errors_name_key_and_bound() {
+        let mut v = PRESETS[0].values;
+        v[ParamId::Kappa.index()] = 1.0;
+        let e = FurParams::from_file_units(v).unwrap_err().to_string();
+        assert!(e.contains("kappa") && e.contains("[0, 1)"), "{e}");
+        let mut v = PRESETS[0].values;
+        v[ParamId::BetaN.index()] = 0.0;
+        let e = FurParams::from_file_units(v).unwrap_err().to_string();
+        assert!(e.contains("beta_n") && e.contains("(0, 90]"), "{e}");
+        let mut v = PRESETS[0].values;
+        v[ParamId::SigmaCA.index()] = f64::NAN;
+        let e = FurParams::from_file_units(v).unwrap_err().to_string();
+        assert!(e.contains("sigma_c_a") && e.contains("[0, inf)"), "{e}");
+    }
+
+    #[test]
+    fn json_round_trip_and_errors() {
+        let p = FurParams::preset("red-fox").unwrap();
+        let v = p.to_json_value();
+        let (q, k) = FurParams::from_json_value(&v).unwrap();
+        assert_eq!(k, 1.0);
+        for (a, b) in p.to_array().iter().zip(q.to_array()) {
+            // deg -> rad -> deg -> rad: a few ulps at most.
+            assert!((a - b).abs() <= 1e-15 * a.abs().max(1.0));
+        }
+        let mut bad = v.clone();
+        bad.as_object_mut().unwrap().insert("bogus".into(), 1.0.into());
+        let e = FurParams::from_json_value(&bad).unwrap_err().to_string();
+        assert!(e.contains("bogus"), "{e}");
+        let mut missing = v.clone();
+        missing.as_object_mut().unwrap().remove("g");
+        let e = FurParams::from_json_value(&missing).unwrap_err().to_string();
+        assert!(e.contains("'g'") && e.contains("missing"), "{e}");
+        let fit = serde_json::json!({"params": v, "exposure": 2.5});
+        let (_, k) = FurParams::from_json_value(&fit).unwrap();
+        assert_eq!(k, 2.5);
+    }
+}
