@@ -56,7 +56,10 @@ mod tests {
         assert_eq!(parse_grid("x", "0,15,30").unwrap(), vec![0.0, 15.0, 30.0]);
         assert_eq!(parse_grid("x", "0:1:0.1").unwrap().len(), 11);
         assert!(parse_grid("x", "0:1:0").is_err());
-        assert!(parse_grid("x", "a,b").unwrap_err().to_string().contains("'a'"));
+        assert!(parse_grid("x", "a,b")
+            .unwrap_err()
+            .to_string()
+            .contains("'a'"));
         assert!(parse_grid("x", "").is_err());
     }
 }

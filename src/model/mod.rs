@@ -1,1 +1,348 @@
-//! The 5-lobe fur fiber BCSDF (seed paper Sections 3-5).
+//! The 5-lobe fur BCSDF of the seed paper (Sections 3-5): unscattered lobes R, TT, TRT and
+//! medulla-scattered lobes TTs, TRTs, with the conventions of MODEL.md.
+//!
+//! [`FurModel`] is built once per parameter set and is the one copy of the physics used by
+//! the fitter, profile synthesis and the renderer. Per lobe it gives `M_p` (longitudinal,
+//! [`longitudinal`]) and `N_p` (azimuthal: near field in [`azimuthal`], far field and
+//! multi-scale integrate the same near-field terms over `h`). The value a goniometer sample
+//! predicts is `k * sum_p M_p N_p` (MODEL.md).
+
+pub mod azimuthal;
+pub mod fresnel;
+pub mod geometry;
+pub mod longitudinal;
+pub mod medulla;
+
+use crate::params::FurParams;
+use azimuthal::Absorption;
+use geometry::PathGeometry;
+use medulla::{MedullaSlice, MedullaTables};
+use std::f64::consts::PI;
+
+/// The five lobes, in the order used by [`LobeValues`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum Lobe {
+    R = 0,
+    TT = 1,
+    TRT = 2,
+    TTs = 3,
+    TRTs = 4,
+}
+
+impl Lobe {
+    pub const ALL: [Lobe; 5] = [Lobe::R, Lobe::TT, Lobe::TRT, Lobe::TTs, Lobe::TRTs];
+
+    /// Path order p: R 0, TT and TTs 1, TRT and TRTs 2.
+    pub fn p(self) -> usize {
+        match self {
+            Lobe::R => 0,
+            Lobe::TT | Lobe::TTs => 1,
+            Lobe::TRT | Lobe::TRTs => 2,
+        }
+    }
+
+    /// Is this a medulla-scattered lobe?
+    pub fn is_scattered(self) -> bool {
+        matches!(self, Lobe::TTs | Lobe::TRTs)
+    }
+
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Lobe::R => "R",
+            Lobe::TT => "TT",
+            Lobe::TRT => "TRT",
+            Lobe::TTs => "TTs",
+            Lobe::TRTs => "TRTs",
+        }
+    }
+
+    /// Parse a lobe name (case-insensitive).
+    pub fn from_name(s: &str) -> Option<Lobe> {
+        Lobe::ALL
+            .into_iter()
+            .find(|l| l.name().eq_ignore_ascii_case(s.trim()))
+    }
+}
+
+/// A subset of the five lobes (bit i = [`Lobe::ALL`]\[i\]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct LobeSet(pub u8);
+
+impl LobeSet {
+    pub const ALL: LobeSet = LobeSet(0b11111);
+    pub const UNSCATTERED: LobeSet = LobeSet(0b00111);
+    pub const SCATTERED: LobeSet = LobeSet(0b11000);
+    pub const NONE: LobeSet = LobeSet(0);
+
+    pub fn only(l: Lobe) -> LobeSet {
+        LobeSet(1 << l.index())
+    }
+
+    pub fn contains(self, l: Lobe) -> bool {
+        self.0 & (1 << l.index()) != 0
+    }
+
+    pub fn with(self, l: Lobe) -> LobeSet {
+        LobeSet(self.0 | (1 << l.index()))
+    }
+
+    pub fn intersect(self, o: LobeSet) -> LobeSet {
+        LobeSet(self.0 & o.0)
+    }
+
+    pub fn is_empty(self) -> bool {
+        self.0 == 0
+    }
+
+    pub fn iter(self) -> impl Iterator<Item = Lobe> {
+        Lobe::ALL.into_iter().filter(move |l| self.contains(*l))
+    }
+
+    /// Parse `R,TT,TRT,TTs,TRTs` (or `all`).
+    pub fn parse(s: &str) -> crate::Result<LobeSet> {
+        if s.trim().eq_ignore_ascii_case("all") {
+            return Ok(LobeSet::ALL);
+        }
+        let mut set = LobeSet::NONE;
+        for part in s.split(',') {
+            let l = Lobe::from_name(part).ok_or_else(|| {
+                crate::Error::Invalid(format!(
+                    "unknown lobe '{}' (expected R, TT, TRT, TTs, TRTs or all)",
+                    part.trim()
+                ))
+            })?;
+            set = set.with(l);
+        }
+        Ok(set)
+    }
+}
+
+/// One value per lobe, indexed by [`Lobe`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct LobeValues(pub [f64; 5]);
+
+impl LobeValues {
+    pub fn get(&self, l: Lobe) -> f64 {
+        self.0[l.index()]
+    }
+
+    pub fn set(&mut self, l: Lobe, v: f64) {
+        self.0[l.index()] = v;
+    }
+
+    pub fn sum(&self) -> f64 {
+        self.0.iter().sum()
+    }
+
+    /// Element-wise product.
+    pub fn mul(&self, o: &LobeValues) -> LobeValues {
+        let mut r = *self;
+        for i in 0..5 {
+            r.0[i] *= o.0[i];
+        }
+        r
+    }
+}
+
+impl std::ops::Index<Lobe> for LobeValues {
+    type Output = f64;
+    fn index(&self, l: Lobe) -> &f64 {
+        &self.0[l.index()]
+    }
+}
+
+/// The fur BCSDF for one parameter set, with everything that depends only on the
+/// parameters precomputed (the `tau`/`g` slice of the medulla tables).
+#[derive(Clone, Debug)]
+pub struct FurModel {
+    pub params: FurParams,
+    /// `None` when no scattered lobe can exist (`kappa = 0` or `sigma_m_s = 0`): then the
+    /// whole scattered path is skipped and TTs/TRTs are exactly zero.
+    medulla: Option<MedullaSlice>,
+}
+
+impl FurModel {
+    /// Build the model with the shipped medulla tables. `params` must already be validated
+    /// (see [`FurParams::validate`]).
+    pub fn new(params: &FurParams) -> FurModel {
+        FurModel::with_tables(params, MedullaTables::builtin())
+    }
+
+    /// Build the model with the given medulla tables.
+    pub fn with_tables(params: &FurParams, tables: &MedullaTables) -> FurModel {
+        let medulla = if params.kappa > 0.0 && params.sigma_m_s > 0.0 {
+            Some(tables.slice(params.sigma_m_s * params.kappa, params.g))
+        } else {
+            None
+        };
+        FurModel {
+            params: *params,
+            medulla,
+        }
+    }
+
+    /// Do the scattered lobes exist for these parameters?
+    pub fn has_scattered(&self) -> bool {
+        self.medulla.is_some()
+    }
+
+    /// The lobes that can be non-zero for these parameters (TTs/TRTs left out when
+    /// `kappa = 0` or `sigma_m_s = 0`).
+    pub fn active_lobes(&self) -> LobeSet {
+        if self.has_scattered() {
+            LobeSet::ALL
+        } else {
+            LobeSet::UNSCATTERED
+        }
+    }
+
+    /// The medulla table slice for these parameters, if scattered lobes exist.
+    pub fn medulla(&self) -> Option<&MedullaSlice> {
+        self.medulla.as_ref()
+    }
+
+    /// Longitudinal lobes for all five lobes: `M_p(theta_i, theta_r)` for R, TT, TRT (seed
+    /// Eq. 5, Table 2) and `M_s(theta_i, theta_r, phi)` for TTs and TRTs (seed Eq. 19).
+    pub fn longitudinal(&self, theta_i: f64, theta_r: f64, phi: f64, lobes: LobeSet) -> LobeValues {
+        let p = &self.params;
+        let mut m = LobeValues::default();
+        for l in [Lobe::R, Lobe::TT, Lobe::TRT] {
+            if lobes.contains(l) {
+                m.set(
+                    l,
+                    longitudinal::m_p(l.p(), theta_i, theta_r, p.alpha, p.beta_m),
+                );
+            }
+        }
+        if let Some(med) = &self.medulla {
+            if lobes.contains(Lobe::TTs) || lobes.contains(Lobe::TRTs) {
+                let ms = med.cm_lerp(theta_i, theta_r, phi);
+                m.set(Lobe::TTs, ms);
+                m.set(Lobe::TRTs, ms);
+            }
+        }
+        m
+    }
+
+    /// The azimuthal model at one `theta_d` (everything that depends on `theta_d` only).
+    pub fn azimuthal(&self, theta_d: f64) -> AzimuthalSlice<'_> {
+        let p = &self.params;
+        let cos_d = theta_d.cos().max(geometry::MIN_COS_THETA_D);
+        AzimuthalSlice {
+            model: self,
+            cos_theta_d: cos_d,
+            eta_prime: geometry::eta_prime(p.eta, cos_d),
+            absorption: Absorption {
+                sigma_c_a: p.sigma_c_a,
+                sigma_m_t: p.sigma_m_a + p.sigma_m_s,
+                sigma_m_a: p.sigma_m_a,
+                kappa: p.kappa,
+                inv_cos_d: 1.0 / cos_d,
+            },
+        }
+    }
+
+    /// Near-field BCSDF per lobe at offset `h`: `M_p(theta_i, theta_r) N_p(h, phi)` for the
+    /// lobes in `lobes` (others 0). Summed over lobes this is what a goniometer sample
+    /// predicts before the exposure `k` (MODEL.md).
+    pub fn eval_near(
+        &self,
+        theta_i: f64,
+        theta_r: f64,
+        phi: f64,
+        h: f64,
+        lobes: LobeSet,
+    ) -> LobeValues {
+        let lobes = lobes.intersect(self.active_lobes());
+        let m = self.longitudinal(theta_i, theta_r, phi, lobes);
+        let n = self
+            .azimuthal(geometry::theta_d(theta_i, theta_r))
+            .near(h, phi, lobes);
+        m.mul(&n)
+    }
+}
+
+/// The azimuthal part of the model at a fixed `theta_d`.
+#[derive(Clone, Copy, Debug)]
+pub struct AzimuthalSlice<'a> {
+    pub model: &'a FurModel,
+    pub cos_theta_d: f64,
+    /// Bravais index `eta'` (seed Eq. 3).
+    pub eta_prime: f64,
+    pub absorption: Absorption,
+}
+
+impl AzimuthalSlice<'_> {
+    /// Path geometry for entry offset `h`.
+    pub fn geometry(&self, h: f64) -> PathGeometry {
+        PathGeometry::new(h, self.eta_prime, self.model.params.kappa)
+    }
+
+    /// Layered cuticle reflectance `F(eta', gamma_i, l)` at this path.
+    pub fn cuticle(&self, geo: &PathGeometry) -> f64 {
+        fresnel::cuticle_reflectance(self.eta_prime, geo.cos_gamma_i, self.model.params.l)
+    }
+
+    /// Attenuation `A_p(h)` (R, TT, TRT; seed Eqs. 13-14) and `A^s_p(h)` (TTs, TRTs; Eq. 20)
+    /// for the lobes in `lobes`.
+    pub fn attenuation(&self, geo: &PathGeometry, lobes: LobeSet) -> LobeValues {
+        let f = self.cuticle(geo);
+        let mut a = LobeValues::default();
+        for l in lobes.intersect(self.model.active_lobes()).iter() {
+            let v = if l.is_scattered() {
+                azimuthal::a_s_p(l.p(), f, geo, &self.absorption)
+            } else {
+                azimuthal::a_p(l.p(), f, geo, &self.absorption)
+            };
+            a.set(l, v);
+        }
+        a
+    }
+
+    /// Centre of lobe `l` at this path: `Phi_p(h)` for unscattered lobes (Eq. 15), the
+    /// undeflected exit azimuth `Phi^s_p(h) + pi` of the p-th segment for scattered ones
+    /// (Eq. 21; see [`azimuthal`]'s frame note).
+    pub fn center(&self, l: Lobe, geo: &PathGeometry) -> f64 {
+        if l.is_scattered() {
+            azimuthal::phi_s_p(l.p(), geo) + PI
+        } else {
+            azimuthal::phi_p(l.p(), geo)
+        }
+    }
+
+    /// Azimuthal distribution of lobe `l` at this path: `D_p` (Eq. 7) or `D^s_p = C^N`
+    /// (Eq. 10). Zero for scattered lobes when they do not exist.
+    pub fn distribution(&self, l: Lobe, geo: &PathGeometry, phi: f64) -> f64 {
+        if l.is_scattered() {
+            match &self.model.medulla {
+                Some(med) => {
+                    let x = azimuthal::medulla_offset(geo, self.model.params.kappa);
+                    med.cn(x, azimuthal::psi_s_p(l.p(), geo, phi))
+                }
+                None => 0.0,
+            }
+        } else {
+            azimuthal::d_p(l.p(), geo, phi, self.model.params.beta_n)
+        }
+    }
+
+    /// Near-field azimuthal scattering `N_p(h, phi) = A_p(h) D_p(h, phi)` (Eqs. 6, 9) for
+    /// the lobes in `lobes`.
+    pub fn near(&self, h: f64, phi: f64, lobes: LobeSet) -> LobeValues {
+        let geo = self.geometry(h);
+        let mut n = self.attenuation(&geo, lobes);
+        for l in Lobe::ALL {
+            if n.get(l) != 0.0 {
+                n.set(l, n.get(l) * self.distribution(l, &geo, phi));
+            }
+        }
+        n
+    }
+}
+
+#[cfg(test)]
+mod tests;
