@@ -42,7 +42,9 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
             a.distinct,
             a.min,
             a.max,
-            a.step.map(|s| format!("{s} deg")).unwrap_or_else(|| "-".into())
+            a.step
+                .map(|s| format!("{s} deg"))
+                .unwrap_or_else(|| "-".into())
         ),
     }
 }

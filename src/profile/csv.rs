@@ -1,6 +1,7 @@
 //! The DATA.md CSV profile format: reader and writer.
 //!
 //! # Reading
+//! - Each record is one line (a quoted field may not span lines).
 //! - Lines before the header that start with `#` are metadata `# key: value` (split at the
 //!   first `:`, both sides trimmed), kept in file order. A `#` line without a `:` or with
 //!   an empty key is a free comment and ignored. Blank lines and `#` lines are tolerated
@@ -50,39 +51,57 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
         msg,
     };
 
-    // Pass 1: metadata lines and the header's line number.
+    // Pass 1: metadata lines before the header; blank and comment lines dropped everywhere.
+    // The remaining lines go to the csv reader, with a table back to the file's line
+    // numbers (the csv crate does not count lines it is not given).
     let mut metadata = Vec::new();
     let mut header_line = None;
+    let mut kept: Vec<u8> = Vec::with_capacity(bytes.len());
+    let mut orig_line: Vec<usize> = Vec::new();
     for (k, raw) in bytes.split(|b| *b == b'\n').enumerate() {
-        let text = String::from_utf8_lossy(raw);
-        let mut t = text.trim();
-        if k == 0 {
-            t = t.trim_start_matches('\u{feff}').trim();
-        }
+        let raw = if k == 0 {
+            raw.strip_prefix("\u{feff}".as_bytes()).unwrap_or(raw)
+        } else {
+            raw
+        };
+        let t = raw.trim_ascii();
         if t.is_empty() {
             continue;
         }
-        if let Some(c) = t.strip_prefix('#') {
-            if let Some((key, val)) = c.split_once(':') {
-                let key = key.trim();
-                if !key.is_empty() {
-                    metadata.push((key.to_string(), val.trim().to_string()));
+        if let Some(c) = t.strip_prefix(b"#") {
+            if header_line.is_none() {
+                let c = String::from_utf8_lossy(c);
+                if let Some((key, val)) = c.split_once(':') {
+                    let key = key.trim();
+                    if !key.is_empty() {
+                        metadata.push((key.to_string(), val.trim().to_string()));
+                    }
                 }
             }
             continue;
         }
-        header_line = Some(k + 1);
-        break;
+        header_line.get_or_insert(k + 1);
+        kept.extend_from_slice(raw);
+        kept.push(b'\n');
+        orig_line.push(k + 1);
     }
-    let header_line = header_line
-        .ok_or_else(|| Error::file(path, "empty file: no header line (expected theta_i,theta_r,phi,value)"))?;
+    let header_line = header_line.ok_or_else(|| {
+        Error::file(
+            path,
+            "empty file: no header line (expected theta_i,theta_r,phi,value)",
+        )
+    })?;
+    let line_of = |pos: Option<&::csv::Position>| -> usize {
+        pos.and_then(|p| orig_line.get((p.line() as usize).saturating_sub(1)))
+            .copied()
+            .unwrap_or(header_line)
+    };
 
     let mut rdr = ::csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
         .trim(::csv::Trim::All)
-        .comment(Some(b'#'))
-        .from_reader(bytes);
+        .from_reader(kept.as_slice());
 
     let mut header: Option<Vec<String>> = None;
     let mut cols = Columns::default();
@@ -92,26 +111,16 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     let mut record = ::csv::ByteRecord::new();
     loop {
         let more = rdr.read_byte_record(&mut record).map_err(|e| {
-            let line = e
-                .position()
-                .map(|p| p.line() as usize)
-                .unwrap_or(header_line);
-            perr(line, "-".into(), format!("unreadable CSV: {e}"))
+            perr(
+                line_of(e.position()),
+                "-".into(),
+                format!("unreadable CSV: {e}"),
+            )
         })?;
         if !more {
             break;
         }
-        let line = record
-            .position()
-            .map(|p| p.line() as usize)
-            .unwrap_or(0);
-        // Blank lines and comments (also indented ones) are skipped anywhere.
-        let first = record.get(0).unwrap_or(b"");
-        if (record.len() <= 1 && first.iter().all(|b| b.is_ascii_whitespace()))
-            || first.trim_ascii_start().starts_with(b"#")
-        {
-            continue;
-        }
+        let line = line_of(record.position());
         let Some(names) = &header else {
             let names: Vec<String> = record
                 .iter()
@@ -149,8 +158,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
                 .map_err(|_| perr(line, label(i), format!("'{t}' is not a number")))
         };
         let angle = |i: usize, limit: f64| -> Result<f64> {
-            let v = number(i)?
-                .ok_or_else(|| perr(line, label(i), "missing angle".into()))?;
+            let v = number(i)?.ok_or_else(|| perr(line, label(i), "missing angle".into()))?;
             check_angle(&names[i], v, limit).map_err(|m| perr(line, label(i), m))
         };
         let theta_i = angle(cols.theta_i, 90.0)?;
@@ -161,7 +169,9 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
             return Err(perr(
                 line,
                 label(cols.value),
-                format!("value {value} is infinite (write nan or leave it empty for a missing sample)"),
+                format!(
+                    "value {value} is infinite (write nan or leave it empty for a missing sample)"
+                ),
             ));
         }
         let sigma = match cols.sigma {
@@ -423,8 +433,8 @@ mod tests {
 
     #[test]
     fn identical_duplicates_collapse_with_a_note() {
-        let (pr, notes) = p("theta_i,theta_r,phi,value\n0,0,0,1\n0,0,0,1\n0,0,-180,2\n0,0,180,2\n")
-            .unwrap();
+        let (pr, notes) =
+            p("theta_i,theta_r,phi,value\n0,0,0,1\n0,0,0,1\n0,0,-180,2\n0,0,180,2\n").unwrap();
         assert_eq!(pr.samples.len(), 2);
         assert_eq!(notes.len(), 1);
         assert!(notes[0].contains('2'), "{}", notes[0]);
@@ -435,7 +445,10 @@ mod tests {
         let e = p("theta_i,theta_r,phi,value,sigma\n0,0,0,1,0.1\n0,0,0,1,0.2\n")
             .unwrap_err()
             .to_string();
-        assert!(e.contains("t.csv:3:") && e.contains("sigma") && e.contains("line 2"), "{e}");
+        assert!(
+            e.contains("t.csv:3:") && e.contains("sigma") && e.contains("line 2"),
+            "{e}"
+        );
     }
 
     #[test]
@@ -462,8 +475,8 @@ mod tests {
 
     #[test]
     fn sigma_rules() {
-        let (pr, _) = p("theta_i,theta_r,phi,value,sigma\n0,0,0,1,\n0,0,1,1,nan\n0,0,2,1,0.5\n")
-            .unwrap();
+        let (pr, _) =
+            p("theta_i,theta_r,phi,value,sigma\n0,0,0,1,\n0,0,1,1,nan\n0,0,2,1,0.5\n").unwrap();
         assert_eq!(pr.samples[0].sigma, None);
         assert_eq!(pr.samples[1].sigma, None);
         assert_eq!(pr.samples[2].sigma, Some(0.5));
@@ -484,8 +497,8 @@ mod tests {
 
     #[test]
     fn channels_in_first_appearance_order() {
-        let (pr, _) = p("channel,theta_i,theta_r,phi,value\ng,0,0,0,1\nr,0,0,0,2\ng,0,0,1,3\n")
-            .unwrap();
+        let (pr, _) =
+            p("channel,theta_i,theta_r,phi,value\ng,0,0,0,1\nr,0,0,0,2\ng,0,0,1,3\n").unwrap();
         assert_eq!(pr.channels, vec!["g".to_string(), "r".to_string()]);
         assert_eq!(
             pr.samples.iter().map(|s| s.channel).collect::<Vec<_>>(),

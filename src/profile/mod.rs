@@ -232,10 +232,7 @@ pub fn save(path: &Path, profile: &Profile) -> Result<()> {
         }
         f => Err(Error::file(
             path,
-            format!(
-                "cannot write {} files; save as .csv or .npz",
-                f.name()
-            ),
+            format!("cannot write {} files; save as .csv or .npz", f.name()),
         )),
     }
 }
@@ -346,8 +343,7 @@ pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
     let collapsed = dedupe(&mut out.samples, |first, dup, what| {
         Error::Invalid(format!(
             "{}: {what}; the first copy is in {}",
-            sources[origin[dup]],
-            sources[origin[first]]
+            sources[origin[dup]], sources[origin[first]]
         ))
     })?;
     Ok((out, collapsed))

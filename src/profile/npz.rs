@@ -151,9 +151,7 @@ fn read_float(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
     let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
     match h.kind() {
         ('f', 8) => ArrayD::<f64>::read_npy(bytes).map_err(npy),
-        ('f', 4) => Ok(ArrayD::<f32>::read_npy(bytes)
-            .map_err(npy)?
-            .mapv(f64::from)),
+        ('f', 4) => Ok(ArrayD::<f32>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
         _ => Err(arr_err(
             path,
             name,
@@ -168,9 +166,7 @@ fn read_bytes_array(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<u8>>
     let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
     match h.kind() {
         ('u', 1) => ArrayD::<u8>::read_npy(bytes).map_err(npy),
-        ('b', 1) => Ok(ArrayD::<bool>::read_npy(bytes)
-            .map_err(npy)?
-            .mapv(u8::from)),
+        ('b', 1) => Ok(ArrayD::<bool>::read_npy(bytes).map_err(npy)?.mapv(u8::from)),
         _ => Err(arr_err(
             path,
             name,
@@ -186,7 +182,9 @@ fn entry<R: Read + std::io::Seek>(
     name: &str,
 ) -> Result<Option<Vec<u8>>> {
     let want = format!("{name}.npy");
-    let idx = zip.index_for_name(&want).or_else(|| zip.index_for_name(name));
+    let idx = zip
+        .index_for_name(&want)
+        .or_else(|| zip.index_for_name(name));
     let Some(idx) = idx else { return Ok(None) };
     let mut f = zip
         .by_index(idx)
@@ -195,7 +193,13 @@ fn entry<R: Read + std::io::Seek>(
     (&mut f)
         .take(MAX_ARRAY_BYTES + 1)
         .read_to_end(&mut out)
-        .map_err(|e| arr_err(path, name, format!("truncated or corrupt archive entry: {e}")))?;
+        .map_err(|e| {
+            arr_err(
+                path,
+                name,
+                format!("truncated or corrupt archive entry: {e}"),
+            )
+        })?;
     if out.len() as u64 > MAX_ARRAY_BYTES {
         return Err(arr_err(path, name, "array too large"));
     }
@@ -519,10 +523,7 @@ pub fn to_bytes(profile: &Profile) -> Result<Vec<u8>> {
     let mut present = ArrayD::<u8>::zeros(IxDyn(&shape));
     let mut sigma = ArrayD::<f64>::from_elem(IxDyn(&shape), f64::NAN);
     let mut phi_i = ArrayD::<f64>::from_elem(IxDyn(&shape), f64::NAN);
-    let find = |a: &[f64], v: f64| {
-        a.binary_search_by(|x| x.total_cmp(&(v + 0.0)))
-            .unwrap_or(0)
-    };
+    let find = |a: &[f64], v: f64| a.binary_search_by(|x| x.total_cmp(&(v + 0.0))).unwrap_or(0);
     for s in &profile.samples {
         if s.channel >= nc {
             return Err(Error::Invalid(format!(

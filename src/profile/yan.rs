@@ -64,7 +64,8 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                     let v: f64 = val
                         .parse()
                         .map_err(|_| perr(line, col.clone(), format!("'{val}' is not a number")))?;
-                    let v = check_angle("theta_i", v, 90.0).map_err(|m| perr(line, col.clone(), m))?;
+                    let v =
+                        check_angle("theta_i", v, 90.0).map_err(|m| perr(line, col.clone(), m))?;
                     if let Some((old, l0)) = file_theta_i {
                         if old != v {
                             return Err(perr(
@@ -166,7 +167,11 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
         s.theta_i = theta_i;
     }
     let collapsed = dedupe(&mut samples, |i, j, what| {
-        perr(lines[j], label(2), format!("{what}; first on line {}", lines[i]))
+        perr(
+            lines[j],
+            label(2),
+            format!("{what}; first on line {}", lines[i]),
+        )
     })?;
     let mut notes = Vec::new();
     if collapsed > 0 {
