@@ -142,12 +142,15 @@ fn npy_bytes<A: WriteNpyExt>(a: &A) -> Vec<u8> {
 /// An uncompressed zip from (entry name, bytes) pairs, written with the `zip` crate so
 /// entries can be broken on purpose.
 fn zip_of(entries: &[(&str, Vec<u8>)]) -> Vec<u8> {
+    zip_with(entries, zip::CompressionMethod::Stored)
+}
+
+fn zip_with(entries: &[(&str, Vec<u8>)], method: zip::CompressionMethod) -> Vec<u8> {
     let mut w = zip::ZipWriter::new(std::io::Cursor::new(Vec::new()));
     for (name, bytes) in entries {
         w.start_file(
             *name,
-            zip::write::SimpleFileOptions::default()
-                .compression_method(zip::CompressionMethod::Stored),
+            zip::write::SimpleFileOptions::default().compression_method(method),
         )
         .unwrap();
         w.write_all(bytes).unwrap();
@@ -186,6 +189,26 @@ fn npz_well_formed_baseline_loads() {
     let p = t.write("ok.npz", &zip_of(&e));
     let pr = profile::load(&p, &LoadOptions::default()).unwrap();
     assert_eq!(pr.samples.len(), 24);
+}
+
+#[test]
+fn npz_compressed_like_savez_compressed_loads() {
+    let mut e = axes();
+    e.push(("value.npy", value(&[2, 3, 4])));
+    let bytes = zip_with(&e, zip::CompressionMethod::Deflated);
+    let t = Tmp::new();
+    let p = t.write("c.npz", &bytes);
+    let pr = profile::load(&p, &LoadOptions::default()).unwrap();
+    assert_eq!(pr.samples.len(), 24);
+    // A corrupted deflate stream is an error naming the array, not a panic.
+    let mut bad = bytes.clone();
+    let k = bad.len() / 2;
+    for b in &mut bad[k - 20..k] {
+        *b ^= 0x5a;
+    }
+    let t2 = Tmp::new();
+    let p2 = t2.write("c.npz", &bad);
+    assert!(profile::load(&p2, &LoadOptions::default()).is_err());
 }
 
 #[test]
