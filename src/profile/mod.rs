@@ -3,6 +3,19 @@
 //!
 //! Angles are stored in **degrees**, exactly as read, so that a profile round-trips through
 //! every format bit for bit; use [`Sample::angles_rad`] to get the radians the model needs.
+//!
+//! Entry points: [`load`] / [`load_full`] pick the reader by extension ([`csv`], [`npz`]
+//! for `.npz` and lone `.npy`, [`yan`] for `.txt`/`.dat`), [`save`] writes `.csv` or `.npz`
+//! atomically, [`load_dir`] reads and [`merge`]s a species folder. [`summary`] computes what
+//! `furfit inspect` prints.
+//!
+//! Choices shared by every reader (each documented again in its module):
+//! - angles are normalised once: `-0` -> `0` and `phi = -180` -> `180` (MODEL.md's
+//!   (-180, 180] wrap), so one direction has one spelling;
+//! - a repeated direction (same `theta_i, theta_r, phi, channel`) whose other fields are
+//!   identical is collapsed into its first occurrence with a note in [`Loaded::notes`]; a
+//!   repeat that differs is an error naming both places;
+//! - invalid values (NaN, `<= 0`) are kept as samples, never dropped.
 
 use crate::error::{Error, Result};
 use std::collections::HashMap;
@@ -195,7 +208,7 @@ pub struct Loaded {
 }
 
 /// Load a profile file, choosing the loader by extension: `.csv` ([`csv`]), `.npz`
-/// ([`npz`]), `.npy` ([`npz::read_npy_file`], needs the three axis grids in `opts`),
+/// ([`npz`]), `.npy` ([`npz::parse_npy`], needs the three axis grids in `opts`),
 /// `.txt`/`.dat` ([`yan`]). `Profile::source` is set to `path`.
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Profile> {
     load_full(path, opts).map(|l| l.profile)
@@ -293,8 +306,8 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
 }
 
 /// Merge profiles into one: channels are matched by name (the union, in order of first
-/// appearance), metadata entries are concatenated with exact repeats dropped, samples
-/// concatenated. A sample present in two parts with a different value is an error naming
+/// appearance; a part with one unnamed channel contributes to channel 0 of the merge),
+/// metadata entries are concatenated with exact repeats dropped, samples concatenated. A sample present in two parts with a different value is an error naming
 /// both sources; identical copies are collapsed (their count is returned).
 pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
     let mut out = Profile::default();
