@@ -42,7 +42,7 @@ fn build_then_info_tiny_tables() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(
-        text.contains("rank 3") && text.contains("MC noise"),
+        text.contains("rank  3") && text.contains("MC noise"),
         "{text}"
     );
 
