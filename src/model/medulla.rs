@@ -912,6 +912,24 @@ mod tests {
     }
 
     #[test]
+    fn thick_medulla_reflects_around_the_entry_normal() {
+        // Optically thick, isotropic: light diffuses out near the entry point, whose
+        // outward normal for offset x lies at psi = -asin(x) (same side as the paper's
+        // R lobe at phi = -2 asin(h) for positive h). So the density at psi = -asin(x) is
+        // well above its mirror image +asin(x) and far above straight-through.
+        let s = MedullaTables::builtin().slice(10.0, 0.0);
+        let x: f64 = 0.7;
+        let n = s.cn(x, -x.asin());
+        let m = s.cn(x, x.asin());
+        let fwd = s.cn(x, PI);
+        assert!(n > 1.5 * m, "{n} vs mirror {m}");
+        assert!(n > 3.0 * fwd, "{n} vs forward {fwd}");
+        // Thin medulla, strong forward scattering: almost everything goes straight on.
+        let s = MedullaTables::builtin().slice(0.2, 0.9);
+        assert!(s.cn(0.3, PI) > 20.0 * s.cn(0.3, 0.0));
+    }
+
+    #[test]
     fn symmetries_hold_exactly() {
         let s = MedullaTables::builtin().slice(1.7, 0.45);
         for &x in &[0.1, 0.5, 0.93] {
