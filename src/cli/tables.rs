@@ -100,6 +100,11 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
         "Monte Carlo: {} cells, {} paths, {} scattering events, {:.1} s",
         cells, raw.total_paths, raw.total_events, t_mc
     );
+    println!(
+        "MC noise of the raw tensors (relative L2, even/odd half split): C^N {:.4}, \
+         C^M front {:.4}, C^M back {:.4} (the floor under any CP error below)",
+        raw.noise_rel[0], raw.noise_rel[1], raw.noise_rel[2]
+    );
     let t1 = Instant::now();
     let (tables, _trials, chosen) = medulla_mc::compress_tables(&raw, &opts, &mut |t| {
         println!(

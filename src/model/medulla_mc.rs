@@ -29,7 +29,9 @@
 //! has its own `Xoshiro256PlusPlus` stream seeded from `(seed, table, cell index)` with
 //! SplitMix64, runs sequentially, and rayon only distributes whole cells whose results are
 //! collected into fixed slots. The output is therefore bit-identical for a given seed and
-//! path budget regardless of thread count.
+//! path budget regardless of thread count. The shipped tables come from
+//! `furfit tables build --seed 2017 --paths 12000` (see [`crate::model::medulla`] for the
+//! measured time and errors).
 
 use crate::model::cp::{cp_als, CpModel, CpOptions, Tensor};
 use crate::model::medulla::{CpTable, MedullaTables};
@@ -400,6 +402,22 @@ pub struct RawTables {
     pub cm: [Vec<f64>; 2],
     pub total_events: u64,
     pub total_paths: u64,
+    /// Estimated relative L2 Monte Carlo noise of each raw tensor (C^N, C^M front,
+    /// C^M back) from the even/odd half split: the floor under any CP error against it.
+    pub noise_rel: [f64; 3],
+}
+
+/// Squared noise of a cell's full density estimate: `sum_k ((a_k - b_k) / 2)^2` from the
+/// two half densities (each half has twice the variance of the full estimate).
+fn half_noise2(h: &HalfHists, dx: f64) -> f64 {
+    if h.wa <= 0.0 || h.wb <= 0.0 {
+        return 0.0;
+    }
+    let (a, b) = h.half_densities(dx);
+    a.iter()
+        .zip(&b)
+        .map(|(x, y)| 0.25 * (x - y) * (x - y))
+        .sum()
 }
 
 /// Run the Monte Carlo for the whole grid. `progress` is called once per finished cell
@@ -417,7 +435,7 @@ pub fn simulate_tables(
         grid.theta_i.len(),
     );
     let dpsi = 2.0 * PI / grid.n_psi as f64;
-    let cn_cells: Vec<(Vec<f64>, u64, u64)> = (0..nt * ng * nx)
+    let cn_cells: Vec<(Vec<f64>, f64, u64, u64)> = (0..nt * ng * nx)
         .into_par_iter()
         .map(|c| {
             let (it, ig, ix) = (c / (ng * nx), (c / nx) % ng, c % nx);
@@ -431,10 +449,16 @@ pub fn simulate_tables(
                 budget,
             );
             progress();
-            (h.density(dpsi), h.events, h.paths as u64)
+            (
+                h.density(dpsi),
+                half_noise2(&h, dpsi),
+                h.events,
+                h.paths as u64,
+            )
         })
         .collect();
-    let cm_cells: Vec<(Vec<f64>, Vec<f64>, u64, u64)> = (0..nt * ng * nti)
+    #[allow(clippy::type_complexity)]
+    let cm_cells: Vec<(Vec<f64>, Vec<f64>, [f64; 2], u64, u64)> = (0..nt * ng * nti)
         .into_par_iter()
         .map(|c| {
             let (it, ig, ii) = (c / (ng * nti), (c / nti) % ng, c % nti);
@@ -448,9 +472,11 @@ pub fn simulate_tables(
                 budget,
             );
             progress();
+            let dt = PI / grid.n_theta_r as f64;
             (
                 cm_density(&f, grid.n_theta_r),
                 cm_density(&b, grid.n_theta_r),
+                [half_noise2(&f, dt), half_noise2(&b, dt)],
                 f.events,
                 f.paths as u64,
             )
@@ -459,21 +485,32 @@ pub fn simulate_tables(
     let mut total_events = 0;
     let mut total_paths = 0;
     let mut cn = Vec::with_capacity(nt * ng * nx * grid.n_psi);
-    for (d, e, p) in cn_cells {
+    let mut noise2 = [0.0; 3];
+    for (d, n2, e, p) in cn_cells {
         cn.extend(d);
+        noise2[0] += n2;
         total_events += e;
         total_paths += p;
     }
     let mut front = Vec::with_capacity(nt * ng * nti * grid.n_theta_r);
     let mut back = Vec::with_capacity(nt * ng * nti * grid.n_theta_r);
-    for (f, b, e, p) in cm_cells {
+    for (f, b, n2, e, p) in cm_cells {
         front.extend(f);
         back.extend(b);
+        noise2[1] += n2[0];
+        noise2[2] += n2[1];
         total_events += e;
         total_paths += p;
     }
+    let rel = |n2: f64, v: &[f64]| (n2 / v.iter().map(|x| x * x).sum::<f64>().max(1e-300)).sqrt();
+    let noise_rel = [
+        rel(noise2[0], &cn),
+        rel(noise2[1], &front),
+        rel(noise2[2], &back),
+    ];
     RawTables {
         grid: grid.clone(),
+        noise_rel,
         cn,
         cm: [front, back],
         total_events,
