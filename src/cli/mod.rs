@@ -4,6 +4,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod inspect;
+pub mod simulate;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -17,6 +18,8 @@ pub struct Cli {
 pub enum Command {
     /// Print sample counts, angle ranges, channels and metadata of profile files.
     Inspect(inspect::Args),
+    /// Virtual goniometer: Monte Carlo ray tracing through a 3-D fiber -> synthetic profile.
+    Simulate(simulate::Args),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -24,6 +27,7 @@ pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
+        Command::Simulate(a) => simulate::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
