@@ -19,7 +19,7 @@ pub enum Command {
     /// Print sample counts, angle ranges, channels and metadata of profile files.
     Inspect(inspect::Args),
     /// Virtual goniometer: Monte Carlo ray tracing through a 3-D fiber -> synthetic profile.
-    Simulate(simulate::Args),
+    Simulate(Box<simulate::Args>),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -27,7 +27,7 @@ pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
-        Command::Simulate(a) => simulate::run(a),
+        Command::Simulate(a) => simulate::run(*a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,10 +1,10 @@
 //! `furfit simulate`: the virtual goniometer (Monte Carlo ray tracing through a 3-D double
 //! cylinder fiber) writing a synthetic profile CSV and `metadata.json`.
 
-use anyhow::{bail, Context};
 use crate::grid::parse_grid;
 use crate::simulate::{self, measure, output, SimSettings};
 use crate::FurParams;
+use anyhow::{bail, Context};
 use std::path::PathBuf;
 use std::time::Instant;
 
@@ -116,9 +116,10 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     let spec = a.params.clone().unwrap_or_default();
     let out = a.out.clone().unwrap_or_default();
     let (params, _exposure) = FurParams::load(&spec)?;
-    let species = a.species.clone().or_else(|| {
-        crate::params::preset_record(&spec).map(|p| p.name.to_string())
-    });
+    let species = a
+        .species
+        .clone()
+        .or_else(|| crate::params::preset_record(&spec).map(|p| p.name.to_string()));
     for (name, v) in [("--floor", a.floor), ("--drop", a.drop)] {
         if !(0.0..1.0).contains(&v) {
             bail!("{name} {v}: must be in [0, 1)");
@@ -184,7 +185,10 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         seed: a.seed,
     };
     let m = measure::apply(&sim, &fx);
-    let command: Vec<String> = std::env::args().map(|x| quote(&x)).collect();
+    // argv[0] is recorded as plain `furfit` so the command is reproducible anywhere.
+    let command: Vec<String> = std::iter::once("furfit".to_string())
+        .chain(std::env::args().skip(1).map(|x| quote(&x)))
+        .collect();
     let command = command.join(" ");
     let rel_after = simulate::median_rel_noise(&sim, a.noise_above);
     let valid = m.count(None);
@@ -207,7 +211,10 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
             .into(),
     ));
     meta.push(("command".into(), command.clone()));
-    meta.push(("tool".into(), format!("furfit {}", env!("CARGO_PKG_VERSION"))));
+    meta.push((
+        "tool".into(),
+        format!("furfit {}", env!("CARGO_PKG_VERSION")),
+    ));
     let csv = output::profile_csv(&sim, &m, &meta)?;
     let count = |w| m.count(Some(w));
     let md = serde_json::json!({
@@ -269,8 +276,16 @@ fn bench() -> anyhow::Result<()> {
     fox_hi.sigma_m_s = 20.0; // tau = sigma_m_s * kappa = 17.2
     let cases = [
         ("kappa = 0 (human, kappa set to 0)", human0, 8_000_000u64),
-        ("red-fox preset (tau = 2.7)", FurParams::preset("red-fox").context("preset")?, 2_000_000),
-        ("high-tau medulla (red-fox, sigma_m_s = 20, tau = 17)", fox_hi, 500_000),
+        (
+            "red-fox preset (tau = 2.7)",
+            FurParams::preset("red-fox").context("preset")?,
+            2_000_000,
+        ),
+        (
+            "high-tau medulla (red-fox, sigma_m_s = 20, tau = 17)",
+            fox_hi,
+            500_000,
+        ),
     ];
     for (name, p, n) in cases {
         let s = SimSettings {

@@ -97,7 +97,7 @@ fn poisson(lambda: f64, rng: &mut Xoshiro256PlusPlus) -> f64 {
 
 /// Apply the effects to a simulated profile.
 pub fn apply(sim: &SimResult, fx: &Effects) -> Measured {
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(fx.seed ^ 0x5EED_0F_EFFEC7);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(fx.seed ^ 0x5EED_0FEF_FEC7);
     let mut value = sim.value.clone();
     let mut sigma = sim.sigma.clone();
     let peak0 = value.iter().cloned().fold(0.0, f64::max);
@@ -129,7 +129,7 @@ pub fn apply(sim: &SimResult, fx: &Effects) -> Measured {
                 let view = [tr.cos() * ph.cos(), tr.cos() * ph.sin(), tr.sin()];
                 let cosang = light[0] * view[0] + light[1] * view[1] + light[2] * view[2];
                 let dropped = fx.drop > 0.0 && rng.random::<f64>() < fx.drop;
-                invalid[b] = if !(value[b] > 0.0) {
+                invalid[b] = if !value[b].is_finite() || value[b] <= 0.0 {
                     Some(Invalid::NoSignal)
                 } else if fx.floor > 0.0 && value[b] < fx.floor * peak {
                     Some(Invalid::Floor)

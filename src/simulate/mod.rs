@@ -28,7 +28,12 @@
 //!   `theta_r = -theta_i + alpha` (MODEL.md / seed Table 2; Marschner's "shift 2 x scale
 //!   angle" with `alpha` meaning the lobe shift) and `s_m = beta_m/2`, `s_n = beta_n/2`
 //!   give the single-reflection R lobe a longitudinal std ~ `beta_m` and an azimuthal std
-//!   ~ `beta_n` (small-angle; exact only near normal incidence). The interface reflects
+//!   ~ `beta_n` (small-angle). This holds at the centre of the fiber; the scale is a real
+//!   cone, so a ray meeting it at azimuthal incidence `gamma` is deflected longitudinally by
+//!   only `asin(cos(gamma) sin(2t))`: averaged over the width (Fresnel favours grazing
+//!   `gamma`) the R lobe's shift and width are ~0.6-0.8 of `alpha`, `beta_m`. This is a
+//!   real difference from the analytic model (which shifts every `h` by `alpha`); fits to
+//!   these data should be expected to return a smaller `alpha`/`beta_m` than simulated. The interface reflects
 //!   with the pile-of-plates probability `F = l f / (1 + (l-1) f)` of the *exact 3-D* Fresnel
 //!   reflectance `f` at the micro-normal, transmits (Snell, at the micro-normal) with
 //!   `1 - F`; the choice is stochastic (analog). A micro-normal that faces away from the ray
@@ -188,7 +193,8 @@ impl Detector {
     }
     /// Solid-angle-free bin area dtheta_r * dphi (radians^2) of bin (j, k).
     pub fn area(&self, j: usize, k: usize) -> f64 {
-        (self.theta_edges[j + 1] - self.theta_edges[j]) * (self.phi_edges[k + 1] - self.phi_edges[k])
+        (self.theta_edges[j + 1] - self.theta_edges[j])
+            * (self.phi_edges[k + 1] - self.phi_edges[k])
     }
 
     /// Call `f(flat_index)` for every bin the exit (theta_r, phi) falls into (phi wraps:

@@ -164,7 +164,11 @@ mod tests {
 
     #[test]
     fn around_is_unit_and_at_angle() {
-        for d in [[0.0, 0.0, 1.0], [0.0, 0.0, -1.0], normalize([0.3, -0.4, 0.5])] {
+        for d in [
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+            normalize([0.3, -0.4, 0.5]),
+        ] {
             let w = around(d, 0.3, 1.1);
             assert!((dot(w, w) - 1.0).abs() < 1e-12);
             assert!((dot(w, d) - 0.3).abs() < 1e-12);

@@ -2,8 +2,7 @@
 //! goniometer; see the module docs of [`crate::simulate`] for every modelling choice).
 
 use super::optics::{
-    add, dot, fresnel_dielectric, hg_cos, normalize, pile_of_plates, reflect, refract, scale,
-    V3,
+    add, dot, fresnel_dielectric, hg_cos, normalize, pile_of_plates, reflect, refract, scale, V3,
 };
 use rand::Rng;
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -275,7 +274,11 @@ pub fn trace_path(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Outc
     let half_w = (f.ax * f.ax * e[0] * e[0] + f.ay * f.ay * e[1] * e[1]).sqrt();
     let h: f64 = 2.0 * rng.random::<f64>() - 1.0;
     let far = 4.0 * f.ax.max(f.ay);
-    let start = [far * cp + h * half_w * e[0], far * sp + h * half_w * e[1], 0.0];
+    let start = [
+        far * cp + h * half_w * e[0],
+        far * sp + h * half_w * e[1],
+        0.0,
+    ];
     let mut p = match ellipse_roots(start, d, f.ax, f.ay) {
         Some((t0, _)) => add(start, scale(d, t0)),
         // |h| -> 1 rounding: a grazing miss counts as a grazing R event of weight 0.
