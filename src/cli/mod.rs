@@ -5,6 +5,7 @@ use clap::{Parser, Subcommand};
 
 pub mod inspect;
 pub mod tables;
+pub mod simulate;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -20,6 +21,8 @@ pub enum Command {
     Inspect(inspect::Args),
     /// Build or check the medulla scattering tables (C^N, C^M).
     Tables(tables::Args),
+    /// Virtual goniometer: Monte Carlo ray tracing through a 3-D fiber -> synthetic profile.
+    Simulate(Box<simulate::Args>),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -28,6 +31,7 @@ pub fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
         Command::Tables(a) => tables::run(a),
+        Command::Simulate(a) => simulate::run(*a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
