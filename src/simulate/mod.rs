@@ -33,7 +33,10 @@
 //!   only `asin(cos(gamma) sin(2t))`: averaged over the width (Fresnel favours grazing
 //!   `gamma`) the R lobe's shift and width are ~0.6-0.8 of `alpha`, `beta_m`. This is a
 //!   real difference from the analytic model (which shifts every `h` by `alpha`); fits to
-//!   these data should be expected to return a smaller `alpha`/`beta_m` than simulated. The interface reflects
+//!   these data should be expected to return a smaller `alpha`/`beta_m` than simulated.
+//!   The same tilted micro-normal is used for internal hits of the cuticle, so repeated
+//!   internal reflections are steered along the axis and can end up guided (total internal
+//!   reflection along the fiber); absorption and Russian roulette end those paths. The interface reflects
 //!   with the pile-of-plates probability `F = l f / (1 + (l-1) f)` of the *exact 3-D* Fresnel
 //!   reflectance `f` at the micro-normal, transmits (Snell, at the micro-normal) with
 //!   `1 - F`; the choice is stochastic (analog). A micro-normal that faces away from the ray
