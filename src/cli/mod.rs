@@ -4,8 +4,8 @@
 use clap::{Parser, Subcommand};
 
 pub mod inspect;
-pub mod tables;
 pub mod simulate;
+pub mod tables;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]

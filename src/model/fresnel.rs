@@ -3,14 +3,17 @@
 //!
 //! Shared with the virtual goniometer as a low-level optics helper (not as "the model").
 
-/// Unpolarised Fresnel reflectance of a smooth dielectric interface, light arriving from the
-/// side of index 1 at `cos_i = cos(angle of incidence)` onto relative index `eta >= 1`.
-/// Returns 1 at grazing incidence (`cos_i = 0`). Total internal reflection cannot happen
-/// for `eta >= 1` from outside, so no branch is needed.
+/// Unpolarised Fresnel reflectance of a smooth dielectric interface (the mean of the s and
+/// p reflectances): `cos_i = cos(angle of incidence)`, `eta = n_transmitted / n_incident`.
+/// Returns 1 at grazing incidence and under total internal reflection (`eta < 1`, as for
+/// the goniometer's rays leaving the fiber).
 pub fn fresnel_dielectric(cos_i: f64, eta: f64) -> f64 {
     let cos_i = cos_i.clamp(0.0, 1.0);
     let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    let cos_t = (1.0 - sin2_t).max(0.0).sqrt();
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
     let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
     0.5 * (rs * rs + rp * rp)

@@ -30,33 +30,9 @@ pub fn normalize(a: V3) -> V3 {
     scale(a, 1.0 / dot(a, a).sqrt())
 }
 
-/// Unpolarised reflectance of a smooth dielectric interface (exact Fresnel equations, the
-/// mean of the s and p reflectances). `cos_i` is the cosine of the incidence angle (> 0),
-/// `eta` the relative index `n_transmitted / n_incident`. Total internal reflection gives 1.
-#[inline]
-pub fn fresnel_dielectric(cos_i: f64, eta: f64) -> f64 {
-    let cos_i = cos_i.clamp(0.0, 1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
-    let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    0.5 * (rs * rs + rp * rp)
-}
-
-/// Layered cuticle reflectance (MODEL.md, pile of plates with `l` interfaces):
-/// `F = l f / (1 + (l - 1) f)`; `l = 1` gives plain Fresnel, `f = 1` (TIR) gives 1.
-/// The transmittance is `1 - F` (the layers themselves do not absorb).
-#[inline]
-pub fn pile_of_plates(f: f64, l: f64) -> f64 {
-    let den = 1.0 + (l - 1.0) * f;
-    if den <= 0.0 {
-        return 1.0;
-    }
-    (l * f / den).clamp(0.0, 1.0)
-}
+// Fresnel and the pile-of-plates cuticle are the low-level optics the goniometer shares
+// with the analytic model (one copy, in `model::fresnel`).
+pub use crate::model::fresnel::{fresnel_dielectric, layered as pile_of_plates};
 
 /// Mirror `d` about the plane with unit normal `n` (either orientation).
 #[inline]
