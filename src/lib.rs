@@ -10,6 +10,7 @@
 
 pub mod cli;
 pub mod error;
+pub mod fit;
 pub mod grid;
 pub mod io;
 pub mod model;
