@@ -16,6 +16,8 @@ pub mod io;
 pub mod model;
 pub mod params;
 pub mod profile;
+pub mod report;
+pub mod synth;
 
 pub use error::{Error, Result};
 pub use params::{FurParams, ParamId};

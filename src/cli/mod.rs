@@ -3,7 +3,10 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod bench_model;
 pub mod inspect;
+pub mod stability;
+pub mod synth;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -17,6 +20,12 @@ pub struct Cli {
 pub enum Command {
     /// Print sample counts, angle ranges, channels and metadata of profile files.
     Inspect(inspect::Args),
+    /// Synthesize a profile from parameters on an angle grid (far field or quadrature).
+    Synth(Box<synth::Args>),
+    /// Adversarial stability sweep of the far field; writes reports/stability.{md,csv}.
+    Stability(stability::Args),
+    /// Far-field error vs evaluation time against Gauss-Legendre quadrature.
+    BenchModel(bench_model::Args),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -24,6 +33,9 @@ pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
+        Command::Synth(a) => synth::run(*a),
+        Command::Stability(a) => stability::run(a),
+        Command::BenchModel(a) => bench_model::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
