@@ -1,7 +1,8 @@
 //! Parameter recovery: profiles synthesised with the far-field model from known parameters
 //! are fitted from automatic starts.
 
-use furfit::fit::forward::{predict_points, Points, Segments};
+use furfit::fit::forward::{predict_points, Points};
+use furfit::model::far::FarOptions;
 use furfit::fit::problem::FitData;
 use furfit::fit::{fit_data, FitOptions};
 use furfit::model::LobeSet;
@@ -37,7 +38,7 @@ fn grid() -> Points {
 fn synth(truth: &FurParams, noise: f64, seed: u64) -> FitData {
     let pts = grid();
     let mut m = vec![0.0; pts.len()];
-    predict_points(truth, &pts, Segments::default(), LobeSet::ALL, &mut m);
+    predict_points(truth, &pts, &FarOptions::paper(), LobeSet::ALL, &mut m);
     let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(seed);
     let y: Vec<f64> = m
         .iter()

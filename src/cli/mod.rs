@@ -4,7 +4,9 @@
 use clap::{Parser, Subcommand};
 
 pub mod bench_model;
+pub mod fit;
 pub mod inspect;
+pub mod report;
 pub mod stability;
 pub mod synth;
 
@@ -26,6 +28,10 @@ pub enum Command {
     Stability(stability::Args),
     /// Far-field error vs evaluation time against Gauss-Legendre quadrature.
     BenchModel(bench_model::Args),
+    /// Fit the ten parameters to profiles; writes fits/<species>.json.
+    Fit(Box<fit::Args>),
+    /// Write NRMSE tables, Fig-11-style figures, error-vs-time and model-vs-simulation reports.
+    Report(report::Args),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -36,6 +42,8 @@ pub fn main() -> std::process::ExitCode {
         Command::Synth(a) => synth::run(*a),
         Command::Stability(a) => stability::run(a),
         Command::BenchModel(a) => bench_model::run(a),
+        Command::Fit(a) => fit::run(*a),
+        Command::Report(a) => report::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -21,6 +21,7 @@
 //! meaningful for every channel. See [`fit_profile`].
 
 pub mod forward;
+pub mod job;
 pub mod lm;
 pub mod output;
 pub mod problem;
@@ -32,7 +33,8 @@ use crate::error::{Error, Result};
 use crate::params::{FurParams, ParamId, N_PARAMS};
 use crate::profile::Profile;
 use argmin::core::{Executor, State, TerminationStatus};
-use forward::{Points, Segments};
+use crate::model::far::FarOptions;
+use forward::Points;
 use lm::{LevenbergMarquardt, TracePoint};
 use nalgebra::DVector;
 use problem::{FitData, LogResidualProblem, ParamLayout};
@@ -53,7 +55,8 @@ pub struct FitOptions {
     pub n_best: usize,
     /// Iteration cap of each LM run.
     pub max_iters: u64,
-    pub segments: Segments,
+    /// Far-field options (default: the paper's fixed 8 / 5 segments).
+    pub far: FarOptions,
     /// User start (file units); always among the LM starts.
     pub init: Option<[f64; N_PARAMS]>,
     /// Fixed parameters (file units).
@@ -70,7 +73,7 @@ impl Default for FitOptions {
             n_sub: 1500,
             n_best: 4,
             max_iters: 100,
-            segments: Segments::default(),
+            far: FarOptions::paper(),
             init: None,
             layout: ParamLayout::all_free(),
             weighted: false,
@@ -131,7 +134,8 @@ pub struct FitOutcome {
     pub evaluations: u64,
     /// Model evaluations x samples (for throughput figures).
     pub sample_evaluations: u64,
-    /// Seconds inside the model (summed over threads).
+    /// Estimated seconds inside the model: evaluations x the wall time of one evaluation
+    /// measured alone after the solve.
     pub model_time_s: f64,
     pub starts_global: usize,
     pub starts_lm: usize,
@@ -204,7 +208,7 @@ pub fn fit_data(data: &FitData, opts: &FitOptions, progress: Option<Progress>) -
     let clock = Instant::now();
     let layout = &opts.layout;
     let n_free = layout.free().len();
-    let full = LogResidualProblem::new(data, layout.clone(), opts.segments);
+    let full = LogResidualProblem::new(data, layout.clone(), opts.far);
     if n_free == 0 {
         return finish(data, opts, &full, &full, DVector::zeros(0), 0, "all parameters fixed".into(), Vec::new(), 0, 0, clock);
     }
@@ -212,7 +216,7 @@ pub fn fit_data(data: &FitData, opts: &FitOptions, progress: Option<Progress>) -
     let use_sub = data.len() > opts.n_sub * 3 / 2;
     let sub_idx = starts::subsample(data.len(), opts.n_sub, opts.seed);
     let sub_data = if use_sub { data.subset(&sub_idx) } else { data.clone() };
-    let sub = LogResidualProblem::new(&sub_data, layout.clone(), opts.segments);
+    let sub = LogResidualProblem::new(&sub_data, layout.clone(), opts.far);
 
     // 1. Global stage.
     say(&format!("global stage: scoring {} starts on {} samples", opts.n_global + 11, sub_data.len()));
@@ -313,13 +317,25 @@ fn finish(
     let unc = uncertainty::estimate(&opts.layout, &u, &jac, &r);
     let params = opts.layout.params(u.as_slice());
     params.validate()?;
+    let t = Instant::now();
     let m = full.model_values(u.as_slice());
+    let t_full = t.elapsed().as_secs_f64();
     let (nrmse, _) = problem::nrmse(&m, &data.ln_y, data.range);
     let same = std::ptr::eq(full, sub);
     let sub_evals = if same { 0 } else { sub.evals.load(Ordering::Relaxed) };
-    let full_evals = full.evals.load(Ordering::Relaxed);
+    // The final evaluation above is not part of the solve.
+    let full_evals = full.evals.load(Ordering::Relaxed) - 1;
     let sample_evaluations = full_evals * data.len() as u64 + sub_evals * sub.data.len() as u64;
-    let model_ns = full.model_ns.load(Ordering::Relaxed) + if same { 0 } else { sub.model_ns.load(Ordering::Relaxed) };
+    // Time in the model, estimated as evaluations x the time of one evaluation measured
+    // alone (concurrent evaluations during the solve make per-call timers overlap).
+    let t_sub = if sub_evals > 0 {
+        let t = Instant::now();
+        let _ = sub.model_values(u.as_slice());
+        t.elapsed().as_secs_f64()
+    } else {
+        0.0
+    };
+    let model_time_s = full_evals as f64 * t_full + sub_evals as f64 * t_sub;
     Ok(FitOutcome {
         params,
         exposure: lk.exp(),
@@ -328,7 +344,7 @@ fn finish(
         iterations,
         evaluations: full_evals + sub_evals,
         sample_evaluations,
-        model_time_s: model_ns as f64 * 1e-9,
+        model_time_s,
         starts_global,
         starts_lm,
         wall_time_s: clock.elapsed().as_secs_f64(),

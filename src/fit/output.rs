@@ -88,7 +88,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "evaluations": out.evaluations,
             "sample_evaluations": out.sample_evaluations,
             "starts": {"global": out.starts_global, "lm": out.starts_lm, "subsample": opts.n_sub},
-            "segments": {"unscattered": opts.segments.unscattered, "scattered": opts.segments.scattered},
+            "segments": {"unscattered": opts.far.n_unscattered, "scattered": opts.far.n_scattered},
             "weighted": opts.weighted,
             "wall_time_s": out.wall_time_s,
             "model_time_s": out.model_time_s,

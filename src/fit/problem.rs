@@ -13,7 +13,8 @@
 //! Model values are floored at `f64::MIN_POSITIVE` before the logarithm, so a lobe that
 //! underflows to zero gives a large but finite residual instead of `-inf`.
 
-use super::forward::{predict_points, Points, Segments};
+use super::forward::{predict_points, Points};
+use crate::model::far::FarOptions;
 use super::reparam;
 use crate::model::LobeSet;
 use crate::params::{FurParams, ParamId, N_PARAMS};
@@ -22,7 +23,6 @@ use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::Mutex;
-use std::time::Instant;
 
 /// One channel's valid samples, ready for the residuals.
 #[derive(Clone, Debug)]
@@ -34,8 +34,6 @@ pub struct FitData {
     pub w: Vec<f64>,
     /// `max ln y - min ln y` (1 if all samples are equal, to stay finite).
     pub range: f64,
-    /// `points` split into consecutive chunks of [`CHUNK`] for parallel evaluation.
-    chunks: Vec<Points>,
 }
 
 impl FitData {
@@ -60,13 +58,11 @@ impl FitData {
         if mean > 0.0 {
             w.iter_mut().for_each(|x| *x /= mean);
         }
-        let chunks = points.chunks(CHUNK);
         FitData {
             points,
             ln_y,
             w,
             range,
-            chunks,
         }
     }
 
@@ -80,10 +76,8 @@ impl FitData {
 
     /// The samples at `idx` (same normalising range as the whole, so costs are comparable).
     pub fn subset(&self, idx: &[usize]) -> FitData {
-        let points = self.points.subset(idx);
         FitData {
-            chunks: points.chunks(CHUNK),
-            points,
+            points: self.points.subset(idx),
             ln_y: idx.iter().map(|&i| self.ln_y[i]).collect(),
             w: idx.iter().map(|&i| self.w[i]).collect(),
             range: self.range,
@@ -195,29 +189,23 @@ impl ParamLayout {
 pub struct LogResidualProblem<'a> {
     pub data: &'a FitData,
     pub layout: ParamLayout,
-    pub segments: Segments,
+    pub far: FarOptions,
     /// Model evaluations (one per residual vector), including finite-difference columns.
     pub evals: AtomicU64,
-    /// Nanoseconds spent in [`predict_points`].
-    pub model_ns: AtomicU64,
     /// Last `(u, r)` computed, so the Jacobian reuses the residuals of its base point.
     last: Mutex<Option<(DVector<f64>, DVector<f64>)>>,
 }
-
-/// Points per parallel chunk of one model evaluation.
-const CHUNK: usize = 512;
 
 /// Relative forward-difference step in `u`.
 pub const FD_STEP: f64 = 1e-6;
 
 impl<'a> LogResidualProblem<'a> {
-    pub fn new(data: &'a FitData, layout: ParamLayout, segments: Segments) -> Self {
+    pub fn new(data: &'a FitData, layout: ParamLayout, far: FarOptions) -> Self {
         LogResidualProblem {
             data,
             layout,
-            segments,
+            far,
             evals: AtomicU64::new(0),
-            model_ns: AtomicU64::new(0),
             last: Mutex::new(None),
         }
     }
@@ -227,17 +215,11 @@ impl<'a> LogResidualProblem<'a> {
         self.layout.free().len()
     }
 
-    /// Model values (no exposure) at `u`, in parallel over chunks of points.
+    /// Model values (no exposure) at `u` ([`predict_points`] is parallel inside).
     pub fn model_values(&self, u: &[f64]) -> Vec<f64> {
         let params = self.layout.params(u);
-        let t = Instant::now();
-        let n = self.data.len();
-        let mut out = vec![0.0; n];
-        out.par_chunks_mut(CHUNK)
-            .zip(self.data.chunks.par_iter())
-            .for_each(|(o, pts)| predict_points(&params, pts, self.segments, LobeSet::ALL, o));
-        self.model_ns
-            .fetch_add(t.elapsed().as_nanos() as u64, Ordering::Relaxed);
+        let mut out = vec![0.0; self.data.len()];
+        predict_points(&params, &self.data.points, &self.far, LobeSet::ALL, &mut out);
         self.evals.fetch_add(1, Ordering::Relaxed);
         out
     }

@@ -1,6 +1,7 @@
 //! Unit tests of the fitter's math (the end-to-end runs live in `tests/fit_*.rs`).
 
-use super::forward::{predict_points, Points, Segments};
+use super::forward::{predict_points, Points};
+use crate::model::far::FarOptions;
 use super::problem::{optimal_log_exposure, FitData, LogResidualProblem, ParamLayout};
 use super::*;
 use crate::model::LobeSet;
@@ -22,7 +23,7 @@ pub(crate) fn small_points() -> Points {
 
 fn synth(params: &FurParams, pts: &Points, k: f64) -> Vec<f64> {
     let mut out = vec![0.0; pts.len()];
-    predict_points(params, pts, Segments::default(), LobeSet::ALL, &mut out);
+    predict_points(params, pts, &FarOptions::paper(), LobeSet::ALL, &mut out);
     out.iter().map(|v| v * k).collect()
 }
 
@@ -66,7 +67,7 @@ fn jacobian_matches_central_differences() {
     let pts = small_points();
     let y = synth(&truth, &pts, 1.0);
     let data = FitData::new(pts, &y, None);
-    let prob = LogResidualProblem::new(&data, ParamLayout::all_free(), Segments::default());
+    let prob = LogResidualProblem::new(&data, ParamLayout::all_free(), FarOptions::paper());
     // A point away from the truth so residuals and gradients are all non-trivial.
     let start = FurParams::preset("cat").unwrap().to_file_units();
     let u = nalgebra::DVector::from_vec(prob.layout.to_u(&start));

@@ -3,3 +3,7 @@
 pub mod far_error;
 pub mod plot;
 pub mod stability;
+pub mod fig11;
+pub mod fit_time;
+pub mod model_vs_sim;
+pub mod nrmse;
