@@ -32,7 +32,12 @@ fn quick() -> FitOptions {
 fn assert_inside(p: &FurParams) {
     p.validate().unwrap();
     for (id, v) in ParamId::ALL.into_iter().zip(p.to_file_units()) {
-        assert!(id.spec().contains(v), "{} = {v} outside {}", id.spec().name, id.spec().bound_text());
+        assert!(
+            id.spec().contains(v),
+            "{} = {v} outside {}",
+            id.spec().name,
+            id.spec().bound_text()
+        );
     }
 }
 

@@ -120,7 +120,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let (_, sums) = res.with_context(|| format!("fitting {}", job.species))?;
         for s in &sums {
             let o = &s.outcome;
-            let ch = if s.channel.is_empty() { String::new() } else { format!(" [{}]", s.channel) };
+            let ch = if s.channel.is_empty() {
+                String::new()
+            } else {
+                format!(" [{}]", s.channel)
+            };
             println!(
                 "{}{ch}: NRMSE {:.2}% exposure {:.4e} ({} samples, {} iterations, {} evaluations, {:.2} s; {})",
                 job.species,

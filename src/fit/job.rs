@@ -42,13 +42,21 @@ pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<Vec<Job>> {
         .filter(|p| p.is_dir())
         .filter(|p| {
             std::fs::read_dir(p)
-                .map(|mut r| r.any(|e| e.map(|e| profile::is_profile_file(&e.path())).unwrap_or(false)))
+                .map(|mut r| {
+                    r.any(|e| {
+                        e.map(|e| profile::is_profile_file(&e.path()))
+                            .unwrap_or(false)
+                    })
+                })
                 .unwrap_or(false)
         })
         .collect();
     dirs.sort();
     if dirs.is_empty() {
-        return Err(Error::file(measurements, "no species folder with profile files"));
+        return Err(Error::file(
+            measurements,
+            "no species folder with profile files",
+        ));
     }
     Ok(dirs
         .into_iter()
@@ -108,7 +116,11 @@ pub struct ChannelSummary {
 
 /// Fit one species and write its fit file. Returns the JSON written and per-channel
 /// summaries.
-pub fn run_job(job: &Job, opts: &FitOptions, progress: Option<Progress>) -> Result<(Value, Vec<ChannelSummary>)> {
+pub fn run_job(
+    job: &Job,
+    opts: &FitOptions,
+    progress: Option<Progress>,
+) -> Result<(Value, Vec<ChannelSummary>)> {
     let prof = load_inputs(&job.inputs)?;
     let files = data_files(&job.inputs)?;
     let mut file_info = Vec::new();
@@ -118,7 +130,9 @@ pub fn run_job(job: &Job, opts: &FitOptions, progress: Option<Progress>) -> Resu
     }
     let n_ch = prof.n_channels();
     let name_of = |c: usize| prof.channels.get(c).cloned().unwrap_or_default();
-    let primary = (0..n_ch).find(|&c| name_of(c).eq_ignore_ascii_case("y")).unwrap_or(0);
+    let primary = (0..n_ch)
+        .find(|&c| name_of(c).eq_ignore_ascii_case("y"))
+        .unwrap_or(0);
     let mut objs = Vec::new();
     let mut sums = Vec::new();
     for c in 0..n_ch {
@@ -126,7 +140,11 @@ pub fn run_job(job: &Job, opts: &FitOptions, progress: Option<Progress>) -> Resu
             Error::Invalid(m) => Error::Invalid(format!("{}: {m}", job.species)),
             other => other,
         })?;
-        let n_valid = prof.samples.iter().filter(|s| s.channel == c && s.is_valid()).count();
+        let n_valid = prof
+            .samples
+            .iter()
+            .filter(|s| s.channel == c && s.is_valid())
+            .count();
         let n_all = prof.samples.iter().filter(|s| s.channel == c).count();
         let out = fit_data(&data, opts, progress)?;
         let info = DataInfo {
@@ -149,7 +167,9 @@ pub fn run_job(job: &Job, opts: &FitOptions, progress: Option<Progress>) -> Resu
             m.insert("channels".into(), Value::Array(objs));
         }
     }
-    let text = serde_json::to_string_pretty(&top).map_err(|e| Error::Invalid(format!("JSON: {e}")))? + "\n";
+    let text = serde_json::to_string_pretty(&top)
+        .map_err(|e| Error::Invalid(format!("JSON: {e}")))?
+        + "\n";
     crate::io::write_atomic(&job.out, text.as_bytes())?;
     Ok((top, sums))
 }

@@ -94,7 +94,11 @@ where
         "Levenberg-Marquardt (Nielsen damping, More scaling)"
     }
 
-    fn init(&mut self, problem: &mut Problem<O>, mut state: LmState) -> Result<(LmState, Option<KV>), Error> {
+    fn init(
+        &mut self,
+        problem: &mut Problem<O>,
+        mut state: LmState,
+    ) -> Result<(LmState, Option<KV>), Error> {
         let u = state
             .take_param()
             .ok_or_else(|| argmin::core::ArgminError::NotInitialized {
@@ -124,7 +128,11 @@ where
         ))
     }
 
-    fn next_iter(&mut self, problem: &mut Problem<O>, mut state: LmState) -> Result<(LmState, Option<KV>), Error> {
+    fn next_iter(
+        &mut self,
+        problem: &mut Problem<O>,
+        mut state: LmState,
+    ) -> Result<(LmState, Option<KV>), Error> {
         let u = state.take_param().expect("LM: param set in init");
         let r = state.take_residuals().expect("LM: residuals set in init");
         let jac = state.take_jacobian().expect("LM: jacobian set in init");
@@ -133,7 +141,15 @@ where
 
         if grad.amax() <= self.gtol {
             self.converged = Some("gradient below tolerance");
-            return Ok((state.param(u).residuals(r).jacobian(jac).gradient(grad).cost(cost), None));
+            return Ok((
+                state
+                    .param(u)
+                    .residuals(r)
+                    .jacobian(jac)
+                    .gradient(grad)
+                    .cost(cost),
+                None,
+            ));
         }
         let jtj = jac.transpose() * &jac;
         let d = self.update_scale(&jtj);
@@ -146,7 +162,15 @@ where
             self.mu *= self.nu;
             self.nu *= 2.0;
             self.rejected += 1;
-            return Ok((state.param(u).residuals(r).jacobian(jac).gradient(grad).cost(cost), None));
+            return Ok((
+                state
+                    .param(u)
+                    .residuals(r)
+                    .jacobian(jac)
+                    .gradient(grad)
+                    .cost(cost),
+                None,
+            ));
         };
         let u_new = &u + &delta;
         let r_new = problem.apply(&u_new)?;
@@ -154,7 +178,11 @@ where
         // Predicted reduction of the quadratic model: 0.5 delta^T (mu D delta - g).
         let md = delta.zip_map(&d, |x, s| self.mu * s * x);
         let pred = 0.5 * delta.dot(&(md - &grad));
-        let rho = if pred > 0.0 { (cost - cost_new) / pred } else { -1.0 };
+        let rho = if pred > 0.0 {
+            (cost - cost_new) / pred
+        } else {
+            -1.0
+        };
         if rho > 0.0 && cost_new.is_finite() {
             self.mu *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
             self.nu = 2.0;
@@ -187,7 +215,15 @@ where
             if self.mu > 1e16 {
                 self.converged = Some("damping exhausted (no descent direction left)");
             }
-            Ok((state.param(u).residuals(r).jacobian(jac).gradient(grad).cost(cost), None))
+            Ok((
+                state
+                    .param(u)
+                    .residuals(r)
+                    .jacobian(jac)
+                    .gradient(grad)
+                    .cost(cost),
+                None,
+            ))
         }
     }
 
@@ -213,14 +249,21 @@ mod tests {
         type Param = DVector<f64>;
         type Output = DVector<f64>;
         fn apply(&self, p: &DVector<f64>) -> Result<DVector<f64>, Error> {
-            Ok(DVector::from_vec(vec![10.0 * (p[1] - p[0] * p[0]), 1.0 - p[0]]))
+            Ok(DVector::from_vec(vec![
+                10.0 * (p[1] - p[0] * p[0]),
+                1.0 - p[0],
+            ]))
         }
     }
     impl Jacobian for Rosen {
         type Param = DVector<f64>;
         type Jacobian = DMatrix<f64>;
         fn jacobian(&self, p: &DVector<f64>) -> Result<DMatrix<f64>, Error> {
-            Ok(DMatrix::from_row_slice(2, 2, &[-20.0 * p[0], 10.0, -1.0, 0.0]))
+            Ok(DMatrix::from_row_slice(
+                2,
+                2,
+                &[-20.0 * p[0], 10.0, -1.0, 0.0],
+            ))
         }
     }
 
@@ -232,7 +275,10 @@ mod tests {
             .unwrap();
         let p = res.state.get_best_param().unwrap();
         // The minimum (1, 1) is exact; LM converges quadratically to ~1e-10 or better.
-        assert!((p[0] - 1.0).abs() < 1e-6 && (p[1] - 1.0).abs() < 1e-6, "{p}");
+        assert!(
+            (p[0] - 1.0).abs() < 1e-6 && (p[1] - 1.0).abs() < 1e-6,
+            "{p}"
+        );
         assert!(res.state.get_iter() < 200, "did not converge");
     }
 }

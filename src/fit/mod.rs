@@ -30,10 +30,10 @@ pub mod starts;
 pub mod uncertainty;
 
 use crate::error::{Error, Result};
+use crate::model::far::FarOptions;
 use crate::params::{FurParams, ParamId, N_PARAMS};
 use crate::profile::Profile;
 use argmin::core::{Executor, State, TerminationStatus};
-use crate::model::far::FarOptions;
 use forward::Points;
 use lm::{LevenbergMarquardt, TracePoint};
 use nalgebra::DVector;
@@ -154,10 +154,20 @@ struct RunResult {
     iters: u64,
     termination: String,
     trace: Vec<TracePoint>,
+    evals: u64,
 }
 
-fn run_lm(prob: &LogResidualProblem, u0: DVector<f64>, max_iters: u64, clock: Instant) -> Result<RunResult> {
-    let res = Executor::new(prob, LevenbergMarquardt::new(clock))
+/// One LM run from `u0` on `shared`'s data. The run gets its own problem instance (its own
+/// residual cache and counter), so concurrent runs cannot change each other's evaluation
+/// counts; the count is added to `shared` afterwards.
+fn run_lm(
+    shared: &LogResidualProblem,
+    u0: DVector<f64>,
+    max_iters: u64,
+    clock: Instant,
+) -> Result<RunResult> {
+    let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far);
+    let res = Executor::new(&prob, LevenbergMarquardt::new(clock))
         .configure(|s| s.param(u0).max_iters(max_iters))
         .run()
         .map_err(|e| Error::Invalid(format!("solver failed: {e}")))?;
@@ -176,6 +186,7 @@ fn run_lm(prob: &LogResidualProblem, u0: DVector<f64>, max_iters: u64, clock: In
         termination,
         trace: res.solver.trace.clone(),
         u,
+        evals: prob.evals.load(Ordering::Relaxed),
     })
 }
 
@@ -190,36 +201,65 @@ impl<'a> argmin::core::Operator for &LogResidualProblem<'a> {
 impl<'a> argmin::core::Jacobian for &LogResidualProblem<'a> {
     type Param = DVector<f64>;
     type Jacobian = nalgebra::DMatrix<f64>;
-    fn jacobian(&self, u: &DVector<f64>) -> std::result::Result<nalgebra::DMatrix<f64>, argmin::core::Error> {
+    fn jacobian(
+        &self,
+        u: &DVector<f64>,
+    ) -> std::result::Result<nalgebra::DMatrix<f64>, argmin::core::Error> {
         (*self).jacobian(u)
     }
 }
 
 /// Fit the ten parameters to one channel's valid samples.
-pub fn fit_data(data: &FitData, opts: &FitOptions, progress: Option<Progress>) -> Result<FitOutcome> {
+pub fn fit_data(
+    data: &FitData,
+    opts: &FitOptions,
+    progress: Option<Progress>,
+) -> Result<FitOutcome> {
     let say = |m: &str| {
         if let Some(p) = progress {
             p(m)
         }
     };
     if data.is_empty() {
-        return Err(Error::Invalid("no valid sample to fit (every value is <= 0 or missing)".into()));
+        return Err(Error::Invalid(
+            "no valid sample to fit (every value is <= 0 or missing)".into(),
+        ));
     }
     let clock = Instant::now();
     let layout = &opts.layout;
     let n_free = layout.free().len();
     let full = LogResidualProblem::new(data, layout.clone(), opts.far);
     if n_free == 0 {
-        return finish(data, opts, &full, &full, DVector::zeros(0), 0, "all parameters fixed".into(), Vec::new(), 0, 0, clock);
+        return finish(
+            data,
+            opts,
+            &full,
+            &full,
+            DVector::zeros(0),
+            0,
+            "all parameters fixed".into(),
+            Vec::new(),
+            0,
+            0,
+            clock,
+        );
     }
     // Direct multi-start on all samples when a subsample would not save much.
     let use_sub = data.len() > opts.n_sub * 3 / 2;
     let sub_idx = starts::subsample(data.len(), opts.n_sub, opts.seed);
-    let sub_data = if use_sub { data.subset(&sub_idx) } else { data.clone() };
+    let sub_data = if use_sub {
+        data.subset(&sub_idx)
+    } else {
+        data.clone()
+    };
     let sub = LogResidualProblem::new(&sub_data, layout.clone(), opts.far);
 
     // 1. Global stage.
-    say(&format!("global stage: scoring {} starts on {} samples", opts.n_global + 11, sub_data.len()));
+    say(&format!(
+        "global stage: scoring {} starts on {} samples",
+        opts.n_global + 11,
+        sub_data.len()
+    ));
     let mut cands: Vec<[f64; N_PARAMS]> = Vec::new();
     if let Some(init) = opts.init {
         let mut v = init;
@@ -238,7 +278,15 @@ pub fn fit_data(data: &FitData, opts: &FitOptions, progress: Option<Progress>) -
         .map(|(i, c)| {
             let u = DVector::from_vec(layout.to_u(c));
             let cost = sub.cost(u.as_slice());
-            (i, if cost.is_finite() { cost } else { f64::INFINITY }, u)
+            (
+                i,
+                if cost.is_finite() {
+                    cost
+                } else {
+                    f64::INFINITY
+                },
+                u,
+            )
         })
         .collect();
     let mut order: Vec<usize> = (0..scored.len()).collect();
@@ -257,12 +305,18 @@ pub fn fit_data(data: &FitData, opts: &FitOptions, progress: Option<Progress>) -
     }];
 
     // 2. Multi-start LM (parallel over starts).
-    say(&format!("multi-start LM: {} starts on {} samples", chosen.len(), sub_data.len()));
+    say(&format!(
+        "multi-start LM: {} starts on {} samples",
+        chosen.len(),
+        sub_data.len()
+    ));
     let runs: Vec<Result<RunResult>> = chosen
         .par_iter()
         .map(|&i| run_lm(&sub, scored[i].2.clone(), opts.max_iters, clock))
         .collect();
     let mut runs: Vec<RunResult> = runs.into_iter().collect::<Result<_>>()?;
+    sub.evals
+        .fetch_add(runs.iter().map(|r| r.evals).sum(), Ordering::Relaxed);
     let best = (0..runs.len())
         .min_by(|&a, &b| runs[a].cost.total_cmp(&runs[b].cost).then(a.cmp(&b)))
         .expect("at least one start");
@@ -278,6 +332,7 @@ pub fn fit_data(data: &FitData, opts: &FitOptions, progress: Option<Progress>) -
     let (u, termination) = if use_sub {
         say(&format!("polishing on all {} samples", data.len()));
         let polish = run_lm(&full, best_run.u, opts.max_iters, clock)?;
+        full.evals.fetch_add(polish.evals, Ordering::Relaxed);
         let offset = best_run.iters;
         let n = data.len() as f64;
         trace.extend(polish.trace.iter().map(|t| TraceEntry {
@@ -291,7 +346,19 @@ pub fn fit_data(data: &FitData, opts: &FitOptions, progress: Option<Progress>) -
     } else {
         (best_run.u, best_run.termination)
     };
-    finish(data, opts, &full, &sub, u, iters, termination, trace, opts.n_global + 10 + opts.init.is_some() as usize, chosen.len(), clock)
+    finish(
+        data,
+        opts,
+        &full,
+        &sub,
+        u,
+        iters,
+        termination,
+        trace,
+        opts.n_global + 10 + opts.init.is_some() as usize,
+        chosen.len(),
+        clock,
+    )
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -322,7 +389,11 @@ fn finish(
     let t_full = t.elapsed().as_secs_f64();
     let (nrmse, _) = problem::nrmse(&m, &data.ln_y, data.range);
     let same = std::ptr::eq(full, sub);
-    let sub_evals = if same { 0 } else { sub.evals.load(Ordering::Relaxed) };
+    let sub_evals = if same {
+        0
+    } else {
+        sub.evals.load(Ordering::Relaxed)
+    };
     // The final evaluation above is not part of the solve.
     let full_evals = full.evals.load(Ordering::Relaxed) - 1;
     let sample_evaluations = full_evals * data.len() as u64 + sub_evals * sub.data.len() as u64;
@@ -360,7 +431,11 @@ pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result
     let mut pts = Points::default();
     let mut vals = Vec::new();
     let mut rel = Vec::new();
-    for s in profile.samples.iter().filter(|s| s.channel == channel && s.is_valid()) {
+    for s in profile
+        .samples
+        .iter()
+        .filter(|s| s.channel == channel && s.is_valid())
+    {
         let (ti, tr, ph) = s.angles_rad();
         pts.push(ti, tr, ph);
         vals.push(s.value);
@@ -378,7 +453,11 @@ pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result
         )));
     }
     let use_w = weighted && rel.iter().all(|r| r.is_finite() && *r > 0.0);
-    Ok(FitData::new(pts, &vals, if use_w { Some(&rel) } else { None }))
+    Ok(FitData::new(
+        pts,
+        &vals,
+        if use_w { Some(&rel) } else { None },
+    ))
 }
 
 #[cfg(test)]

@@ -44,7 +44,10 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
     let unc = &out.uncertainty;
     let mut se = Map::new();
     for id in ParamId::ALL {
-        se.insert(id.spec().name.into(), unc.se[id.index()].map(num).unwrap_or(Value::Null));
+        se.insert(
+            id.spec().name.into(),
+            unc.se[id.index()].map(num).unwrap_or(Value::Null),
+        );
     }
     let fixed: Vec<&str> = ParamId::ALL
         .into_iter()
@@ -58,7 +61,11 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
         .collect();
     let keys: Vec<&str> = unc.free.iter().map(|id| id.spec().name).collect();
     let matrix: Vec<Vec<Value>> = (0..unc.correlation.nrows())
-        .map(|i| (0..unc.correlation.ncols()).map(|j| num(unc.correlation[(i, j)])).collect())
+        .map(|i| {
+            (0..unc.correlation.ncols())
+                .map(|j| num(unc.correlation[(i, j)]))
+                .collect()
+        })
         .collect();
     let trace: Vec<Value> = out
         .trace

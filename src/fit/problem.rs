@@ -14,8 +14,8 @@
 //! underflows to zero gives a large but finite residual instead of `-inf`.
 
 use super::forward::{predict_points, Points};
-use crate::model::far::FarOptions;
 use super::reparam;
+use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::params::{FurParams, ParamId, N_PARAMS};
 use argmin::core::{Error as ArgminError, Jacobian, Operator};
@@ -50,7 +50,13 @@ impl FitData {
         let mut w: Vec<f64> = match rel_sigma {
             Some(rs) => rs
                 .iter()
-                .map(|&s| if s.is_finite() && s > 0.0 { 1.0 / (s * s) } else { 1.0 })
+                .map(|&s| {
+                    if s.is_finite() && s > 0.0 {
+                        1.0 / (s * s)
+                    } else {
+                        1.0
+                    }
+                })
                 .collect(),
             None => vec![1.0; ln_y.len()],
         };
@@ -219,7 +225,13 @@ impl<'a> LogResidualProblem<'a> {
     pub fn model_values(&self, u: &[f64]) -> Vec<f64> {
         let params = self.layout.params(u);
         let mut out = vec![0.0; self.data.len()];
-        predict_points(&params, &self.data.points, &self.far, LobeSet::ALL, &mut out);
+        predict_points(
+            &params,
+            &self.data.points,
+            &self.far,
+            LobeSet::ALL,
+            &mut out,
+        );
         self.evals.fetch_add(1, Ordering::Relaxed);
         out
     }

@@ -130,7 +130,10 @@ mod tests {
         for (id, v) in ParamId::ALL.into_iter().zip(vals) {
             let u = to_u(id, v);
             // Smooth maps inverted in closed form: agreement to float rounding (1e-12 rel).
-            assert!((to_value(id, u) - v).abs() < 1e-12 * v.abs().max(1.0), "{id:?}");
+            assert!(
+                (to_value(id, u) - v).abs() < 1e-12 * v.abs().max(1.0),
+                "{id:?}"
+            );
             let e = 1e-6;
             let fd = (to_value(id, u + e) - to_value(id, u - e)) / (2.0 * e);
             // Central difference with step 1e-6: truncation ~1e-12, rounding ~1e-10 rel.

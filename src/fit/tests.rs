@@ -1,9 +1,9 @@
 //! Unit tests of the fitter's math (the end-to-end runs live in `tests/fit_*.rs`).
 
 use super::forward::{predict_points, Points};
-use crate::model::far::FarOptions;
 use super::problem::{optimal_log_exposure, FitData, LogResidualProblem, ParamLayout};
 use super::*;
+use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 
 /// A small grid: 3 theta_i x 13 theta_r x 25 phi (degrees in, radians stored).
@@ -57,7 +57,10 @@ fn exposure_matches_brute_force() {
     }
     let brute = 0.5 * (a + b);
     // Golden section brackets the minimum to 1e-9; the closed form is exact.
-    assert!((lk - brute).abs() < 1e-8, "closed form {lk} vs brute force {brute}");
+    assert!(
+        (lk - brute).abs() < 1e-8,
+        "closed form {lk} vs brute force {brute}"
+    );
     assert!(cost(lk) <= cost(brute) + 1e-12);
 }
 
@@ -81,6 +84,10 @@ fn jacobian_matches_central_differences() {
         // Forward differences (step 1e-6) vs central (step 1e-4): both approximate the
         // true column to ~1e-5 relative on this smooth model; 1e-3 leaves margin while
         // catching a wrong column, sign or step scaling (which give errors of order 1).
-        assert!(err < 1e-3, "column {j} ({:?}): relative error {err}", prob.layout.free()[j]);
+        assert!(
+            err < 1e-3,
+            "column {j} ({:?}): relative error {err}",
+            prob.layout.free()[j]
+        );
     }
 }

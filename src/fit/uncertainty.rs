@@ -35,7 +35,12 @@ pub struct Uncertainty {
 }
 
 /// Uncertainty from the Jacobian `jac` (n x p, free parameters) and residuals `r` at `u`.
-pub fn estimate(layout: &ParamLayout, u: &DVector<f64>, jac: &DMatrix<f64>, r: &DVector<f64>) -> Uncertainty {
+pub fn estimate(
+    layout: &ParamLayout,
+    u: &DVector<f64>,
+    jac: &DMatrix<f64>,
+    r: &DVector<f64>,
+) -> Uncertainty {
     let free = layout.free();
     let (n, p) = (jac.nrows(), jac.ncols());
     let dof = n.saturating_sub(p).max(1) as f64;

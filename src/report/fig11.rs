@@ -40,7 +40,11 @@ pub fn viridis(t: f64) -> RGBColor {
         (94.0, 201.0, 98.0),
         (253.0, 231.0, 37.0),
     ];
-    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 };
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
     let x = t * 4.0;
     let i = (x.floor() as usize).min(3);
     let f = x - i as f64;
@@ -54,12 +58,24 @@ pub fn viridis(t: f64) -> RGBColor {
 
 /// Diverging blue-white-red map, t in [-1, 1].
 pub fn diverging(t: f64) -> RGBColor {
-    let t = if t.is_finite() { t.clamp(-1.0, 1.0) } else { 0.0 };
+    let t = if t.is_finite() {
+        t.clamp(-1.0, 1.0)
+    } else {
+        0.0
+    };
     if t < 0.0 {
         let f = -t;
-        RGBColor((255.0 * (1.0 - f) + 33.0 * f) as u8, (255.0 * (1.0 - f) + 102.0 * f) as u8, (255.0 * (1.0 - f) + 172.0 * f) as u8)
+        RGBColor(
+            (255.0 * (1.0 - f) + 33.0 * f) as u8,
+            (255.0 * (1.0 - f) + 102.0 * f) as u8,
+            (255.0 * (1.0 - f) + 172.0 * f) as u8,
+        )
     } else {
-        RGBColor((255.0 * (1.0 - t) + 178.0 * t) as u8, (255.0 * (1.0 - t) + 24.0 * t) as u8, (255.0 * (1.0 - t) + 43.0 * t) as u8)
+        RGBColor(
+            (255.0 * (1.0 - t) + 178.0 * t) as u8,
+            (255.0 * (1.0 - t) + 24.0 * t) as u8,
+            (255.0 * (1.0 - t) + 43.0 * t) as u8,
+        )
     }
 }
 
@@ -83,15 +99,29 @@ fn key(x: f64) -> i64 {
 fn half_widths(v: &[f64]) -> Vec<(f64, f64)> {
     (0..v.len())
         .map(|i| {
-            let lo = if i > 0 { 0.5 * (v[i] - v[i - 1]) } else if v.len() > 1 { 0.5 * (v[1] - v[0]) } else { 1.0 };
-            let hi = if i + 1 < v.len() { 0.5 * (v[i + 1] - v[i]) } else { lo };
+            let lo = if i > 0 {
+                0.5 * (v[i] - v[i - 1])
+            } else if v.len() > 1 {
+                0.5 * (v[1] - v[0])
+            } else {
+                1.0
+            };
+            let hi = if i + 1 < v.len() {
+                0.5 * (v[i + 1] - v[i])
+            } else {
+                lo
+            };
             (v[i] - lo, v[i] + hi)
         })
         .collect()
 }
 
 fn slices(profile: &Profile, channel: usize, fit: &FitFile, far: &FarOptions) -> Vec<Slice> {
-    let samples: Vec<_> = profile.samples.iter().filter(|s| s.channel == channel).collect();
+    let samples: Vec<_> = profile
+        .samples
+        .iter()
+        .filter(|s| s.channel == channel)
+        .collect();
     let mut pts = Points::default();
     for s in &samples {
         let (a, b, c) = s.angles_rad();
@@ -124,7 +154,12 @@ fn slices(profile: &Profile, channel: usize, fit: &FitFile, far: &FarOptions) ->
     if out.len() > 4 {
         let n = out.len();
         let pick: Vec<usize> = (0..4).map(|i| i * (n - 1) / 3).collect();
-        out = out.into_iter().enumerate().filter(|(i, _)| pick.contains(i)).map(|(_, s)| s).collect();
+        out = out
+            .into_iter()
+            .enumerate()
+            .filter(|(i, _)| pick.contains(i))
+            .map(|(_, s)| s)
+            .collect();
     }
     out
 }
@@ -170,7 +205,10 @@ fn heat<DB: DrawingBackend>(
                 }
                 None => RGBColor(230, 230, 230),
             };
-            rects.push(Rectangle::new([(hp[j].0, hr[i].0), (hp[j].1, hr[i].1)], c.filled()));
+            rects.push(Rectangle::new(
+                [(hp[j].0, hr[i].0), (hp[j].1, hr[i].1)],
+                c.filled(),
+            ));
         }
     }
     ch.draw_series(rects)?;
@@ -189,7 +227,11 @@ fn lobe_panel<DB: DrawingBackend>(
     let row: Vec<(f64, f64, [f64; 5])> = sl
         .phi
         .iter()
-        .filter_map(|ph| sl.cells.get(&(key(tr), key(*ph))).map(|&(m, l)| (*ph, m, l)))
+        .filter_map(|ph| {
+            sl.cells
+                .get(&(key(tr), key(*ph)))
+                .map(|&(m, l)| (*ph, m, l))
+        })
         .collect();
     let logs = row.iter().flat_map(|(_, m, l)| {
         let mut v: Vec<f64> = l.iter().map(|x| x.log10()).collect();
@@ -199,8 +241,16 @@ fn lobe_panel<DB: DrawingBackend>(
     });
     let vals: Vec<f64> = logs.filter(|x| x.is_finite()).collect();
     let hi = vals.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let lo = vals.iter().copied().fold(f64::INFINITY, f64::min).max(hi - 6.0);
-    let (lo, hi) = if hi.is_finite() { (lo - 0.1, hi + 0.1) } else { (-1.0, 1.0) };
+    let lo = vals
+        .iter()
+        .copied()
+        .fold(f64::INFINITY, f64::min)
+        .max(hi - 6.0);
+    let (lo, hi) = if hi.is_finite() {
+        (lo - 0.1, hi + 0.1)
+    } else {
+        (-1.0, 1.0)
+    };
     let mut ch = ChartBuilder::on(area)
         .caption(format!("lobes at theta_r = {tr:.0} deg"), (FONT, 14))
         .margin(4)
@@ -296,8 +346,20 @@ fn draw<DB: DrawingBackend>(
     for (r, sl) in sls.iter().enumerate() {
         let t = format!("theta_i = {:.0}", sl.theta_i);
         let logc = |v: f64| viridis((v - lo) / span);
-        heat(&rows[4 * r], &format!("measured, {t}"), sl, &|m, _| m.log10(), &logc)?;
-        heat(&rows[4 * r + 1], &format!("fitted, {t}"), sl, &|_, l| l.iter().sum::<f64>().log10(), &logc)?;
+        heat(
+            &rows[4 * r],
+            &format!("measured, {t}"),
+            sl,
+            &|m, _| m.log10(),
+            &logc,
+        )?;
+        heat(
+            &rows[4 * r + 1],
+            &format!("fitted, {t}"),
+            sl,
+            &|_, l| l.iter().sum::<f64>().log10(),
+            &logc,
+        )?;
         heat(
             &rows[4 * r + 2],
             &format!("ln(fit/meas) (+-{rmax:.2}), {t}"),
@@ -322,7 +384,10 @@ pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::pa
     let far = FarOptions::paper();
     let sls = slices(profile, channel, fit, &far);
     if sls.is_empty() {
-        return Err(Error::Invalid(format!("{}: profile has no samples to plot", fit.species)));
+        return Err(Error::Invalid(format!(
+            "{}: profile has no samples to plot",
+            fit.species
+        )));
     }
     let h = 40 + 300 * sls.len() as u32;
     let size = (1600u32, h);

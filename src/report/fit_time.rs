@@ -30,14 +30,35 @@ fn draw<DB: DrawingBackend>(
     let panels = root.split_evenly((1, 2));
     let all: Vec<&(String, u64, f64, f64)> = fits.iter().flat_map(|f| f.trace.iter()).collect();
     let good = |x: f64| x.is_finite() && x > 0.0;
-    let emin = all.iter().map(|t| t.3).filter(|x| good(*x)).fold(f64::INFINITY, f64::min);
-    let emax = all.iter().map(|t| t.3).filter(|x| good(*x)).fold(0.0, f64::max);
-    let (emin, emax) = if emax > 0.0 { (emin * 0.8, emax * 1.25) } else { (1e-3, 1.0) };
-    let tmax = all.iter().map(|t| t.2).filter(|x| x.is_finite()).fold(0.0, f64::max).max(1e-3) * 1.05;
+    let emin = all
+        .iter()
+        .map(|t| t.3)
+        .filter(|x| good(*x))
+        .fold(f64::INFINITY, f64::min);
+    let emax = all
+        .iter()
+        .map(|t| t.3)
+        .filter(|x| good(*x))
+        .fold(0.0, f64::max);
+    let (emin, emax) = if emax > 0.0 {
+        (emin * 0.8, emax * 1.25)
+    } else {
+        (1e-3, 1.0)
+    };
+    let tmax = all
+        .iter()
+        .map(|t| t.2)
+        .filter(|x| x.is_finite())
+        .fold(0.0, f64::max)
+        .max(1e-3)
+        * 1.05;
     let imax = all.iter().map(|t| t.1).max().unwrap_or(1).max(1) as f64 * 1.05;
-    for (k, (xdesc, xmax)) in [("wall time since fit start (s)", tmax), ("LM iteration", imax)]
-        .into_iter()
-        .enumerate()
+    for (k, (xdesc, xmax)) in [
+        ("wall time since fit start (s)", tmax),
+        ("LM iteration", imax),
+    ]
+    .into_iter()
+    .enumerate()
     {
         let mut ch = ChartBuilder::on(&panels[k])
             .caption(format!("NRMSE vs {xdesc}"), (FONT, 16))

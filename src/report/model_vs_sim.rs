@@ -38,10 +38,18 @@ pub fn true_params(species_dir: &Path) -> Result<Option<FurParams>> {
 
 /// NRMSE (MODEL.md, optimal exposure) of the far-field model at `params` on channel
 /// `channel` of `profile`. Returns `(nrmse, exposure, n_valid)`.
-pub fn nrmse_at(params: &FurParams, profile: &Profile, channel: usize) -> Option<(f64, f64, usize)> {
+pub fn nrmse_at(
+    params: &FurParams,
+    profile: &Profile,
+    channel: usize,
+) -> Option<(f64, f64, usize)> {
     let mut pts = Points::default();
     let mut ln_y = Vec::new();
-    for s in profile.samples.iter().filter(|s| s.channel == channel && s.is_valid()) {
+    for s in profile
+        .samples
+        .iter()
+        .filter(|s| s.channel == channel && s.is_valid())
+    {
         let (a, b, c) = s.angles_rad();
         pts.push(a, b, c);
         ln_y.push(s.value.ln());
@@ -84,7 +92,9 @@ pub fn markdown(entries: &[Entry]) -> String {
         s.push_str("No species folder with a metadata.json `params` object was found.\n");
         return s;
     }
-    s.push_str("| species | valid samples | NRMSE at truth | NRMSE of fit |\n|---|---:|---:|---:|\n");
+    s.push_str(
+        "| species | valid samples | NRMSE at truth | NRMSE of fit |\n|---|---:|---:|---:|\n",
+    );
     for e in entries {
         let _ = writeln!(
             s,
@@ -92,7 +102,10 @@ pub fn markdown(entries: &[Entry]) -> String {
             e.species,
             e.n_valid,
             100.0 * e.nrmse_truth,
-            e.fit.as_ref().map(|f| format!("{:.2}%", 100.0 * f.nrmse)).unwrap_or_else(|| "(no fit)".into())
+            e.fit
+                .as_ref()
+                .map(|f| format!("{:.2}%", 100.0 * f.nrmse))
+                .unwrap_or_else(|| "(no fit)".into())
         );
     }
     for e in entries {
@@ -104,16 +117,28 @@ pub fn markdown(entries: &[Entry]) -> String {
             let (fv, se, d) = match &e.fit {
                 Some(f) => {
                     let v = f.params.to_file_units()[k];
-                    let flag = if f.unconstrained.iter().any(|u| u == id.spec().name) { " (unconstrained)" } else { "" };
+                    let flag = if f.unconstrained.iter().any(|u| u == id.spec().name) {
+                        " (unconstrained)"
+                    } else {
+                        ""
+                    };
                     (
                         format!("{v:.4}"),
-                        f.se[k].map(|x| format!("{x:.3}{flag}")).unwrap_or_else(|| format!("-{flag}")),
+                        f.se[k]
+                            .map(|x| format!("{x:.3}{flag}"))
+                            .unwrap_or_else(|| format!("-{flag}")),
                         format!("{:+.4}", v - t[k]),
                     )
                 }
                 None => ("-".into(), "-".into(), "-".into()),
             };
-            let _ = writeln!(s, "| {} | {} | {:.4} | {fv} | {se} | {d} |", id.spec().name, id.spec().unit, t[k]);
+            let _ = writeln!(
+                s,
+                "| {} | {} | {:.4} | {fv} | {se} | {d} |",
+                id.spec().name,
+                id.spec().unit,
+                t[k]
+            );
         }
         let _ = writeln!(s, "\nExposure at truth: {:.4e}.", e.exposure_truth);
     }

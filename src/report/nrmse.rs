@@ -118,7 +118,10 @@ pub fn read_fits(dir: &Path) -> Result<Vec<FitFile>> {
         .collect();
     paths.sort();
     if paths.is_empty() {
-        return Err(Error::file(dir, "no fit files (*.json); run `furfit fit` first"));
+        return Err(Error::file(
+            dir,
+            "no fit files (*.json); run `furfit fit` first",
+        ));
     }
     paths.iter().map(|p| FitFile::read(p)).collect()
 }
@@ -180,7 +183,13 @@ fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
     ));
     let paper = |f: &FitFile, yan: bool| {
         preset_record(&f.species)
-            .map(|p| pct(if yan { p.paper_nrmse_yan2015 } else { p.paper_nrmse }))
+            .map(|p| {
+                pct(if yan {
+                    p.paper_nrmse_yan2015
+                } else {
+                    p.paper_nrmse
+                })
+            })
             .unwrap_or_else(|| "-".into())
     };
     rows.push((
@@ -260,7 +269,15 @@ pub fn csv(fits: &[FitFile]) -> String {
         for f in fits {
             match preset_record(&f.species) {
                 Some(p) => {
-                    let _ = write!(s, ",{}", if yan { p.paper_nrmse_yan2015 } else { p.paper_nrmse });
+                    let _ = write!(
+                        s,
+                        ",{}",
+                        if yan {
+                            p.paper_nrmse_yan2015
+                        } else {
+                            p.paper_nrmse
+                        }
+                    );
                 }
                 None => s.push(','),
             }
@@ -288,7 +305,11 @@ pub struct ReportSummary {
 /// `fit_error_vs_time.{csv,png,svg}` and `model_vs_simulation.md` from the fit files in
 /// `fits_dir` and the profiles in `measurements` (a species' profile is read from
 /// `measurements/<species>/` when it exists, else from the files its fit recorded).
-pub fn write_fit_reports(fits_dir: &Path, measurements: &Path, out: &Path) -> Result<ReportSummary> {
+pub fn write_fit_reports(
+    fits_dir: &Path,
+    measurements: &Path,
+    out: &Path,
+) -> Result<ReportSummary> {
     use super::{fig11, fit_time, model_vs_sim};
     let fits = read_fits(fits_dir)?;
     let mut sum = ReportSummary::default();
@@ -297,7 +318,8 @@ pub fn write_fit_reports(fits_dir: &Path, measurements: &Path, out: &Path) -> Re
     sum.written.push(out.join("nrmse.csv"));
     fit_time::write(&fits, out)?;
     for ext in ["csv", "png", "svg"] {
-        sum.written.push(out.join(format!("fit_error_vs_time.{ext}")));
+        sum.written
+            .push(out.join(format!("fit_error_vs_time.{ext}")));
     }
     for f in &fits {
         let dir = measurements.join(&f.species);
@@ -316,7 +338,10 @@ pub fn write_fit_reports(fits_dir: &Path, measurements: &Path, out: &Path) -> Re
     // Model vs simulation: every species folder with true parameters.
     let mut entries = Vec::new();
     if let Ok(rd) = std::fs::read_dir(measurements) {
-        let mut dirs: Vec<PathBuf> = rd.filter_map(|e| e.ok().map(|e| e.path())).filter(|p| p.is_dir()).collect();
+        let mut dirs: Vec<PathBuf> = rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_dir())
+            .collect();
         dirs.sort();
         for d in dirs {
             let species = crate::fit::job::species_name(&d);
@@ -324,15 +349,17 @@ pub fn write_fit_reports(fits_dir: &Path, measurements: &Path, out: &Path) -> Re
                 Ok(Some(t)) => t,
                 Ok(None) => continue,
                 Err(e) => {
-                    sum.skipped.push((species, format!("model_vs_simulation: {e}")));
+                    sum.skipped
+                        .push((species, format!("model_vs_simulation: {e}")));
                     continue;
                 }
             };
             let fit = fits.iter().find(|f| f.species == species).cloned();
-            let prof = match crate::fit::job::load_inputs(&[d.clone()]) {
+            let prof = match crate::fit::job::load_inputs(std::slice::from_ref(&d)) {
                 Ok(p) => p,
                 Err(e) => {
-                    sum.skipped.push((species, format!("model_vs_simulation: {e}")));
+                    sum.skipped
+                        .push((species, format!("model_vs_simulation: {e}")));
                     continue;
                 }
             };
