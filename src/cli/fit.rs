@@ -23,7 +23,8 @@ pub struct Args {
     /// Worker threads (default: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
-    /// Fit every species folder under --measurements.
+    /// Fit every species folder under --measurements (one species after another, each
+    /// using all --threads, so the total thread count stays --threads).
     #[arg(long)]
     pub all: bool,
     #[arg(long, default_value = "measurements")]

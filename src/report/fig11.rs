@@ -295,6 +295,7 @@ fn lobe_panel<DB: DrawingBackend>(
     .label("measured")
     .legend(|(x, y)| Circle::new((x + 7, y), 2, BLACK.filled()));
     ch.configure_series_labels()
+        .position(SeriesLabelPosition::LowerLeft)
         .label_font((FONT, 10))
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
@@ -362,7 +363,7 @@ fn draw<DB: DrawingBackend>(
         )?;
         heat(
             &rows[4 * r + 2],
-            &format!("ln(fit/meas) (+-{rmax:.2}), {t}"),
+            &format!("ln(fit/meas), scale +/-{rmax:.2}, {t}"),
             sl,
             &|m, l| l.iter().sum::<f64>().ln() - m.ln(),
             &|v| diverging(v / rmax),
