@@ -17,6 +17,7 @@ pub mod model;
 pub mod params;
 pub mod profile;
 pub mod report;
+pub mod simulate;
 pub mod synth;
 
 pub use error::{Error, Result};

@@ -9,6 +9,7 @@ pub mod inspect;
 pub mod report;
 pub mod stability;
 pub mod synth;
+pub mod simulate;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -32,6 +33,8 @@ pub enum Command {
     Fit(Box<fit::Args>),
     /// Write NRMSE tables, Fig-11-style figures, error-vs-time and model-vs-simulation reports.
     Report(report::Args),
+    /// Virtual goniometer: Monte Carlo ray tracing through a 3-D fiber -> synthetic profile.
+    Simulate(Box<simulate::Args>),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -44,6 +47,7 @@ pub fn main() -> std::process::ExitCode {
         Command::BenchModel(a) => bench_model::run(a),
         Command::Fit(a) => fit::run(*a),
         Command::Report(a) => report::run(a),
+        Command::Simulate(a) => simulate::run(*a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

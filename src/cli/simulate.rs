@@ -1,0 +1,334 @@
+//! `furfit simulate`: the virtual goniometer (Monte Carlo ray tracing through a 3-D double
+//! cylinder fiber) writing a synthetic profile CSV and `metadata.json`.
+
+use crate::grid::parse_grid;
+use crate::simulate::{self, measure, output, SimSettings};
+use crate::FurParams;
+use anyhow::{bail, Context};
+use std::path::PathBuf;
+use std::time::Instant;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Parameters: a preset name (e.g. red-fox), a parameter JSON or a fit JSON.
+    #[arg(long, required_unless_present = "bench")]
+    pub params: Option<String>,
+    /// Incidence angles (degrees), list or start:stop:step.
+    #[arg(long, default_value = "0,15,30,45", allow_hyphen_values = true)]
+    pub theta_i: String,
+    /// Outgoing inclinations (degrees): bin centres; bin width = grid step.
+    #[arg(long, default_value = "-80:80:2", allow_hyphen_values = true)]
+    pub theta_r: String,
+    /// Relative azimuths (degrees): bin centres; bin width = grid step.
+    #[arg(long, default_value = "-180:180:2", allow_hyphen_values = true)]
+    pub phi: String,
+    /// Paths traced per incidence angle.
+    #[arg(long, conflicts_with = "rel_noise")]
+    pub paths: Option<u64>,
+    /// Instead of --paths: choose the path count (from a pilot run) so that the median
+    /// relative standard error of bins above --noise-above x peak is this fraction.
+    #[arg(long)]
+    pub rel_noise: Option<f64>,
+    /// Threshold (fraction of the peak) for --rel-noise.
+    #[arg(long, default_value_t = 1e-3)]
+    pub noise_above: f64,
+    /// Upper bound on the paths per incidence angle chosen by --rel-noise.
+    #[arg(long, default_value_t = 200_000_000)]
+    pub max_paths: u64,
+    /// Random seed (paths and measurement effects).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Worker threads (default: all cores). The output does not depend on it.
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Detector floor: values below this fraction of the peak are invalid (0 = off).
+    #[arg(long, default_value_t = 0.0)]
+    pub floor: f64,
+    /// Half-angle (degrees) of the cone around the light direction where the camera would
+    /// occlude the beam; samples there are invalid (0 = off).
+    #[arg(long, default_value_t = 0.0)]
+    pub wedge: f64,
+    /// Fraction of samples dropped at random (invalid).
+    #[arg(long, default_value_t = 0.0)]
+    pub drop: f64,
+    /// Shot noise: photons counted at the profile peak (off by default).
+    #[arg(long)]
+    pub shot_photons: Option<f64>,
+    /// Multiplicative log-normal noise std (0 = off).
+    #[arg(long, default_value_t = 0.0)]
+    pub mult_noise: f64,
+    /// Elliptical cross-section: axis ratio minor/major in (0, 1] (Marschner 2003's a).
+    #[arg(long)]
+    pub ellipse: Option<f64>,
+    /// Medulla IOR (default: equal to eta, index matched).
+    #[arg(long)]
+    pub medulla_eta: Option<f64>,
+    /// Output directory (e.g. measurements/red-fox/).
+    #[arg(long, required_unless_present = "bench")]
+    pub out: Option<PathBuf>,
+    /// Profile file name inside --out.
+    #[arg(long, default_value = "profile.csv")]
+    pub file: String,
+    /// Species label for the metadata (default: the preset name, if --params is one).
+    #[arg(long)]
+    pub species: Option<String>,
+    /// Print throughput figures (paths/s) instead of simulating a profile.
+    #[arg(long)]
+    pub bench: bool,
+}
+
+fn quote(a: &str) -> String {
+    if a.chars()
+        .all(|c| c.is_ascii_alphanumeric() || "-_./:,=+".contains(c))
+    {
+        a.to_string()
+    } else {
+        format!("'{}'", a.replace('\'', "'\\''"))
+    }
+}
+
+fn progress_bar(total: u64) -> indicatif::ProgressBar {
+    let pb = indicatif::ProgressBar::with_draw_target(
+        Some(total),
+        indicatif::ProgressDrawTarget::stderr(),
+    );
+    if let Ok(style) = indicatif::ProgressStyle::with_template(
+        "{spinner} [{elapsed_precise}] {bar:40} {pos}/{len} paths ({per_sec}, eta {eta})",
+    ) {
+        pb.set_style(style);
+    }
+    pb
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let mut pool = rayon::ThreadPoolBuilder::new();
+    if let Some(t) = a.threads {
+        if t == 0 {
+            bail!("--threads must be >= 1");
+        }
+        pool = pool.num_threads(t);
+    }
+    let pool = pool.build().context("building the thread pool")?;
+    pool.install(|| if a.bench { bench() } else { run_profile(a) })
+}
+
+fn run_profile(a: Args) -> anyhow::Result<()> {
+    let spec = a.params.clone().unwrap_or_default();
+    let out = a.out.clone().unwrap_or_default();
+    let (params, _exposure) = FurParams::load(&spec)?;
+    let species = a
+        .species
+        .clone()
+        .or_else(|| crate::params::preset_record(&spec).map(|p| p.name.to_string()));
+    for (name, v) in [("--floor", a.floor), ("--drop", a.drop)] {
+        if !(0.0..1.0).contains(&v) {
+            bail!("{name} {v}: must be in [0, 1)");
+        }
+    }
+    if !(a.wedge >= 0.0 && a.wedge < 90.0) {
+        bail!("--wedge {}: must be in [0, 90) degrees", a.wedge);
+    }
+    if !(a.mult_noise >= 0.0 && a.mult_noise.is_finite()) {
+        bail!("--mult-noise must be >= 0");
+    }
+    if let Some(p) = a.shot_photons {
+        if !(p > 0.0 && p.is_finite()) {
+            bail!("--shot-photons must be > 0");
+        }
+    }
+    let mut s = SimSettings {
+        params,
+        theta_i: parse_grid("--theta-i", &a.theta_i)?,
+        theta_r: parse_grid("--theta-r", &a.theta_r)?,
+        phi: parse_grid("--phi", &a.phi)?,
+        paths: a.paths.unwrap_or(4_000_000),
+        seed: a.seed,
+        ellipse: a.ellipse,
+        medulla_eta: a.medulla_eta,
+        smooth: false,
+    };
+    s.validate()?;
+    let t0 = Instant::now();
+    let mut pilot_info = serde_json::Value::Null;
+    if let Some(x) = a.rel_noise {
+        if !(x > 0.0 && x < 1.0) {
+            bail!("--rel-noise {x}: must be in (0, 1)");
+        }
+        let mut pilot = s.clone();
+        pilot.paths = 1 << 19;
+        pilot.seed = s.seed ^ 0xA5A5_5A5A;
+        let r = simulate::simulate(&pilot, |_| {})?;
+        let rel = simulate::median_rel_noise(&r, a.noise_above)
+            .context("the pilot run detected no light")?;
+        let n = (pilot.paths as f64 * (rel / x).powi(2)).ceil() as u64;
+        s.paths = n.clamp(1 << 16, a.max_paths);
+        eprintln!(
+            "pilot: {} paths/angle give median rel. error {:.4} above {:.0e} x peak -> {} paths/angle",
+            pilot.paths, rel, a.noise_above, s.paths
+        );
+        pilot_info = serde_json::json!({
+            "pilot_paths": pilot.paths, "pilot_median_rel_noise": rel,
+            "target_rel_noise": x, "noise_above": a.noise_above,
+        });
+    }
+    let total = s.paths * s.theta_i.len() as u64;
+    let pb = progress_bar(total);
+    let sim = simulate::simulate(&s, |done| pb.set_position(done))?;
+    pb.finish_and_clear();
+    let secs = t0.elapsed().as_secs_f64();
+    let fx = measure::Effects {
+        floor: a.floor,
+        wedge_deg: a.wedge,
+        drop: a.drop,
+        shot_photons: a.shot_photons,
+        mult_noise: a.mult_noise,
+        seed: a.seed,
+    };
+    let m = measure::apply(&sim, &fx);
+    // argv[0] is recorded as plain `furfit` so the command is reproducible anywhere.
+    let command: Vec<String> = std::iter::once("furfit".to_string())
+        .chain(std::env::args().skip(1).map(|x| quote(&x)))
+        .collect();
+    let command = command.join(" ");
+    let rel_after = simulate::median_rel_noise(&sim, a.noise_above);
+    let valid = m.count(None);
+    let mut meta: Vec<(String, String)> = vec![
+        ("synthetic".into(), "true".into()),
+        (
+            "source".into(),
+            "furfit simulate (Monte Carlo virtual goniometer, 3-D double cylinder)".into(),
+        ),
+    ];
+    if let Some(sp) = &species {
+        meta.push(("species".into(), sp.clone()));
+    }
+    meta.push(("params".into(), params.to_json_value().to_string()));
+    meta.push(("seed".into(), a.seed.to_string()));
+    meta.push(("paths_per_theta_i".into(), s.paths.to_string()));
+    meta.push((
+        "value".into(),
+        "exitant energy per unit incident energy per radian theta_r per radian phi (far field)"
+            .into(),
+    ));
+    meta.push(("command".into(), command.clone()));
+    meta.push((
+        "tool".into(),
+        format!("furfit {}", env!("CARGO_PKG_VERSION")),
+    ));
+    let csv = output::profile_csv(&sim, &m, &meta)?;
+    let count = |w| m.count(Some(w));
+    let md = serde_json::json!({
+        "synthetic": true,
+        "what": "Synthetic goniometric fiber profile from furfit's Monte Carlo virtual goniometer (explicit ray tracing through a 3-D double-cylinder fiber); NOT a measurement.",
+        "species": species,
+        "command": command,
+        "tool": format!("furfit {}", env!("CARGO_PKG_VERSION")),
+        "params": params.to_json_value(),
+        "params_units": "angles in degrees, lengths per unit fiber radius",
+        "seed": a.seed,
+        "paths_per_theta_i": s.paths,
+        "rel_noise_setting": pilot_info,
+        "median_rel_noise_above": {"threshold": a.noise_above, "value": rel_after},
+        "ellipse_axis_ratio": a.ellipse,
+        "medulla_eta": a.medulla_eta.unwrap_or(params.eta),
+        "grid": {"theta_i": a.theta_i, "theta_r": a.theta_r, "phi": a.phi,
+                 "bins": "centred on grid values, width = grid step"},
+        "value_units": "exitant energy / incident energy / (rad theta_r * rad phi); far field over the fiber width; not divided by cos theta_r",
+        "effects": fx,
+        "samples": {"total": m.value.len(), "valid": valid,
+            "invalid_no_signal": count(measure::Invalid::NoSignal),
+            "invalid_floor": count(measure::Invalid::Floor),
+            "invalid_wedge": count(measure::Invalid::Wedge),
+            "invalid_dropped": count(measure::Invalid::Dropped)},
+        "peak": m.peak,
+        "energy_per_theta_i": sim.tally,
+        "wall_seconds": secs,
+        "threads": rayon::current_num_threads(),
+    });
+    output::write_all(&out, &a.file, &csv, &md)?;
+    println!(
+        "{}: {} samples ({} valid), {} paths/angle x {} angles in {:.1} s on {} threads ({:.2e} paths/s); median rel. error above {:.0e} x peak: {}",
+        out.join(&a.file).display(),
+        m.value.len(),
+        valid,
+        s.paths,
+        s.theta_i.len(),
+        secs,
+        rayon::current_num_threads(),
+        total as f64 / secs,
+        a.noise_above,
+        rel_after.map_or("n/a".into(), |r| format!("{r:.4}")),
+    );
+    for (ti, t) in s.theta_i.iter().zip(&sim.tally) {
+        println!(
+            "  theta_i {ti:>5}: exited {:.4}, binned {:.4}, guided {:.2e}, {:.1} s",
+            t.exited, t.binned, t.guided, t.seconds
+        );
+    }
+    Ok(())
+}
+
+/// Process CPU time (user + system) in seconds from `/proc/self/stat` (Linux; clock ticks
+/// assumed 100 per second, the Linux USER_HZ). `None` elsewhere.
+fn cpu_seconds() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
+    let rest = &s[s.rfind(')')? + 2..];
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ut: f64 = f.get(11)?.parse().ok()?;
+    let st: f64 = f.get(12)?.parse().ok()?;
+    Some((ut + st) / 100.0)
+}
+
+fn bench() -> anyhow::Result<()> {
+    let threads = rayon::current_num_threads();
+    let mut human0 = FurParams::preset("human").context("preset")?;
+    human0.kappa = 0.0;
+    let mut fox_hi = FurParams::preset("red-fox").context("preset")?;
+    fox_hi.sigma_m_s = 20.0; // tau = sigma_m_s * kappa = 17.2
+    let cases = [
+        ("kappa = 0 (human, kappa set to 0)", human0, 8_000_000u64),
+        (
+            "red-fox preset (tau = 2.7)",
+            FurParams::preset("red-fox").context("preset")?,
+            2_000_000,
+        ),
+        (
+            "high-tau medulla (red-fox, sigma_m_s = 20, tau = 17)",
+            fox_hi,
+            500_000,
+        ),
+    ];
+    for (name, p, n) in cases {
+        let s = SimSettings {
+            params: p,
+            theta_i: vec![30.0],
+            theta_r: parse_grid("--theta-r", "-80:80:2")?,
+            phi: parse_grid("--phi", "-180:180:2")?,
+            paths: n,
+            seed: 7,
+            ellipse: None,
+            medulla_eta: None,
+            smooth: false,
+        };
+        let t0 = Instant::now();
+        let c0 = cpu_seconds();
+        let r = simulate::simulate(&s, |_| {})?;
+        let dt = t0.elapsed().as_secs_f64();
+        let cpu = match (c0, cpu_seconds()) {
+            (Some(a), Some(b)) if b > a => format!(
+                "; CPU {:.2} s = {:.3e} paths per CPU-second",
+                b - a,
+                n as f64 / (b - a)
+            ),
+            _ => String::new(),
+        };
+        println!(
+            "bench {name}: {n} paths in {dt:.2} s on {threads} threads = {:.3e} paths/s (exited {:.3}, scatter events/path {:.2}){cpu}",
+            n as f64 / dt,
+            r.tally[0].exited,
+            r.tally[0].scatter_events as f64 / n as f64
+        );
+    }
+    Ok(())
+}

@@ -1,0 +1,428 @@
+//! The virtual goniometer: explicit Monte Carlo ray tracing of photons through a 3-D
+//! double-cylinder fur fiber, binned like a goniometer. It makes the synthetic
+//! `measurements/` and is deliberately independent of the analytic model in
+//! [`crate::model`] (it shares only [`FurParams`]).
+//!
+//! # Physics (each choice stated here)
+//! - **Fiber.** An infinite cylinder along `u = +z` (root -> tip) with unit radius and a
+//!   concentric medulla of radius `kappa`. Optional elliptical cross-section: the axis ratio
+//!   `e` (minor/major, Marschner et al. 2003's eccentricity `a`) with the area of the unit
+//!   circle (semi-axes `1/sqrt(e)`, `sqrt(e)`), the medulla the same ellipse scaled by
+//!   `kappa`, averaged over a uniformly random rotation of the fiber about its axis.
+//!   Optional medulla IOR `eta_m` (default `eta`, index matched as MODEL.md assumes; when it
+//!   differs the medulla boundary is a smooth Fresnel interface, chosen stochastically).
+//! - **Light.** A collimated beam from `theta_i` (MODEL.md frames: `theta` out of the normal
+//!   plane, + toward the tip). Each path hits the fiber at an offset `h` uniform over the
+//!   fiber's full projected width (for the ellipse, the projected width at that rotation),
+//!   so the output is the *far field* (MODEL.md: `1/2 * integral dh`).
+//! - **Frames of the detector.** The light lies at azimuth `phi_i` (0 for the circle); an
+//!   exit direction `w` has `theta_r = asin(w_z)` and `phi = atan2(w_y, w_x) - phi_i`
+//!   wrapped to (-pi, pi]: `phi = 0` is backscatter, `|phi| = pi` forward. With the impact
+//!   point at `y = h`, a smooth R reflection goes to `phi = +2 asin(h)`; MODEL.md writes
+//!   `-2 gamma_i`, the mirror convention for `h`. Far-field output is symmetric in `h`,
+//!   so both agree.
+//! - **Cuticle.** At every cuticle interaction (entering, and every internal hit of the
+//!   outer boundary) the surface normal is the geometric normal tilted toward the tip by
+//!   `alpha/2 + s_m N(0,1)` and around the axis by `s_n N(0,1)`. A mirror reflection turns a
+//!   normal tilt `t` into a direction change `2t`, so `alpha/2` puts the R lobe at
+//!   `theta_r = -theta_i + alpha` (MODEL.md / seed Table 2; Marschner's "shift 2 x scale
+//!   angle" with `alpha` meaning the lobe shift) and `s_m = beta_m/2`, `s_n = beta_n/2`
+//!   give the single-reflection R lobe a longitudinal std ~ `beta_m` and an azimuthal std
+//!   ~ `beta_n` (small-angle). This holds at the centre of the fiber; the scale is a real
+//!   cone, so a ray meeting it at azimuthal incidence `gamma` is deflected longitudinally by
+//!   only `asin(cos(gamma) sin(2t))`: averaged over the width (Fresnel favours grazing
+//!   `gamma`) the R lobe's shift and width are ~0.6-0.8 of `alpha`, `beta_m`. This is a
+//!   real difference from the analytic model (which shifts every `h` by `alpha`); fits to
+//!   these data should be expected to return a smaller `alpha`/`beta_m` than simulated. The interface reflects
+//!   with the pile-of-plates probability `F = l f / (1 + (l-1) f)` of the *exact 3-D* Fresnel
+//!   reflectance `f` at the micro-normal, transmits (Snell, at the micro-normal) with
+//!   `1 - F`; the choice is stochastic (analog). A micro-normal that faces away from the ray
+//!   or would send it through the real surface the wrong way is redrawn (no explicit
+//!   shadowing/masking model).
+//! - **Interior.** Beer-Lambert absorption `sigma_c_a` along 3-D path lengths in the cortex
+//!   and `sigma_m_a` in the medulla, applied as *weights* (`w *= exp(-sigma l)`). In the
+//!   medulla free flights are sampled with `sigma_m_s` alone (analog scattering), the phase
+//!   function is Henyey-Greenstein with `g`. Paths leave and re-enter the medulla and bounce
+//!   inside any number of times; after 6 events a path whose weight is below 0.1 plays
+//!   Russian roulette (survives with probability `w/0.1`, then carries 0.1: unbiased). A path
+//!   still inside after [`trace::MAX_EVENTS`] events is light guided along the fiber; it
+//!   leaves far from the lit spot, so it is tallied as `guided`, not detected.
+//! - **Detector.** Exit directions are binned in `(theta_r, phi)`; each bin is centred on
+//!   its grid value with the width of the grid step (for lists, edges half-way between
+//!   neighbours; the end bins are symmetric). `phi` bins wrap around the circle, so a grid
+//!   holding both -180 and 180 fills both with the same light. The value of a bin is
+//!   `(energy in the bin) / (launched energy) / (dtheta_r dphi)` in radians^2: a density
+//!   per radian of `theta_r` and per radian of `phi` of outgoing energy per unit incident
+//!   energy, which is what MODEL.md's goniometer sample `k sum_p M_p N_p` predicts (M_p per
+//!   radian of `theta_r`, N_p per radian of `phi`). It is NOT divided by `cos theta_r`:
+//!   integrating it over `theta_r` and `phi` gives the exitant fraction (<= 1). Each bin's
+//!   standard error (`sigma`) comes from the per-path weights (sum and sum of squares).
+//! - **Determinism.** Paths are split into fixed chunks of [`CHUNK`] paths; chunk `c` of
+//!   incidence angle `i` has its own Xoshiro256++ stream seeded from `(seed, i, c)`. Chunks
+//!   run in parallel (rayon) and are summed in chunk order, so the output depends only on
+//!   the seed and path count, not on the thread count.
+//!
+//! Measurement effects (noise models, detector floor, occluded wedge, dropped samples) are
+//! in [`measure`]; the CSV and metadata writers in [`output`].
+
+pub mod measure;
+pub mod optics;
+pub mod output;
+pub mod trace;
+
+use crate::error::{Error, Result};
+use crate::FurParams;
+use rand::SeedableRng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+use rayon::prelude::*;
+use std::f64::consts::PI;
+use trace::{trace_path, Fiber, Outcome};
+
+/// Paths per deterministic chunk (one RNG stream each).
+pub const CHUNK: u64 = 1 << 15;
+
+/// What to simulate. Angles in degrees (file units), as on the command line.
+#[derive(Clone, Debug)]
+pub struct SimSettings {
+    pub params: FurParams,
+    pub theta_i: Vec<f64>,
+    pub theta_r: Vec<f64>,
+    pub phi: Vec<f64>,
+    /// Paths traced per incidence angle.
+    pub paths: u64,
+    pub seed: u64,
+    /// Elliptical cross-section axis ratio (None or 1 = circle).
+    pub ellipse: Option<f64>,
+    /// Medulla IOR (None = equal to eta).
+    pub medulla_eta: Option<f64>,
+    /// Zero micro-roughness (test switch; bounds keep beta > 0 in parameter files).
+    pub smooth: bool,
+}
+
+impl SimSettings {
+    /// Check the options that the parameter bounds do not cover.
+    pub fn validate(&self) -> Result<()> {
+        self.params.validate()?;
+        let bad = |m: String| Err(Error::Invalid(m));
+        if self.paths == 0 {
+            return bad("--paths must be > 0".into());
+        }
+        if self.theta_i.is_empty() || self.theta_r.is_empty() || self.phi.is_empty() {
+            return bad("empty angle grid".into());
+        }
+        for (what, v, lim) in [
+            ("--theta-i", &self.theta_i, 90.0),
+            ("--theta-r", &self.theta_r, 90.0),
+            ("--phi", &self.phi, 180.0),
+        ] {
+            if let Some(x) = v.iter().find(|x| x.abs() > lim) {
+                return bad(format!("{what}: {x} is outside [-{lim}, {lim}] degrees"));
+            }
+            if v.windows(2).any(|w| w[1] <= w[0]) {
+                return bad(format!("{what}: values must be strictly increasing"));
+            }
+        }
+        if self.theta_i.iter().any(|x| x.abs() >= 90.0) {
+            return bad("--theta-i must be inside (-90, 90) degrees".into());
+        }
+        if let Some(e) = self.ellipse {
+            if !(e.is_finite() && e > 0.0 && e <= 1.0) {
+                return bad(format!("--ellipse {e}: the axis ratio must be in (0, 1]"));
+            }
+        }
+        if let Some(m) = self.medulla_eta {
+            if !(m.is_finite() && m > 1.0 && m <= 3.0) {
+                return bad(format!("--medulla-eta {m}: must be in (1, 3]"));
+            }
+        }
+        Ok(())
+    }
+
+    pub fn fiber(&self) -> Fiber {
+        Fiber::new(&self.params, self.ellipse, self.medulla_eta, self.smooth)
+    }
+}
+
+/// Bin edges (radians) for grid centres (degrees): half-way between neighbours, symmetric
+/// end bins; a single value gets a 1-degree bin.
+pub fn bin_edges(centres_deg: &[f64]) -> Vec<f64> {
+    let c: Vec<f64> = centres_deg.iter().map(|x| x.to_radians()).collect();
+    let n = c.len();
+    let mut e = Vec::with_capacity(n + 1);
+    if n == 1 {
+        let h = 0.5f64.to_radians();
+        return vec![c[0] - h, c[0] + h];
+    }
+    e.push(c[0] - 0.5 * (c[1] - c[0]));
+    for i in 0..n - 1 {
+        e.push(0.5 * (c[i] + c[i + 1]));
+    }
+    e.push(c[n - 1] + 0.5 * (c[n - 1] - c[n - 2]));
+    e
+}
+
+/// Index of the bin holding `x`, if any (edges ascending, half-open `[e_k, e_k+1)`).
+#[inline]
+fn find_bin(edges: &[f64], x: f64) -> Option<usize> {
+    if x < edges[0] || x >= edges[edges.len() - 1] {
+        return None;
+    }
+    let k = edges.partition_point(|&e| e <= x);
+    Some(k - 1)
+}
+
+/// The detector: bin edges in theta_r and phi, radians.
+#[derive(Clone, Debug)]
+pub struct Detector {
+    pub theta_edges: Vec<f64>,
+    pub phi_edges: Vec<f64>,
+}
+
+impl Detector {
+    pub fn new(theta_r_deg: &[f64], phi_deg: &[f64]) -> Self {
+        Detector {
+            theta_edges: bin_edges(theta_r_deg),
+            phi_edges: bin_edges(phi_deg),
+        }
+    }
+    pub fn n_theta(&self) -> usize {
+        self.theta_edges.len() - 1
+    }
+    pub fn n_phi(&self) -> usize {
+        self.phi_edges.len() - 1
+    }
+    /// Solid-angle-free bin area dtheta_r * dphi (radians^2) of bin (j, k).
+    pub fn area(&self, j: usize, k: usize) -> f64 {
+        (self.theta_edges[j + 1] - self.theta_edges[j])
+            * (self.phi_edges[k + 1] - self.phi_edges[k])
+    }
+
+    /// Call `f(flat_index)` for every bin the exit (theta_r, phi) falls into (phi wraps:
+    /// the shifted copies phi +- 2 pi are tried too).
+    #[inline]
+    pub fn deposit(&self, theta_r: f64, phi: f64, mut f: impl FnMut(usize)) {
+        let Some(j) = find_bin(&self.theta_edges, theta_r) else {
+            return;
+        };
+        let np = self.n_phi();
+        for shift in [0.0, 2.0 * PI, -2.0 * PI] {
+            if let Some(k) = find_bin(&self.phi_edges, phi + shift) {
+                f(j * np + k);
+            }
+        }
+    }
+}
+
+/// Energy tallies of one incidence angle (fractions of launched energy).
+#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+pub struct Tally {
+    pub paths: u64,
+    /// Energy that left the fiber (anywhere).
+    pub exited: f64,
+    /// Energy that left and fell into some detector bin.
+    pub binned: f64,
+    /// Energy guided along the fiber (still inside after the event cap).
+    pub guided: f64,
+    /// Number of medulla scattering events.
+    pub scatter_events: u64,
+    /// Wall time in seconds.
+    pub seconds: f64,
+}
+
+/// Raw detector counts of one incidence angle: per-bin sum of weights and of squares.
+#[derive(Clone, Debug)]
+struct Accum {
+    sum: Vec<f64>,
+    sum2: Vec<f64>,
+    exited: f64,
+    binned: f64,
+    guided: f64,
+    scatter_events: u64,
+}
+
+impl Accum {
+    fn new(n: usize) -> Self {
+        Accum {
+            sum: vec![0.0; n],
+            sum2: vec![0.0; n],
+            exited: 0.0,
+            binned: 0.0,
+            guided: 0.0,
+            scatter_events: 0,
+        }
+    }
+    fn add(&mut self, o: &Accum) {
+        for (a, b) in self.sum.iter_mut().zip(&o.sum) {
+            *a += b;
+        }
+        for (a, b) in self.sum2.iter_mut().zip(&o.sum2) {
+            *a += b;
+        }
+        self.exited += o.exited;
+        self.binned += o.binned;
+        self.guided += o.guided;
+        self.scatter_events += o.scatter_events;
+    }
+}
+
+/// The simulated profile before measurement effects: `value[i][j][k]` (theta_i, theta_r,
+/// phi, flattened row-major) and its Monte Carlo standard error.
+#[derive(Clone, Debug)]
+pub struct SimResult {
+    pub theta_i: Vec<f64>,
+    pub theta_r: Vec<f64>,
+    pub phi: Vec<f64>,
+    pub value: Vec<f64>,
+    pub sigma: Vec<f64>,
+    pub tally: Vec<Tally>,
+}
+
+impl SimResult {
+    pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
+        (i * self.theta_r.len() + j) * self.phi.len() + k
+    }
+}
+
+/// Median relative standard error (`sigma / value`) over the bins whose value is at least
+/// `above * peak` (peak over the whole profile); `None` when nothing was detected.
+pub fn median_rel_noise(r: &SimResult, above: f64) -> Option<f64> {
+    let peak = r.value.iter().cloned().fold(0.0, f64::max);
+    if peak <= 0.0 {
+        return None;
+    }
+    let mut rel: Vec<f64> = r
+        .value
+        .iter()
+        .zip(&r.sigma)
+        .filter(|(v, _)| **v > 0.0 && **v >= above * peak)
+        .map(|(v, s)| s / v)
+        .collect();
+    if rel.is_empty() {
+        return None;
+    }
+    rel.sort_by(|a, b| a.total_cmp(b));
+    Some(rel[rel.len() / 2])
+}
+
+/// Seed of chunk `c` of incidence angle `i` (SplitMix64 finaliser over the triple).
+pub fn chunk_seed(seed: u64, i: u64, c: u64) -> u64 {
+    let mut z = seed
+        .wrapping_add(0x9E37_79B9_7F4A_7C15u64.wrapping_mul(i.wrapping_add(1)))
+        .wrapping_add(0xD1B5_4A32_D192_ED03u64.wrapping_mul(c.wrapping_add(1)));
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Wrap an angle to (-pi, pi].
+#[inline]
+pub fn wrap_pi(x: f64) -> f64 {
+    let mut y = x % (2.0 * PI);
+    if y <= -PI {
+        y += 2.0 * PI;
+    } else if y > PI {
+        y -= 2.0 * PI;
+    }
+    y
+}
+
+/// Exit direction -> (theta_r, phi) in radians (MODEL.md frames).
+#[inline]
+pub fn exit_angles(e: &trace::Exit) -> (f64, f64) {
+    let th = e.dir[2].clamp(-1.0, 1.0).asin();
+    let ph = wrap_pi(e.dir[1].atan2(e.dir[0]) - e.phi_i);
+    (th, ph)
+}
+
+fn run_chunk(fiber: &Fiber, det: &Detector, theta_i: f64, n: u64, seed: u64) -> Accum {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    let mut acc = Accum::new(det.n_theta() * det.n_phi());
+    for _ in 0..n {
+        match trace_path(fiber, theta_i, &mut rng) {
+            Outcome::Exit(e) => {
+                acc.exited += e.weight;
+                acc.scatter_events += e.scatters as u64;
+                let (th, ph) = exit_angles(&e);
+                let mut first = true;
+                det.deposit(th, ph, |b| {
+                    acc.sum[b] += e.weight;
+                    acc.sum2[b] += e.weight * e.weight;
+                    if first {
+                        acc.binned += e.weight;
+                        first = false;
+                    }
+                });
+            }
+            Outcome::Absorbed => {}
+            Outcome::Guided(w) => acc.guided += w,
+        }
+    }
+    acc
+}
+
+/// Run the virtual goniometer. `progress(done_paths)` is called after each batch of chunks
+/// (from the calling thread). Uses the current rayon pool.
+pub fn simulate(s: &SimSettings, mut progress: impl FnMut(u64)) -> Result<SimResult> {
+    s.validate()?;
+    let fiber = s.fiber();
+    let det = Detector::new(&s.theta_r, &s.phi);
+    let nb = det.n_theta() * det.n_phi();
+    let n_chunks = s.paths.div_ceil(CHUNK);
+    let batch = (4 * rayon::current_num_threads().max(1)) as u64;
+    let mut value = Vec::with_capacity(s.theta_i.len() * nb);
+    let mut sigma = Vec::with_capacity(s.theta_i.len() * nb);
+    let mut tally = Vec::new();
+    let mut done = 0u64;
+    for (i, &ti) in s.theta_i.iter().enumerate() {
+        let t0 = std::time::Instant::now();
+        let theta_i = ti.to_radians();
+        let mut total = Accum::new(nb);
+        let mut c0 = 0u64;
+        while c0 < n_chunks {
+            let c1 = (c0 + batch).min(n_chunks);
+            let parts: Vec<Accum> = (c0..c1)
+                .into_par_iter()
+                .map(|c| {
+                    let n = CHUNK.min(s.paths - c * CHUNK);
+                    run_chunk(&fiber, &det, theta_i, n, chunk_seed(s.seed, i as u64, c))
+                })
+                .collect();
+            for p in &parts {
+                total.add(p);
+            }
+            done += (c1 * CHUNK).min(s.paths) - (c0 * CHUNK).min(s.paths);
+            progress(done);
+            c0 = c1;
+        }
+        let n = s.paths as f64;
+        for j in 0..det.n_theta() {
+            for k in 0..det.n_phi() {
+                let b = j * det.n_phi() + k;
+                let area = det.area(j, k);
+                let mean = total.sum[b] / n;
+                let var = (total.sum2[b] / n - mean * mean).max(0.0) / n;
+                value.push(mean / area);
+                sigma.push(var.sqrt() / area);
+            }
+        }
+        tally.push(Tally {
+            paths: s.paths,
+            exited: total.exited / n,
+            binned: total.binned / n,
+            guided: total.guided / n,
+            scatter_events: total.scatter_events,
+            seconds: t0.elapsed().as_secs_f64(),
+        });
+    }
+    Ok(SimResult {
+        theta_i: s.theta_i.clone(),
+        theta_r: s.theta_r.clone(),
+        phi: s.phi.clone(),
+        value,
+        sigma,
+        tally,
+    })
+}
+
+#[cfg(test)]
+mod tests;

@@ -1,0 +1,386 @@
+//! Physics and bookkeeping checks of the virtual goniometer.
+
+use super::optics::{dot, fresnel_dielectric};
+use super::trace::{hg_scatter, trace_path, Fiber, Outcome};
+use super::*;
+use rand::SeedableRng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// Parameters in file units (degrees), in MODEL.md order
+/// (eta, kappa, alpha, beta_m, beta_n, sigma_c_a, sigma_m_s, sigma_m_a, g, l).
+fn params(v: [f64; 10]) -> FurParams {
+    FurParams::from_file_units(v).unwrap()
+}
+
+fn settings(p: FurParams, theta_i: f64, paths: u64, smooth: bool) -> SimSettings {
+    SimSettings {
+        params: p,
+        theta_i: vec![theta_i],
+        // Whole sphere without duplicated bins: theta_r bins cover [-90, 90], phi [-180, 180].
+        theta_r: crate::grid::parse_grid("t", "-89:89:2").unwrap(),
+        phi: crate::grid::parse_grid("p", "-179:179:2").unwrap(),
+        paths,
+        seed: 11,
+        ellipse: None,
+        medulla_eta: None,
+        smooth,
+    }
+}
+
+/// Integral of the binned density over the grid (value * bin area).
+fn integral(r: &SimResult, det: &Detector) -> f64 {
+    let mut s = 0.0;
+    for j in 0..det.n_theta() {
+        for k in 0..det.n_phi() {
+            s += r.value[r.index(0, j, k)] * det.area(j, k);
+        }
+    }
+    s
+}
+
+/// Without absorption no energy can vanish: every path exits (weights stay 1, Russian
+/// roulette never fires), so the detector integral over the whole sphere must be 1 up to
+/// lost paths. A lost path is a bug (or a ray guided > MAX_EVENTS events), so the
+/// tolerance 1e-3 (=> fewer than 1 in 1000 paths lost) is far above rounding and far below
+/// any real leak; the binomial std of an *unbiased* estimate is 0 here because every path
+/// carries exactly weight 1.
+#[test]
+fn energy_conserved_without_absorption() {
+    let cases = [
+        // smooth, kappa = 0
+        (
+            params([1.55, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]),
+            true,
+            None,
+            None,
+        ),
+        // smooth, scattering medulla, no absorption
+        (
+            params([1.55, 0.7, 0.0, 1.0, 1.0, 0.0, 3.0, 0.0, 0.5, 1.0]),
+            true,
+            None,
+            None,
+        ),
+        // rough, tilted, layered cuticle, scattering medulla with its own IOR, ellipse
+        (
+            params([1.4, 0.6, 3.0, 8.0, 12.0, 0.0, 2.0, 0.0, 0.3, 2.5]),
+            false,
+            Some(0.8),
+            Some(1.6),
+        ),
+    ];
+    for (p, smooth, ell, etam) in cases {
+        let mut s = settings(p, 30.0, 60_000, smooth);
+        s.ellipse = ell;
+        s.medulla_eta = etam;
+        let r = simulate(&s, |_| {}).unwrap();
+        let det = Detector::new(&s.theta_r, &s.phi);
+        let t = r.tally[0];
+        assert!(
+            (t.exited - 1.0).abs() < 1e-3,
+            "exited {} guided {}",
+            t.exited,
+            t.guided
+        );
+        // The detector covers the sphere: everything that exits is binned ...
+        assert!((t.binned - t.exited).abs() < 1e-12, "{t:?}");
+        // ... and the density normalisation integrates back to the binned energy
+        // (rounding only: 1e-9).
+        let integ = integral(&r, &det);
+        assert!((integ - t.binned).abs() < 1e-9, "{integ} vs {t:?}");
+    }
+}
+
+/// Weighted absorption with Russian roulette is unbiased: for kappa = 0, smooth, theta_i = 0
+/// the analytic exit energy is sum over paths of R + (1-F)^2 T (1 + F T + (F T)^2 ...)
+/// averaged over h, with T = exp(-2 sigma cos(gamma_t)) (3-D length = 2D / cos theta_t = 2D
+/// at theta_i = 0). Tolerance: 5 standard errors of the MC mean (std of a weight <= 1).
+#[test]
+fn absorption_matches_beer_lambert() {
+    let sigma = 0.8;
+    let eta = 1.55;
+    let p = params([eta, 0.0, 0.0, 1.0, 1.0, sigma, 0.0, 0.0, 0.0, 1.0]);
+    let n = 200_000u64;
+    let r = simulate(&settings(p, 0.0, n, true), |_| {}).unwrap();
+    // Reference: midpoint rule over h (4000 points, error << MC noise).
+    let m = 4000;
+    let mut e = 0.0;
+    for i in 0..m {
+        let h = -1.0 + (i as f64 + 0.5) * 2.0 / m as f64;
+        let gi = h.asin();
+        let gt = (h / eta).asin();
+        let f = fresnel_dielectric(gi.cos(), eta);
+        let t = (-2.0 * sigma * gt.cos()).exp();
+        e += f + (1.0 - f) * (1.0 - f) * t / (1.0 - f * t);
+    }
+    e /= m as f64;
+    let tol = 5.0 * 0.5 / (n as f64).sqrt();
+    assert!(
+        (r.tally[0].exited - e).abs() < tol,
+        "{} vs {e}",
+        r.tally[0].exited
+    );
+}
+
+/// Smooth cylinder, kappa = 0: the R paths (one cuticle interaction) leave at
+/// phi = 2 asin(h) (impact at y = h; MODEL.md's -2 gamma_i is the mirrored h convention) and
+/// theta_r = -theta_i. With h uniform on [-1, 1] (density 1/2) and dh/dphi = cos(phi/2)/2,
+/// the reflected energy per radian of phi is (1/4) cos(phi/2) F, F the Fresnel reflectance
+/// at the 3-D incidence cosine cos(theta_i) cos(phi/2). Each 10-degree bin is compared with
+/// its expected count: tolerance 5 sqrt(expected) (Poisson) + 0.5 % of the bin for the
+/// Simpson rule.
+#[test]
+fn r_lobe_matches_specular_cylinder() {
+    let eta = 1.55;
+    let p = params([eta, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    let fiber = Fiber::new(&p, None, None, true);
+    for theta_i in [0.0f64, 30.0] {
+        let ti = theta_i.to_radians();
+        let n = 400_000usize;
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(3);
+        let nb = 36;
+        let mut hist = vec![0.0; nb];
+        for _ in 0..n {
+            if let Outcome::Exit(e) = trace_path(&fiber, ti, &mut rng) {
+                if e.cuticle == 1 {
+                    let (th, ph) = exit_angles(&e);
+                    assert!((th + ti).abs() < 1e-9, "R leaves on the specular cone");
+                    let k = (((ph + PI) / (2.0 * PI)) * nb as f64).floor() as usize;
+                    hist[k.min(nb - 1)] += 1.0;
+                }
+            }
+        }
+        let dens = |phi: f64| {
+            0.25 * (phi / 2.0).cos() * fresnel_dielectric(ti.cos() * (phi / 2.0).cos(), eta)
+        };
+        for (k, &obs) in hist.iter().enumerate() {
+            let a = -PI + k as f64 * 2.0 * PI / nb as f64;
+            let b = a + 2.0 * PI / nb as f64;
+            let m = 200;
+            let hh = (b - a) / m as f64;
+            let mut integ = dens(a) + dens(b);
+            for i in 1..m {
+                integ += dens(a + i as f64 * hh) * if i % 2 == 1 { 4.0 } else { 2.0 };
+            }
+            let expected = integ * hh / 3.0 * n as f64;
+            let tol = 5.0 * expected.sqrt() + 0.005 * expected + 1.0;
+            assert!(
+                (obs - expected).abs() < tol,
+                "theta_i {theta_i}: bin {k}: observed {obs}, expected {expected:.1}"
+            );
+        }
+    }
+}
+
+/// Rough cuticle: near the backscatter centre (|phi| < 20 deg, so cos(gamma) > 0.97) the R
+/// lobe is centred at -theta_i + alpha with a longitudinal std close to beta_m (normal tilts
+/// alpha/2 and beta_m/2, doubled by the reflection). Tolerance 0.3 degree on the mean (MC
+/// std of the mean ~ 0.1 degree; cos(gamma) bias <= 3 % of 4 degrees) and 10 % on the std
+/// (cos(gamma) and sin/asin mapping bias a few percent, MC error ~ 2 %).
+#[test]
+fn r_lobe_longitudinal_shift_and_width() {
+    let (alpha, beta_m) = (4.0, 8.0);
+    let p = params([1.55, 0.0, alpha, beta_m, 5.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    let fiber = Fiber::new(&p, None, None, false);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(5);
+    let mut v = Vec::new();
+    for _ in 0..600_000 {
+        if let Outcome::Exit(e) = trace_path(&fiber, 0.0, &mut rng) {
+            let (th, ph) = exit_angles(&e);
+            if e.cuticle == 1 && ph.abs() < 20f64.to_radians() {
+                v.push(th.to_degrees());
+            }
+        }
+    }
+    let n = v.len() as f64;
+    assert!(n > 2000.0);
+    let mean = v.iter().sum::<f64>() / n;
+    let std = (v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt();
+    assert!((mean - alpha).abs() < 0.3, "mean {mean}");
+    assert!((std / beta_m - 1.0).abs() < 0.10, "std {std}");
+}
+
+/// Exact geometry of the tilted cuticle over the whole width: a smooth cone-shaped scale
+/// (normal tilted by t = alpha/2 toward the tip) reflects the ray from theta_i = 0 hitting
+/// at azimuthal incidence gamma to theta_r = asin(cos(gamma) sin(2t)), so the h-averaged
+/// R lobe is shifted by less than alpha. Compare the Fresnel-weighted mean over h
+/// (quadrature) with the traced mean; tolerance 0.02 degree (the smooth trace is exact,
+/// MC error of the mean over ~15k events of a ~1 degree spread is ~0.01 degree).
+#[test]
+fn tilted_cuticle_exact_cone_reflection() {
+    let alpha = 6f64.to_radians();
+    let eta = 1.55;
+    let p = params([
+        eta,
+        0.0,
+        alpha.to_degrees(),
+        1.0,
+        1.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+    ]);
+    let fiber = Fiber::new(&p, None, None, true);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(6);
+    let (mut s, mut n) = (0.0, 0.0);
+    for _ in 0..300_000 {
+        if let Outcome::Exit(e) = trace_path(&fiber, 0.0, &mut rng) {
+            if e.cuticle == 1 {
+                s += exit_angles(&e).0;
+                n += 1.0;
+            }
+        }
+    }
+    let t = alpha / 2.0;
+    let m = 20_000;
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in 0..m {
+        let h = -1.0 + (i as f64 + 0.5) * 2.0 / m as f64;
+        let cg = (1.0 - h * h).sqrt();
+        let f = fresnel_dielectric(cg * t.cos(), eta);
+        num += f * (cg * (2.0 * t).sin()).asin();
+        den += f;
+    }
+    let expected = num / den;
+    assert!(expected < 0.8 * alpha, "the cos(gamma) reduction is real");
+    assert!(
+        ((s / n) - expected).abs().to_degrees() < 0.02,
+        "{} vs {}",
+        (s / n).to_degrees(),
+        expected.to_degrees()
+    );
+}
+
+/// tau -> 0 (sigma_m_s = 0): no medulla scattering event can happen.
+#[test]
+fn no_scattering_without_sigma_m_s() {
+    let p = params([1.5, 0.9, 2.0, 6.0, 6.0, 0.2, 0.0, 0.3, 0.5, 1.0]);
+    let r = simulate(&settings(p, 20.0, 50_000, false), |_| {}).unwrap();
+    assert_eq!(r.tally[0].scatter_events, 0);
+    // And with scattering on, events do happen (the test above could otherwise pass
+    // vacuously).
+    let p = params([1.5, 0.9, 2.0, 6.0, 6.0, 0.2, 2.0, 0.3, 0.5, 1.0]);
+    let r = simulate(&settings(p, 20.0, 5_000, false), |_| {}).unwrap();
+    assert!(r.tally[0].scatter_events > 1000);
+}
+
+/// g = 0: scattered directions are isotropic. Chi-square of the cosine with the incoming
+/// direction (20 equal bins, uniform on [-1, 1] for isotropy) and of the azimuth around the
+/// z axis: 19 degrees of freedom, threshold 50 (p ~ 1e-4).
+#[test]
+fn hg_isotropic_for_g0() {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(9);
+    let d = super::optics::normalize([0.3, -0.5, 0.8]);
+    let n = 200_000;
+    let mut hc = [0.0f64; 20];
+    let mut hz = [0.0f64; 20];
+    for _ in 0..n {
+        let w = hg_scatter(d, 0.0, &mut rng);
+        let c = dot(w, d);
+        hc[(((c + 1.0) / 2.0 * 20.0) as usize).min(19)] += 1.0;
+        // z component of an isotropic direction is uniform on [-1, 1] too.
+        hz[(((w[2] + 1.0) / 2.0 * 20.0) as usize).min(19)] += 1.0;
+    }
+    let e = n as f64 / 20.0;
+    let chi = |h: &[f64; 20]| h.iter().map(|o| (o - e).powi(2) / e).sum::<f64>();
+    assert!(chi(&hc) < 50.0, "chi2 cos {}", chi(&hc));
+    assert!(chi(&hz) < 50.0, "chi2 z {}", chi(&hz));
+}
+
+/// g > 0: the mean cosine of the HG phase function is g. Tolerance: 5 standard errors
+/// (std of the cosine <= 1).
+#[test]
+fn hg_mean_cosine_is_g() {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(10);
+    let d = [0.0, 0.0, 1.0];
+    let n = 200_000;
+    for g in [0.3, 0.79, -0.5] {
+        let m: f64 = (0..n).map(|_| hg_scatter(d, g, &mut rng)[2]).sum::<f64>() / n as f64;
+        assert!((m - g).abs() < 5.0 / (n as f64).sqrt(), "g {g}: {m}");
+    }
+}
+
+/// Same seed -> bit-identical output with 1 and 2 threads (chunked RNG streams summed in
+/// chunk order). The path count is not a multiple of the chunk size on purpose.
+#[test]
+fn deterministic_across_thread_counts() {
+    let p = FurParams::preset("red-fox").unwrap();
+    let mut s = settings(p, 15.0, 2 * CHUNK + 777, false);
+    s.theta_i = vec![0.0, 40.0];
+    let run = |t: usize| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build()
+            .unwrap();
+        pool.install(|| simulate(&s, |_| {}).unwrap())
+    };
+    let a = run(1);
+    let b = run(2);
+    assert_eq!(a.value, b.value);
+    assert_eq!(a.sigma, b.sigma);
+    // A different seed gives different noise (so the equality above is not vacuous).
+    s.seed += 1;
+    let c = simulate(&s, |_| {}).unwrap();
+    assert_ne!(a.value, c.value);
+}
+
+/// Bins are centred on grid values with the grid step as width; phi wraps so -180 and 180
+/// both receive light leaving near the forward direction.
+#[test]
+fn detector_bins_and_wrap() {
+    let det = Detector::new(&[-10.0, 0.0, 10.0], &[-180.0, -90.0, 0.0, 90.0, 180.0]);
+    assert!((det.theta_edges[0] - (-15f64).to_radians()).abs() < 1e-12);
+    assert!((det.area(1, 2) - (10f64.to_radians() * 90f64.to_radians())).abs() < 1e-12);
+    let mut hits = Vec::new();
+    det.deposit(0.0, 179f64.to_radians(), |b| hits.push(b));
+    hits.sort();
+    assert_eq!(hits, vec![5, 9]);
+    hits.clear();
+    det.deposit(0.2, 1f64.to_radians(), |b| hits.push(b));
+    assert_eq!(hits, vec![2 * 5 + 2]);
+    hits.clear();
+    det.deposit(0.5, 0.0, |b| hits.push(b)); // theta_r = 28.6 deg: outside
+    assert!(hits.is_empty());
+}
+
+/// Measurement effects: the occluded cone sits at (theta_r, phi) = (theta_i, 0), the floor
+/// removes small values, dropping removes about the requested fraction.
+#[test]
+fn measurement_effects() {
+    let p = FurParams::preset("deer").unwrap();
+    let mut s = settings(p, 30.0, 100_000, false);
+    s.theta_r = crate::grid::parse_grid("t", "-60:60:2").unwrap();
+    s.phi = crate::grid::parse_grid("p", "-180:180:4").unwrap();
+    let r = simulate(&s, |_| {}).unwrap();
+    let fx = measure::Effects {
+        floor: 1e-3,
+        wedge_deg: 5.0,
+        drop: 0.05,
+        shot_photons: Some(1e5),
+        mult_noise: 0.02,
+        seed: 1,
+    };
+    let m = measure::apply(&r, &fx);
+    let jt = s.theta_r.iter().position(|&t| t == 30.0).unwrap();
+    let kp = s.phi.iter().position(|&t| t == 0.0).unwrap();
+    assert_eq!(m.invalid[r.index(0, jt, kp)], Some(measure::Invalid::Wedge));
+    let jm = s.theta_r.iter().position(|&t| t == -30.0).unwrap();
+    assert_ne!(m.invalid[r.index(0, jm, kp)], Some(measure::Invalid::Wedge));
+    for (v, why) in m.value.iter().zip(&m.invalid) {
+        match why {
+            None => assert!(*v >= 1e-3 * m.peak),
+            Some(_) => assert_eq!(*v, 0.0),
+        }
+    }
+    // Drops are drawn for every sample but only counted when nothing else invalidated
+    // it, so the dropped share among the rest is ~5 % (binomial 5 sigma).
+    let rest = m.value.len()
+        - m.count(Some(measure::Invalid::Floor))
+        - m.count(Some(measure::Invalid::Wedge))
+        - m.count(Some(measure::Invalid::NoSignal));
+    let frac = m.count(Some(measure::Invalid::Dropped)) as f64 / rest as f64;
+    let sd = (0.05 * 0.95 / rest as f64).sqrt();
+    assert!((frac - 0.05).abs() < 5.0 * sd, "{frac}");
+}

@@ -1,0 +1,407 @@
+//! One photon path through a 3-D double-cylinder fiber (the physics of the virtual
+//! goniometer; see the module docs of [`crate::simulate`] for every modelling choice).
+
+use super::optics::{
+    add, dot, fresnel_dielectric, hg_cos, normalize, pile_of_plates, reflect, refract, scale, V3,
+};
+use rand::Rng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+
+/// Maximum number of segments (straight pieces inside the fiber plus interface events) of
+/// one path. Paths still inside after this are light guided along the fiber, which leaves
+/// far from the lit spot; their energy is tallied as `guided`, never binned.
+pub const MAX_EVENTS: u32 = 20_000;
+
+/// Russian roulette starts after this many interface/scattering events ...
+const RR_AFTER: u32 = 6;
+/// ... for paths whose weight fell below this; survivors get weight `RR_WEIGHT`.
+const RR_WEIGHT: f64 = 0.1;
+
+/// Tries to draw a cuticle micro-normal whose outcome is geometrically consistent before
+/// falling back to the smooth normal.
+const NORMAL_TRIES: usize = 16;
+
+/// The fiber as the tracer sees it: the ten parameters (internal units) plus the optional
+/// geometry extras.
+#[derive(Clone, Copy, Debug)]
+pub struct Fiber {
+    /// Cortex (cuticle) IOR.
+    pub eta: f64,
+    /// Medulla IOR (equal to `eta` by default: index matched, no interface).
+    pub eta_m: f64,
+    pub kappa: f64,
+    /// Normal tilt toward the tip: `alpha / 2` (so the R lobe sits at `-theta_i + alpha`).
+    pub tilt: f64,
+    /// Std of the longitudinal micro-tilt of the normal: `beta_m / 2`.
+    pub s_m: f64,
+    /// Std of the azimuthal micro-tilt of the normal: `beta_n / 2`.
+    pub s_n: f64,
+    pub sigma_c_a: f64,
+    pub sigma_m_s: f64,
+    pub sigma_m_a: f64,
+    pub g: f64,
+    pub l: f64,
+    /// Semi-axes of the outer cross-section (x, y); (1, 1) for the circular fiber.
+    pub ax: f64,
+    pub ay: f64,
+    /// Random rotation of the cross-section about the axis (only for an ellipse).
+    pub rotate: bool,
+}
+
+impl Fiber {
+    /// Build from the ten parameters. `ellipse` is the axis ratio (minor/major, Marschner
+    /// 2003's `a`); the cross-section keeps the unit circle's area: semi-axes
+    /// `1/sqrt(e)` and `sqrt(e)`. `smooth` zeroes the micro-roughness (tests only).
+    pub fn new(
+        p: &crate::FurParams,
+        ellipse: Option<f64>,
+        eta_m: Option<f64>,
+        smooth: bool,
+    ) -> Self {
+        let (ax, ay, rotate) = match ellipse {
+            Some(e) if (e - 1.0).abs() > 1e-12 => (1.0 / e.sqrt(), e.sqrt(), true),
+            _ => (1.0, 1.0, false),
+        };
+        Fiber {
+            eta: p.eta,
+            eta_m: eta_m.unwrap_or(p.eta),
+            kappa: p.kappa,
+            tilt: 0.5 * p.alpha,
+            s_m: if smooth { 0.0 } else { 0.5 * p.beta_m },
+            s_n: if smooth { 0.0 } else { 0.5 * p.beta_n },
+            sigma_c_a: p.sigma_c_a,
+            sigma_m_s: p.sigma_m_s,
+            sigma_m_a: p.sigma_m_a,
+            g: p.g,
+            l: p.l,
+            ax,
+            ay,
+            rotate,
+        }
+    }
+}
+
+/// Where and how a path ended.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Exit {
+    /// Outgoing direction (unit), fiber frame.
+    pub dir: V3,
+    /// Azimuth of the incident light in the fiber frame (0 for the circular fiber).
+    pub phi_i: f64,
+    /// Energy weight carried out (launched weight 1).
+    pub weight: f64,
+    /// Number of cuticle interactions (1 = the R path: one external reflection).
+    pub cuticle: u32,
+    /// Number of volume scattering events in the medulla.
+    pub scatters: u32,
+}
+
+/// Outcome of one traced path.
+#[derive(Clone, Copy, Debug)]
+pub enum Outcome {
+    /// Left the fiber; binned by the detector.
+    Exit(Exit),
+    /// Absorbed or killed by Russian roulette (weight 0 by construction).
+    Absorbed,
+    /// Still inside after [`MAX_EVENTS`]: guided along the fiber; carries `weight`.
+    Guided(f64),
+}
+
+/// Roots of `|P + t D|^2 = 1` for the ellipse with semi-axes `(ax, ay)` scaled by `s`:
+/// returns `(t0, t1)`, `t0 <= t1`, or `None` when the line misses.
+#[inline]
+fn ellipse_roots(p: V3, d: V3, ax: f64, ay: f64) -> Option<(f64, f64)> {
+    let (px, py) = (p[0] / ax, p[1] / ay);
+    let (dx, dy) = (d[0] / ax, d[1] / ay);
+    let a = dx * dx + dy * dy;
+    if a < 1e-300 {
+        return None;
+    }
+    let b = px * dx + py * dy;
+    let c = px * px + py * py - 1.0;
+    let disc = b * b - a * c;
+    if disc <= 0.0 {
+        return None;
+    }
+    let sq = disc.sqrt();
+    // Numerically stable pair of roots.
+    let q = -(b + sq.copysign(b));
+    let (r0, r1) = if q == 0.0 { (0.0, 0.0) } else { (q / a, c / q) };
+    Some(if r0 <= r1 { (r0, r1) } else { (r1, r0) })
+}
+
+/// Outward unit normal of the ellipse (semi-axes ax, ay) at the boundary point `p`.
+#[inline]
+fn ellipse_normal(p: V3, ax: f64, ay: f64) -> V3 {
+    let n = [p[0] / (ax * ax), p[1] / (ay * ay), 0.0];
+    let k = 1.0 / (n[0] * n[0] + n[1] * n[1]).sqrt();
+    [n[0] * k, n[1] * k, 0.0]
+}
+
+/// A standard normal variate (Box-Muller; one of the pair is discarded for simplicity).
+#[inline]
+fn gauss(rng: &mut Xoshiro256PlusPlus) -> f64 {
+    let u1: f64 = 1.0 - rng.random::<f64>();
+    let u2: f64 = rng.random::<f64>();
+    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+}
+
+/// Sample a cuticle micro-normal at a boundary point with geometric outward normal `n0`:
+/// tilt toward the tip by `tilt + s_m N(0,1)` and in azimuth by `s_n N(0,1)`.
+#[inline]
+fn micro_normal(f: &Fiber, n0: V3, rng: &mut Xoshiro256PlusPlus) -> V3 {
+    let b = f.tilt + if f.s_m > 0.0 { f.s_m * gauss(rng) } else { 0.0 };
+    let a = if f.s_n > 0.0 { f.s_n * gauss(rng) } else { 0.0 };
+    if a == 0.0 && b == 0.0 {
+        return n0;
+    }
+    let (sa, ca) = a.sin_cos();
+    let (sb, cb) = b.sin_cos();
+    // Tangent around the axis: z x n0.
+    let t = [-n0[1], n0[0], 0.0];
+    [
+        cb * (ca * n0[0] + sa * t[0]),
+        cb * (ca * n0[1] + sa * t[1]),
+        sb,
+    ]
+}
+
+/// A cuticle interaction at a boundary point with outward geometric normal `n0`.
+/// `from_outside` says on which side the ray arrives. Returns the new direction and whether
+/// it crossed the interface. The micro-normal is redrawn (up to [`NORMAL_TRIES`]) until the
+/// ray faces it and the outcome leaves on the geometrically right side (no self-shadowing
+/// model); after that the smooth normal is used.
+#[inline]
+fn cuticle(
+    f: &Fiber,
+    d: V3,
+    n0: V3,
+    from_outside: bool,
+    rng: &mut Xoshiro256PlusPlus,
+) -> (V3, bool) {
+    // Relative index seen by the ray.
+    let eta_rel = if from_outside { f.eta } else { 1.0 / f.eta };
+    // Sign so that `s * n` faces the incoming ray.
+    let s = if from_outside { 1.0 } else { -1.0 };
+    for attempt in 0..=NORMAL_TRIES {
+        let n = if attempt == NORMAL_TRIES {
+            n0
+        } else {
+            micro_normal(f, n0, rng)
+        };
+        let nf = scale(n, s);
+        let cos_i = -dot(d, nf);
+        if cos_i <= 0.0 {
+            continue;
+        }
+        let big_f = pile_of_plates(fresnel_dielectric(cos_i, eta_rel), f.l);
+        let u: f64 = rng.random();
+        if u < big_f {
+            let r = reflect(d, nf);
+            // Reflected ray must stay on the incoming side of the real surface.
+            if dot(r, n0) * s > 0.0 || attempt == NORMAL_TRIES {
+                return (r, false);
+            }
+        } else if let Some(t) = refract(d, nf, eta_rel) {
+            if dot(t, n0) * s < 0.0 || attempt == NORMAL_TRIES {
+                return (t, true);
+            }
+        } else if attempt == NORMAL_TRIES {
+            return (reflect(d, nf), false);
+        }
+    }
+    // Unreachable in practice: the smooth attempt always returns above (for the smooth
+    // normal, cos_i > 0 holds for a ray that reached the boundary from its side).
+    (reflect(d, scale(n0, s)), false)
+}
+
+/// Henyey-Greenstein scattering of `d` with anisotropy `g`.
+#[inline]
+pub fn hg_scatter(d: V3, g: f64, rng: &mut Xoshiro256PlusPlus) -> V3 {
+    let u: f64 = rng.random();
+    let v: f64 = rng.random();
+    super::optics::around(d, hg_cos(g, u), std::f64::consts::TAU * v)
+}
+
+/// Smooth dielectric interface at the medulla boundary (only when `eta_m != eta`).
+/// `n0` is the outward medulla normal; `into_medulla` gives the side.
+#[inline]
+fn medulla_interface(
+    f: &Fiber,
+    d: V3,
+    n0: V3,
+    into_medulla: bool,
+    rng: &mut Xoshiro256PlusPlus,
+) -> (V3, bool) {
+    let (eta_rel, s) = if into_medulla {
+        (f.eta_m / f.eta, 1.0)
+    } else {
+        (f.eta / f.eta_m, -1.0)
+    };
+    let nf = scale(n0, s);
+    let cos_i = -dot(d, nf);
+    let fr = fresnel_dielectric(cos_i.abs(), eta_rel);
+    let u: f64 = rng.random();
+    if u < fr {
+        return (reflect(d, nf), false);
+    }
+    match refract(d, nf, eta_rel) {
+        Some(t) => (t, true),
+        None => (reflect(d, nf), false),
+    }
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Region {
+    Cortex,
+    Medulla,
+}
+
+/// Trace one path: collimated light from `theta_i` (inclination of the direction toward the
+/// light), hitting the fiber at a uniformly random offset over its projected width.
+pub fn trace_path(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Outcome {
+    let phi_i = if f.rotate {
+        std::f64::consts::TAU * rng.random::<f64>()
+    } else {
+        0.0
+    };
+    let (si, ci) = theta_i.sin_cos();
+    let (sp, cp) = phi_i.sin_cos();
+    // Propagation direction: away from the light.
+    let mut d: V3 = [-ci * cp, -ci * sp, -si];
+    // Offset across the projected width along e = (-sin phi_i, cos phi_i).
+    let e = [-sp, cp, 0.0];
+    let half_w = (f.ax * f.ax * e[0] * e[0] + f.ay * f.ay * e[1] * e[1]).sqrt();
+    let h: f64 = 2.0 * rng.random::<f64>() - 1.0;
+    let far = 4.0 * f.ax.max(f.ay);
+    let start = [
+        far * cp + h * half_w * e[0],
+        far * sp + h * half_w * e[1],
+        0.0,
+    ];
+    let mut p = match ellipse_roots(start, d, f.ax, f.ay) {
+        Some((t0, _)) => add(start, scale(d, t0)),
+        // |h| -> 1 rounding: a grazing miss counts as a grazing R event of weight 0.
+        None => return Outcome::Absorbed,
+    };
+    let mut w = 1.0f64;
+    let mut cuticle_n = 1u32;
+    let mut scatters = 0u32;
+    let n0 = ellipse_normal(p, f.ax, f.ay);
+    let (nd, crossed) = cuticle(f, d, n0, true, rng);
+    d = nd;
+    if !crossed {
+        return Outcome::Exit(Exit {
+            dir: d,
+            phi_i,
+            weight: w,
+            cuticle: 1,
+            scatters: 0,
+        });
+    }
+    let (mx, my) = (f.kappa * f.ax, f.kappa * f.ay);
+    let has_medulla = f.kappa > 0.0;
+    let index_matched = (f.eta_m - f.eta).abs() < 1e-12;
+    let mut region = Region::Cortex;
+    let mut events = 1u32;
+    loop {
+        events += 1;
+        if events > MAX_EVENTS {
+            return Outcome::Guided(w);
+        }
+        if events > RR_AFTER && w < RR_WEIGHT {
+            let q = w / RR_WEIGHT;
+            if rng.random::<f64>() >= q {
+                return Outcome::Absorbed;
+            }
+            w = RR_WEIGHT;
+        }
+        match region {
+            Region::Cortex => {
+                let t_out = match ellipse_roots(p, d, f.ax, f.ay) {
+                    Some((_, t1)) => t1.max(0.0),
+                    None => return Outcome::Guided(w),
+                };
+                let t_med = if has_medulla {
+                    match ellipse_roots(p, d, mx, my) {
+                        Some((t0, _)) if t0 > 1e-12 => t0,
+                        _ => f64::INFINITY,
+                    }
+                } else {
+                    f64::INFINITY
+                };
+                if t_med < t_out {
+                    w *= (-f.sigma_c_a * t_med).exp();
+                    p = add(p, scale(d, t_med));
+                    if index_matched {
+                        region = Region::Medulla;
+                    } else {
+                        let nm = ellipse_normal(p, mx, my);
+                        let (nd, crossed) = medulla_interface(f, d, nm, true, rng);
+                        d = nd;
+                        if crossed {
+                            region = Region::Medulla;
+                        }
+                    }
+                } else {
+                    w *= (-f.sigma_c_a * t_out).exp();
+                    p = add(p, scale(d, t_out));
+                    // Re-project onto the boundary to stop rounding drift over many bounces.
+                    let k = 1.0 / ((p[0] / f.ax).powi(2) + (p[1] / f.ay).powi(2)).sqrt();
+                    p = [p[0] * k, p[1] * k, 0.0];
+                    cuticle_n += 1;
+                    let n0 = ellipse_normal(p, f.ax, f.ay);
+                    let (nd, crossed) = cuticle(f, d, n0, false, rng);
+                    d = nd;
+                    if crossed {
+                        return Outcome::Exit(Exit {
+                            dir: d,
+                            phi_i,
+                            weight: w,
+                            cuticle: cuticle_n,
+                            scatters,
+                        });
+                    }
+                }
+            }
+            Region::Medulla => {
+                let t_b = match ellipse_roots(p, d, mx, my) {
+                    Some((_, t1)) => t1.max(0.0),
+                    None => {
+                        // Tangential to the medulla boundary: treat as leaving it.
+                        region = Region::Cortex;
+                        continue;
+                    }
+                };
+                let s = if f.sigma_m_s > 0.0 {
+                    -(1.0 - rng.random::<f64>()).ln() / f.sigma_m_s
+                } else {
+                    f64::INFINITY
+                };
+                if s < t_b {
+                    w *= (-f.sigma_m_a * s).exp();
+                    p = add(p, scale(d, s));
+                    d = hg_scatter(d, f.g, rng);
+                    scatters += 1;
+                } else {
+                    w *= (-f.sigma_m_a * t_b).exp();
+                    p = add(p, scale(d, t_b));
+                    if index_matched {
+                        region = Region::Cortex;
+                    } else {
+                        let nm = ellipse_normal(p, mx, my);
+                        let (nd, crossed) = medulla_interface(f, d, nm, false, rng);
+                        d = nd;
+                        if crossed {
+                            region = Region::Cortex;
+                        }
+                    }
+                }
+            }
+        }
+        // Keep the direction unit length against rounding drift.
+        if events % 64 == 0 {
+            d = normalize(d);
+        }
+    }
+}

@@ -1,0 +1,99 @@
+//! End-to-end runs of `furfit simulate` on a tiny grid.
+
+use std::process::Command;
+
+fn furfit() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_furfit"))
+}
+
+#[test]
+fn simulate_writes_labelled_csv_and_metadata() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fox");
+    let status = furfit()
+        .args([
+            "simulate",
+            "--params",
+            "red-fox",
+            "--theta-i",
+            "0,30",
+            "--theta-r",
+            "-40:40:10",
+            "--phi",
+            "-180:180:30",
+            "--paths",
+            "20000",
+            "--seed",
+            "3",
+            "--threads",
+            "2",
+            "--floor",
+            "1e-3",
+            "--wedge",
+            "5",
+            "--drop",
+            "0.05",
+            "--out",
+        ])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        status.status.success(),
+        "stderr: {}",
+        String::from_utf8_lossy(&status.stderr)
+    );
+    let csv = std::fs::read_to_string(out.join("profile.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert!(lines.contains(&"# synthetic: true"));
+    assert!(lines
+        .iter()
+        .any(|l| l.starts_with("# command: furfit simulate")));
+    let header = lines.iter().position(|l| !l.starts_with('#')).unwrap();
+    assert_eq!(lines[header], "theta_i,theta_r,phi,value,sigma");
+    let rows = &lines[header + 1..];
+    // 2 theta_i x 9 theta_r x 13 phi samples, each a full row.
+    assert_eq!(rows.len(), 2 * 9 * 13);
+    let mut valid = 0;
+    for r in rows {
+        let f: Vec<&str> = r.split(',').collect();
+        assert_eq!(f.len(), 5, "{r}");
+        let v: f64 = f[3].parse().unwrap();
+        assert!(v >= 0.0);
+        if v > 0.0 {
+            valid += 1;
+            let s: f64 = f[4].parse().unwrap();
+            assert!(s >= 0.0);
+        }
+    }
+    assert!(valid > 100, "{valid} valid samples");
+    // The occluded cone around the light: theta_r = theta_i = 30, phi = 0 is invalid.
+    assert!(rows.iter().any(|r| r.starts_with("30,30,0,0,")));
+    let md: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metadata.json")).unwrap()).unwrap();
+    assert_eq!(md["synthetic"], serde_json::Value::Bool(true));
+    assert_eq!(md["seed"], 3);
+    assert_eq!(md["params"]["kappa"], 0.86);
+    assert!(md["command"].as_str().unwrap().contains("--paths 20000"));
+}
+
+#[test]
+fn simulate_rejects_bad_options() {
+    let dir = tempfile::tempdir().unwrap();
+    for bad in [
+        vec!["--params", "no-such-fiber"],
+        vec!["--params", "cat", "--ellipse", "1.5"],
+        vec!["--params", "cat", "--theta-i", "95"],
+        vec!["--params", "cat", "--drop", "1.2"],
+    ] {
+        let o = furfit()
+            .arg("simulate")
+            .args(&bad)
+            .args(["--paths", "1000", "--out"])
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{bad:?} should fail");
+        assert!(!String::from_utf8_lossy(&o.stderr).is_empty());
+    }
+}
