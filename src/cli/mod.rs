@@ -7,9 +7,9 @@ pub mod bench_model;
 pub mod fit;
 pub mod inspect;
 pub mod report;
+pub mod simulate;
 pub mod stability;
 pub mod synth;
-pub mod simulate;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
