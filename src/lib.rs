@@ -10,12 +10,15 @@
 
 pub mod cli;
 pub mod error;
+pub mod fit;
 pub mod grid;
 pub mod io;
 pub mod model;
 pub mod params;
 pub mod profile;
+pub mod report;
 pub mod simulate;
+pub mod synth;
 
 pub use error::{Error, Result};
 pub use params::{FurParams, ParamId};

@@ -3,8 +3,13 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod bench_model;
+pub mod fit;
 pub mod inspect;
+pub mod report;
 pub mod simulate;
+pub mod stability;
+pub mod synth;
 pub mod tables;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
@@ -21,6 +26,16 @@ pub enum Command {
     Inspect(inspect::Args),
     /// Build or check the medulla scattering tables (C^N, C^M).
     Tables(tables::Args),
+    /// Synthesize a profile from parameters on an angle grid (far field or quadrature).
+    Synth(Box<synth::Args>),
+    /// Adversarial stability sweep of the far field; writes reports/stability.{md,csv}.
+    Stability(stability::Args),
+    /// Far-field error vs evaluation time against Gauss-Legendre quadrature.
+    BenchModel(bench_model::Args),
+    /// Fit the ten parameters to profiles; writes fits/<species>.json.
+    Fit(Box<fit::Args>),
+    /// Write NRMSE tables, Fig-11-style figures, error-vs-time and model-vs-simulation reports.
+    Report(report::Args),
     /// Virtual goniometer: Monte Carlo ray tracing through a 3-D fiber -> synthetic profile.
     Simulate(Box<simulate::Args>),
 }
@@ -31,6 +46,11 @@ pub fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
         Command::Tables(a) => tables::run(a),
+        Command::Synth(a) => synth::run(*a),
+        Command::Stability(a) => stability::run(a),
+        Command::BenchModel(a) => bench_model::run(a),
+        Command::Fit(a) => fit::run(*a),
+        Command::Report(a) => report::run(a),
         Command::Simulate(a) => simulate::run(*a),
     };
     match result {

@@ -18,11 +18,14 @@
 
 pub mod azimuthal;
 pub mod cp;
+pub mod far;
 pub mod fresnel;
 pub mod geometry;
 pub mod longitudinal;
 pub mod medulla;
 pub mod medulla_mc;
+pub mod multiscale;
+pub mod quadrature;
 
 use crate::params::FurParams;
 use azimuthal::Absorption;

@@ -1,0 +1,164 @@
+//! `furfit fit <profile-file-or-species-folder>... [--out fits/<species>.json] ...`
+
+use crate::fit::job::{jobs_for_all, run_job, species_name, Job};
+use crate::fit::{forward::parse_segments, FitOptions};
+use crate::FurParams;
+use anyhow::Context;
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Profile files (.csv, .npz, .npy, Yan .txt) and/or species folders; all are merged
+    /// into one species.
+    pub inputs: Vec<PathBuf>,
+    /// Output fit file (default fits/<species>.json; with --all, the folder is --fits).
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Folder for fit files with --all or when --out is not given.
+    #[arg(long, default_value = "fits")]
+    pub fits: PathBuf,
+    /// Seed of the subsample and the Halton scrambling (same seed, same fit).
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Worker threads (default: all cores).
+    #[arg(long)]
+    pub threads: Option<usize>,
+    /// Fit every species folder under --measurements (one species after another, each
+    /// using all --threads, so the total thread count stays --threads).
+    #[arg(long)]
+    pub all: bool,
+    #[arg(long, default_value = "measurements")]
+    pub measurements: PathBuf,
+    /// Far-field segments `N,M` (unscattered, scattered); default 8,5 (seed Sec. 5.1).
+    #[arg(long)]
+    pub segments: Option<String>,
+    /// Start point: a preset name, a parameter JSON or a fit JSON (used as one of the starts).
+    #[arg(long)]
+    pub init: Option<String>,
+    /// Fix a parameter, `name=value` in file units (e.g. `kappa=0`); repeatable.
+    #[arg(long = "fix", value_name = "NAME=VALUE")]
+    pub fix: Vec<String>,
+    /// Halton starts in the global stage.
+    #[arg(long, default_value_t = 128)]
+    pub starts: usize,
+    /// Starts that run Levenberg-Marquardt.
+    #[arg(long, default_value_t = 4)]
+    pub lm_starts: usize,
+    /// Samples in the subsample of the global stage.
+    #[arg(long, default_value_t = 1500)]
+    pub subsample: usize,
+    /// Iteration cap per LM run.
+    #[arg(long, default_value_t = 100)]
+    pub max_iters: u64,
+    /// Weight residuals by sigma/value when every sample has a sigma.
+    #[arg(long)]
+    pub weighted: bool,
+    /// Print timing figures (evaluations/s, share of time in the model).
+    #[arg(long)]
+    pub bench: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    if let Some(t) = a.threads {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t.max(1))
+            .build_global()
+            .context("setting up the thread pool")?;
+    }
+    let mut opts = FitOptions {
+        seed: a.seed,
+        n_global: a.starts,
+        n_sub: a.subsample.max(10),
+        n_best: a.lm_starts.max(1),
+        max_iters: a.max_iters,
+        weighted: a.weighted,
+        ..FitOptions::default()
+    };
+    if let Some(s) = &a.segments {
+        opts.far = parse_segments(s)?;
+    }
+    if let Some(init) = &a.init {
+        let (p, _) = FurParams::load(init)?;
+        opts.init = Some(p.to_file_units());
+    }
+    for f in &a.fix {
+        let (k, v) = f
+            .split_once('=')
+            .with_context(|| format!("--fix '{f}': expected NAME=VALUE"))?;
+        let v: f64 = v
+            .trim()
+            .parse()
+            .with_context(|| format!("--fix '{f}': '{v}' is not a number"))?;
+        opts.fix(k.trim(), v)?;
+    }
+    let jobs = if a.all {
+        jobs_for_all(&a.measurements, &a.fits)?
+    } else {
+        if a.inputs.is_empty() {
+            anyhow::bail!("give profile files or species folders, or --all");
+        }
+        let species = species_name(&a.inputs[0]);
+        vec![Job {
+            out: a
+                .out
+                .clone()
+                .unwrap_or_else(|| a.fits.join(format!("{species}.json"))),
+            species,
+            inputs: a.inputs.clone(),
+        }]
+    };
+    for job in &jobs {
+        let bar = indicatif::ProgressBar::new_spinner();
+        bar.set_prefix(job.species.clone());
+        bar.set_style(
+            indicatif::ProgressStyle::with_template("{spinner} {prefix}: {msg} [{elapsed}]")
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
+        );
+        bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        let say = |m: &str| bar.set_message(m.to_string());
+        let res = run_job(job, &opts, Some(&say));
+        bar.finish_and_clear();
+        let (_, sums) = res.with_context(|| format!("fitting {}", job.species))?;
+        for s in &sums {
+            let o = &s.outcome;
+            let ch = if s.channel.is_empty() {
+                String::new()
+            } else {
+                format!(" [{}]", s.channel)
+            };
+            println!(
+                "{}{ch}: NRMSE {:.2}% exposure {:.4e} ({} samples, {} iterations, {} evaluations, {:.2} s; {})",
+                job.species,
+                100.0 * o.nrmse,
+                o.exposure,
+                o.n_used,
+                o.iterations,
+                o.evaluations,
+                o.wall_time_s,
+                o.termination
+            );
+            let file = o.params.to_file_units();
+            let line: Vec<String> = crate::ParamId::ALL
+                .iter()
+                .map(|id| format!("{}={:.4}", id.spec().name, file[id.index()]))
+                .collect();
+            println!("  {}", line.join(" "));
+            for (id, why) in &o.uncertainty.unconstrained {
+                println!("  unconstrained: {} ({why})", id.spec().name);
+            }
+            if a.bench {
+                println!(
+                    "  bench: {:.3e} sample evaluations/s, {:.1} model evaluations/s, model time share {:.0}% ({:.2} s model in {:.2} s wall, {} threads)",
+                    o.sample_evaluations as f64 / o.wall_time_s,
+                    o.evaluations as f64 / o.wall_time_s,
+                    100.0 * o.model_time_s / o.wall_time_s,
+                    o.model_time_s,
+                    o.wall_time_s,
+                    rayon::current_num_threads()
+                );
+            }
+        }
+        println!("  wrote {}", job.out.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,27 @@
+//! `furfit report [--fits fits/] [--measurements measurements/] [--out reports/]`
+
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Folder of fit files (`<species>.json`).
+    #[arg(long, default_value = "fits")]
+    pub fits: PathBuf,
+    /// Folder of species folders (profiles + metadata.json).
+    #[arg(long, default_value = "measurements")]
+    pub measurements: PathBuf,
+    /// Output folder.
+    #[arg(long, default_value = "reports")]
+    pub out: PathBuf,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let sum = crate::report::nrmse::write_fit_reports(&a.fits, &a.measurements, &a.out)?;
+    for p in &sum.written {
+        println!("wrote {}", p.display());
+    }
+    for (s, why) in &sum.skipped {
+        eprintln!("skipped {s}: {why}");
+    }
+    Ok(())
+}

@@ -1,0 +1,92 @@
+//! The forward model the fitter evaluates: the far-field value `sum_p M_p N_p` (MODEL.md
+//! "What a goniometer sample predicts", before the exposure `k`) at a list of goniometer
+//! points.
+//!
+//! All model evaluations of the fitter go through [`predict_points`]; it is the single
+//! place that calls into the model, so the fitter never re-implements any physics.
+
+use crate::model::far::FarOptions;
+use crate::model::{FurModel, LobeSet, LobeValues};
+use crate::params::FurParams;
+
+/// Parse `--segments N,M` (unscattered, scattered; or one `N` for both) into the paper's
+/// fixed-segmentation far field ([`FarOptions::paper`] with those counts). The fitter uses a
+/// fixed segmentation, not the tolerance-driven refinement, so the model is the same smooth
+/// function of the parameters everywhere (finite-difference Jacobians see no refinement
+/// switching).
+pub fn parse_segments(s: &str) -> crate::Result<FarOptions> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let num = |t: &str| -> crate::Result<usize> {
+        match t.parse::<usize>() {
+            Ok(n) if (1..=4096).contains(&n) => Ok(n),
+            _ => Err(crate::Error::Invalid(format!(
+                "--segments: '{t}' is not a segment count in 1..=4096"
+            ))),
+        }
+    };
+    let (a, b) = match parts.as_slice() {
+        [a] => (num(a)?, num(a)?),
+        [a, b] => (num(a)?, num(b)?),
+        _ => {
+            return Err(crate::Error::Invalid(format!(
+                "--segments: expected N or N,M, found '{s}'"
+            )))
+        }
+    };
+    Ok(FarOptions {
+        n_unscattered: a,
+        n_scattered: b,
+        ..FarOptions::paper()
+    })
+}
+
+/// Goniometer points `(theta_i, theta_r, phi)` in radians.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Points {
+    pub pts: Vec<(f64, f64, f64)>,
+}
+
+impl Points {
+    pub fn len(&self) -> usize {
+        self.pts.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pts.is_empty()
+    }
+
+    pub fn push(&mut self, theta_i: f64, theta_r: f64, phi: f64) {
+        self.pts.push((theta_i, theta_r, phi));
+    }
+
+    /// The points at the given indices.
+    pub fn subset(&self, idx: &[usize]) -> Points {
+        Points {
+            pts: idx.iter().map(|&i| self.pts[i]).collect(),
+        }
+    }
+}
+
+/// Model value (no exposure) of the lobes in `lobes` at every point, written into `out`
+/// (`out.len() == points.len()`): the far field of [`crate::synth::predict`], summed over
+/// lobes. `params` must be within the hard bounds.
+pub fn predict_points(
+    params: &FurParams,
+    points: &Points,
+    far: &FarOptions,
+    lobes: LobeSet,
+    out: &mut [f64],
+) {
+    debug_assert_eq!(out.len(), points.len());
+    let model = FurModel::new(params);
+    let v = crate::synth::predict(&model, &points.pts, lobes, far);
+    for (o, l) in out.iter_mut().zip(&v) {
+        *o = l.sum();
+    }
+}
+
+/// Per-lobe model values (no exposure) at every point (for per-lobe plots).
+pub fn predict_lobes(params: &FurParams, points: &Points, far: &FarOptions) -> Vec<LobeValues> {
+    let model = FurModel::new(params);
+    crate::synth::predict(&model, &points.pts, LobeSet::ALL, far)
+}

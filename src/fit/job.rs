@@ -1,0 +1,175 @@
+//! Fitting whole species: load the profile file(s) or species folder, fit every channel,
+//! and write `fits/<species>.json` atomically.
+//!
+//! A multi-channel profile is fitted per channel (see the module doc of [`super`]). The
+//! top level of the fit file is the *primary* channel (the one named `y` if any, else the
+//! first), so `FurParams::load` reads it like any fit; with more than one channel a
+//! `channels` array holds every channel's complete fit object.
+
+use super::output::{fit_json, DataInfo};
+use super::{channel_data, fit_data, FitOptions, FitOutcome, Progress};
+use crate::error::{Error, Result};
+use crate::profile::{self, LoadOptions, Profile};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// One species to fit.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Job {
+    /// Species name (folder name or file stem).
+    pub species: String,
+    /// Profile files and/or species folders, merged.
+    pub inputs: Vec<PathBuf>,
+    pub out: PathBuf,
+}
+
+/// Species name of an input: the folder name, or the file stem.
+pub fn species_name(p: &Path) -> String {
+    let name = if p.is_dir() {
+        p.file_name()
+    } else {
+        p.file_stem()
+    };
+    name.map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "profile".into())
+}
+
+/// Every species folder under `measurements` (sorted), one job each.
+pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<Vec<Job>> {
+    let rd = std::fs::read_dir(measurements).map_err(|e| Error::io(measurements, e))?;
+    let mut dirs: Vec<PathBuf> = rd
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir())
+        .filter(|p| {
+            std::fs::read_dir(p)
+                .map(|mut r| {
+                    r.any(|e| {
+                        e.map(|e| profile::is_profile_file(&e.path()))
+                            .unwrap_or(false)
+                    })
+                })
+                .unwrap_or(false)
+        })
+        .collect();
+    dirs.sort();
+    if dirs.is_empty() {
+        return Err(Error::file(
+            measurements,
+            "no species folder with profile files",
+        ));
+    }
+    Ok(dirs
+        .into_iter()
+        .map(|d| {
+            let species = species_name(&d);
+            Job {
+                out: fits_dir.join(format!("{species}.json")),
+                species,
+                inputs: vec![d],
+            }
+        })
+        .collect())
+}
+
+/// The profile files behind the inputs (folders expanded), sorted per input.
+pub fn data_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut out = Vec::new();
+    for p in inputs {
+        if p.is_dir() {
+            let rd = std::fs::read_dir(p).map_err(|e| Error::io(p, e))?;
+            let mut v: Vec<PathBuf> = rd
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| profile::is_profile_file(f))
+                .collect();
+            v.sort();
+            out.extend(v);
+        } else {
+            out.push(p.clone());
+        }
+    }
+    Ok(out)
+}
+
+/// Load and merge the inputs into one profile.
+pub fn load_inputs(inputs: &[PathBuf]) -> Result<Profile> {
+    let opts = LoadOptions::default();
+    let mut parts = Vec::new();
+    for p in inputs {
+        if p.is_dir() {
+            parts.push(profile::load_dir(p, &opts)?.profile);
+        } else {
+            parts.push(profile::load(p, &opts)?);
+        }
+    }
+    if parts.len() == 1 {
+        return Ok(parts.pop().expect("one part"));
+    }
+    Ok(profile::merge(parts)?.0)
+}
+
+/// Summary of one channel's fit, for printing.
+#[derive(Clone, Debug)]
+pub struct ChannelSummary {
+    pub channel: String,
+    pub outcome: FitOutcome,
+}
+
+/// Fit one species and write its fit file. Returns the JSON written and per-channel
+/// summaries.
+pub fn run_job(
+    job: &Job,
+    opts: &FitOptions,
+    progress: Option<Progress>,
+) -> Result<(Value, Vec<ChannelSummary>)> {
+    let prof = load_inputs(&job.inputs)?;
+    let files = data_files(&job.inputs)?;
+    let mut file_info = Vec::new();
+    for f in &files {
+        let bytes = std::fs::read(f).map_err(|e| Error::io(f, e))?;
+        file_info.push((f.display().to_string(), crate::io::sha256_hex(&bytes)));
+    }
+    let n_ch = prof.n_channels();
+    let name_of = |c: usize| prof.channels.get(c).cloned().unwrap_or_default();
+    let primary = (0..n_ch)
+        .find(|&c| name_of(c).eq_ignore_ascii_case("y"))
+        .unwrap_or(0);
+    let mut objs = Vec::new();
+    let mut sums = Vec::new();
+    for c in 0..n_ch {
+        let data = channel_data(&prof, c, opts.weighted).map_err(|e| match e {
+            Error::Invalid(m) => Error::Invalid(format!("{}: {m}", job.species)),
+            other => other,
+        })?;
+        let n_valid = prof
+            .samples
+            .iter()
+            .filter(|s| s.channel == c && s.is_valid())
+            .count();
+        let n_all = prof.samples.iter().filter(|s| s.channel == c).count();
+        let out = fit_data(&data, opts, progress)?;
+        let info = DataInfo {
+            files: file_info.clone(),
+            n_valid,
+            n_invalid: n_all - n_valid,
+            synthetic: prof.is_synthetic(),
+            channel: name_of(c),
+        };
+        objs.push(fit_json(&out, opts, &info));
+        sums.push(ChannelSummary {
+            channel: name_of(c),
+            outcome: out,
+        });
+    }
+    let mut top = objs[primary].clone();
+    if let Value::Object(m) = &mut top {
+        m.insert("species".into(), Value::from(job.species.clone()));
+        if n_ch > 1 {
+            m.insert("channels".into(), Value::Array(objs));
+        }
+    }
+    let text = serde_json::to_string_pretty(&top)
+        .map_err(|e| Error::Invalid(format!("JSON: {e}")))?
+        + "\n";
+    crate::io::write_atomic(&job.out, text.as_bytes())?;
+    Ok((top, sums))
+}

@@ -1,0 +1,464 @@
+//! The fitter: ten BCSDF parameters from a goniometric profile, in log space, with the
+//! exposure in closed form (seed Sec. 5.1 "Validation"; MODEL.md "Error metric").
+//!
+//! Pipeline of [`fit_data`]:
+//! 1. **Global stage**: a seeded, scrambled Halton design of `n_global` points over a
+//!    plausible box ([`starts::plausible_box`]), the ten seed Table 4 presets and an optional
+//!    user start, each scored on a seeded subsample of `n_sub` samples.
+//! 2. **Multi-start LM**: the best `n_best` starts run Levenberg-Marquardt ([`lm`]) on the
+//!    subsample in parallel (rayon); the best result is polished by LM on all samples.
+//!    (When the profile is not much larger than the subsample, step 2 runs directly on all
+//!    samples.)
+//! 3. **Uncertainty** from the Jacobian at the optimum ([`uncertainty`]).
+//!
+//! Parameters are bounded by smooth maps ([`reparam`]); fixed parameters (`--fix`) are
+//! removed from the solve. Everything is deterministic for a given seed: parallel work
+//! writes to disjoint slots and every reduction runs in a fixed order.
+//!
+//! **Multi-channel profiles** are fitted one channel at a time (all ten parameters and the
+//! exposure per channel): the seed fits one profile per species and its Table 4 has one
+//! column per species, and a per-channel fit keeps the ten-key `params` object of DATA.md
+//! meaningful for every channel. See [`fit_profile`].
+
+pub mod forward;
+pub mod job;
+pub mod lm;
+pub mod output;
+pub mod problem;
+pub mod reparam;
+pub mod starts;
+pub mod uncertainty;
+
+use crate::error::{Error, Result};
+use crate::model::far::FarOptions;
+use crate::params::{FurParams, ParamId, N_PARAMS};
+use crate::profile::Profile;
+use argmin::core::{Executor, State, TerminationStatus};
+use forward::Points;
+use lm::{LevenbergMarquardt, TracePoint};
+use nalgebra::DVector;
+use problem::{FitData, LogResidualProblem, ParamLayout};
+use rayon::prelude::*;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+use uncertainty::Uncertainty;
+
+/// Settings of one fit.
+#[derive(Clone, Debug)]
+pub struct FitOptions {
+    pub seed: u64,
+    /// Halton points in the global stage.
+    pub n_global: usize,
+    /// Samples in the subsample used by the global stage and the multi-start LM.
+    pub n_sub: usize,
+    /// Starts that run LM.
+    pub n_best: usize,
+    /// Iteration cap of each LM run.
+    pub max_iters: u64,
+    /// Far-field options (default: the paper's fixed 8 / 5 segments).
+    pub far: FarOptions,
+    /// User start (file units); always among the LM starts.
+    pub init: Option<[f64; N_PARAMS]>,
+    /// Fixed parameters (file units).
+    pub layout: ParamLayout,
+    /// Weight residuals by the relative standard error `sigma/value` when present.
+    pub weighted: bool,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            seed: 0,
+            n_global: 128,
+            n_sub: 1500,
+            n_best: 4,
+            max_iters: 100,
+            far: FarOptions::paper(),
+            init: None,
+            layout: ParamLayout::all_free(),
+            weighted: false,
+        }
+    }
+}
+
+impl FitOptions {
+    /// Fix parameter `key` at `value` (file units), checked against its hard bound.
+    pub fn fix(&mut self, key: &str, value: f64) -> Result<()> {
+        let id = ParamId::from_name(key).ok_or_else(|| Error::Param {
+            key: key.into(),
+            msg: format!(
+                "unknown parameter (expected one of: {})",
+                ParamId::ALL.map(|p| p.spec().name).join(", ")
+            ),
+        })?;
+        if !id.spec().contains(value) {
+            return Err(Error::Param {
+                key: key.into(),
+                msg: format!(
+                    "--fix value {value} is outside its hard bound {} {}",
+                    id.spec().bound_text(),
+                    id.spec().unit
+                ),
+            });
+        }
+        self.layout.fixed[id.index()] = Some(value);
+        Ok(())
+    }
+}
+
+/// One entry of the convergence trace.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TraceEntry {
+    /// `global` (best start after the global stage), `subsample` (LM on the subsample) or
+    /// `full` (LM on all samples).
+    pub stage: &'static str,
+    /// Cumulative LM iteration.
+    pub iter: u64,
+    /// Seconds since the fit started (wall clock).
+    pub time_s: f64,
+    /// Root mean square of the residuals at that point (= NRMSE when unweighted) on the
+    /// stage's data.
+    pub nrmse: f64,
+}
+
+/// The result of fitting one channel.
+#[derive(Clone, Debug)]
+pub struct FitOutcome {
+    pub params: FurParams,
+    /// Exposure `k` of the solve (weighted when `weighted`).
+    pub exposure: f64,
+    /// MODEL.md NRMSE (unit weights, its own optimal exposure) on all valid samples.
+    pub nrmse: f64,
+    pub uncertainty: Uncertainty,
+    pub iterations: u64,
+    pub evaluations: u64,
+    /// Model evaluations x samples (for throughput figures).
+    pub sample_evaluations: u64,
+    /// Estimated seconds inside the model: evaluations x the wall time of one evaluation
+    /// measured alone after the solve.
+    pub model_time_s: f64,
+    pub starts_global: usize,
+    pub starts_lm: usize,
+    pub wall_time_s: f64,
+    pub termination: String,
+    pub trace: Vec<TraceEntry>,
+    pub n_used: usize,
+}
+
+/// Progress callback: a short stage message.
+pub type Progress<'a> = &'a (dyn Fn(&str) + Sync);
+
+struct RunResult {
+    u: DVector<f64>,
+    cost: f64,
+    iters: u64,
+    termination: String,
+    trace: Vec<TracePoint>,
+    evals: u64,
+}
+
+/// One LM run from `u0` on `shared`'s data. The run gets its own problem instance (its own
+/// residual cache and counter), so concurrent runs cannot change each other's evaluation
+/// counts; the count is added to `shared` afterwards.
+fn run_lm(
+    shared: &LogResidualProblem,
+    u0: DVector<f64>,
+    max_iters: u64,
+    clock: Instant,
+) -> Result<RunResult> {
+    let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far);
+    let res = Executor::new(&prob, LevenbergMarquardt::new(clock))
+        .configure(|s| s.param(u0).max_iters(max_iters))
+        .run()
+        .map_err(|e| Error::Invalid(format!("solver failed: {e}")))?;
+    let state = &res.state;
+    let u = state
+        .get_best_param()
+        .cloned()
+        .ok_or_else(|| Error::Invalid("solver returned no parameters".into()))?;
+    let termination = match state.get_termination_status() {
+        TerminationStatus::Terminated(r) => r.text().to_string(),
+        TerminationStatus::NotTerminated => "running".into(),
+    };
+    Ok(RunResult {
+        cost: state.get_best_cost(),
+        iters: state.get_iter(),
+        termination,
+        trace: res.solver.trace.clone(),
+        u,
+        evals: prob.evals.load(Ordering::Relaxed),
+    })
+}
+
+impl<'a> argmin::core::Operator for &LogResidualProblem<'a> {
+    type Param = DVector<f64>;
+    type Output = DVector<f64>;
+    fn apply(&self, u: &DVector<f64>) -> std::result::Result<DVector<f64>, argmin::core::Error> {
+        (*self).apply(u)
+    }
+}
+
+impl<'a> argmin::core::Jacobian for &LogResidualProblem<'a> {
+    type Param = DVector<f64>;
+    type Jacobian = nalgebra::DMatrix<f64>;
+    fn jacobian(
+        &self,
+        u: &DVector<f64>,
+    ) -> std::result::Result<nalgebra::DMatrix<f64>, argmin::core::Error> {
+        (*self).jacobian(u)
+    }
+}
+
+/// Fit the ten parameters to one channel's valid samples.
+pub fn fit_data(
+    data: &FitData,
+    opts: &FitOptions,
+    progress: Option<Progress>,
+) -> Result<FitOutcome> {
+    let say = |m: &str| {
+        if let Some(p) = progress {
+            p(m)
+        }
+    };
+    if data.is_empty() {
+        return Err(Error::Invalid(
+            "no valid sample to fit (every value is <= 0 or missing)".into(),
+        ));
+    }
+    let clock = Instant::now();
+    let layout = &opts.layout;
+    let n_free = layout.free().len();
+    let full = LogResidualProblem::new(data, layout.clone(), opts.far);
+    if n_free == 0 {
+        return finish(
+            data,
+            opts,
+            &full,
+            &full,
+            DVector::zeros(0),
+            0,
+            "all parameters fixed".into(),
+            Vec::new(),
+            0,
+            0,
+            clock,
+        );
+    }
+    // Direct multi-start on all samples when a subsample would not save much.
+    let use_sub = data.len() > opts.n_sub * 3 / 2;
+    let sub_idx = starts::subsample(data.len(), opts.n_sub, opts.seed);
+    let sub_data = if use_sub {
+        data.subset(&sub_idx)
+    } else {
+        data.clone()
+    };
+    let sub = LogResidualProblem::new(&sub_data, layout.clone(), opts.far);
+
+    // 1. Global stage.
+    say(&format!(
+        "global stage: scoring {} starts on {} samples",
+        opts.n_global + 11,
+        sub_data.len()
+    ));
+    let mut cands: Vec<[f64; N_PARAMS]> = Vec::new();
+    if let Some(init) = opts.init {
+        let mut v = init;
+        for (k, f) in layout.fixed.iter().enumerate() {
+            if let Some(x) = f {
+                v[k] = *x;
+            }
+        }
+        cands.push(v);
+    }
+    cands.extend(starts::preset_starts(layout));
+    cands.extend(starts::halton_starts(layout, opts.n_global, opts.seed));
+    let scored: Vec<(usize, f64, DVector<f64>)> = cands
+        .par_iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let u = DVector::from_vec(layout.to_u(c));
+            let cost = sub.cost(u.as_slice());
+            (
+                i,
+                if cost.is_finite() {
+                    cost
+                } else {
+                    f64::INFINITY
+                },
+                u,
+            )
+        })
+        .collect();
+    let mut order: Vec<usize> = (0..scored.len()).collect();
+    order.sort_by(|&a, &b| scored[a].1.total_cmp(&scored[b].1).then(a.cmp(&b)));
+    let mut chosen: Vec<usize> = order.iter().copied().take(opts.n_best.max(1)).collect();
+    if opts.init.is_some() && !chosen.contains(&0) {
+        chosen.pop();
+        chosen.insert(0, 0);
+    }
+    let n_sub = sub_data.len() as f64;
+    let mut trace = vec![TraceEntry {
+        stage: "global",
+        iter: 0,
+        time_s: clock.elapsed().as_secs_f64(),
+        nrmse: (2.0 * scored[order[0]].1 / n_sub).sqrt(),
+    }];
+
+    // 2. Multi-start LM (parallel over starts).
+    say(&format!(
+        "multi-start LM: {} starts on {} samples",
+        chosen.len(),
+        sub_data.len()
+    ));
+    let runs: Vec<Result<RunResult>> = chosen
+        .par_iter()
+        .map(|&i| run_lm(&sub, scored[i].2.clone(), opts.max_iters, clock))
+        .collect();
+    let mut runs: Vec<RunResult> = runs.into_iter().collect::<Result<_>>()?;
+    sub.evals
+        .fetch_add(runs.iter().map(|r| r.evals).sum(), Ordering::Relaxed);
+    let best = (0..runs.len())
+        .min_by(|&a, &b| runs[a].cost.total_cmp(&runs[b].cost).then(a.cmp(&b)))
+        .expect("at least one start");
+    let best_run = runs.swap_remove(best);
+    let stage = if use_sub { "subsample" } else { "full" };
+    trace.extend(best_run.trace.iter().map(|t| TraceEntry {
+        stage,
+        iter: t.iter,
+        time_s: t.time_s,
+        nrmse: (2.0 * t.cost / n_sub).sqrt(),
+    }));
+    let mut iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
+    let (u, termination) = if use_sub {
+        say(&format!("polishing on all {} samples", data.len()));
+        let polish = run_lm(&full, best_run.u, opts.max_iters, clock)?;
+        full.evals.fetch_add(polish.evals, Ordering::Relaxed);
+        let offset = best_run.iters;
+        let n = data.len() as f64;
+        trace.extend(polish.trace.iter().map(|t| TraceEntry {
+            stage: "full",
+            iter: offset + t.iter,
+            time_s: t.time_s,
+            nrmse: (2.0 * t.cost / n).sqrt(),
+        }));
+        iters += polish.iters;
+        (polish.u, polish.termination)
+    } else {
+        (best_run.u, best_run.termination)
+    };
+    finish(
+        data,
+        opts,
+        &full,
+        &sub,
+        u,
+        iters,
+        termination,
+        trace,
+        opts.n_global + 10 + opts.init.is_some() as usize,
+        chosen.len(),
+        clock,
+    )
+}
+
+#[allow(clippy::too_many_arguments)]
+fn finish(
+    data: &FitData,
+    opts: &FitOptions,
+    full: &LogResidualProblem,
+    sub: &LogResidualProblem,
+    u: DVector<f64>,
+    iterations: u64,
+    termination: String,
+    trace: Vec<TraceEntry>,
+    starts_global: usize,
+    starts_lm: usize,
+    clock: Instant,
+) -> Result<FitOutcome> {
+    let (r, lk) = full.residuals_and_log_exposure(u.as_slice());
+    let jac = if u.is_empty() {
+        nalgebra::DMatrix::zeros(data.len(), 0)
+    } else {
+        full.jacobian_forward(&u, &r)
+    };
+    let unc = uncertainty::estimate(&opts.layout, &u, &jac, &r);
+    let params = opts.layout.params(u.as_slice());
+    params.validate()?;
+    let t = Instant::now();
+    let m = full.model_values(u.as_slice());
+    let t_full = t.elapsed().as_secs_f64();
+    let (nrmse, _) = problem::nrmse(&m, &data.ln_y, data.range);
+    let same = std::ptr::eq(full, sub);
+    let sub_evals = if same {
+        0
+    } else {
+        sub.evals.load(Ordering::Relaxed)
+    };
+    // The final evaluation above is not part of the solve.
+    let full_evals = full.evals.load(Ordering::Relaxed) - 1;
+    let sample_evaluations = full_evals * data.len() as u64 + sub_evals * sub.data.len() as u64;
+    // Time in the model, estimated as evaluations x the time of one evaluation measured
+    // alone (concurrent evaluations during the solve make per-call timers overlap).
+    let t_sub = if sub_evals > 0 {
+        let t = Instant::now();
+        let _ = sub.model_values(u.as_slice());
+        t.elapsed().as_secs_f64()
+    } else {
+        0.0
+    };
+    let model_time_s = full_evals as f64 * t_full + sub_evals as f64 * t_sub;
+    Ok(FitOutcome {
+        params,
+        exposure: lk.exp(),
+        nrmse,
+        uncertainty: unc,
+        iterations,
+        evaluations: full_evals + sub_evals,
+        sample_evaluations,
+        model_time_s,
+        starts_global,
+        starts_lm,
+        wall_time_s: clock.elapsed().as_secs_f64(),
+        termination,
+        trace,
+        n_used: data.len(),
+    })
+}
+
+/// The valid samples of channel `channel` of `profile` as fit data. Errors when there is
+/// none.
+pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result<FitData> {
+    let mut pts = Points::default();
+    let mut vals = Vec::new();
+    let mut rel = Vec::new();
+    for s in profile
+        .samples
+        .iter()
+        .filter(|s| s.channel == channel && s.is_valid())
+    {
+        let (ti, tr, ph) = s.angles_rad();
+        pts.push(ti, tr, ph);
+        vals.push(s.value);
+        rel.push(s.sigma.map(|sg| sg / s.value).unwrap_or(f64::NAN));
+    }
+    if vals.is_empty() {
+        let what = profile
+            .source
+            .as_ref()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|| "profile".into());
+        return Err(Error::Invalid(format!(
+            "{what}: channel {channel} has no valid sample (all {} samples are <= 0, NaN or missing)",
+            profile.samples.iter().filter(|s| s.channel == channel).count()
+        )));
+    }
+    let use_w = weighted && rel.iter().all(|r| r.is_finite() && *r > 0.0);
+    Ok(FitData::new(
+        pts,
+        &vals,
+        if use_w { Some(&rel) } else { None },
+    ))
+}
+
+#[cfg(test)]
+mod tests;

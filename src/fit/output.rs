@@ -1,0 +1,123 @@
+//! The fit file `fits/<species>.json` (DATA.md "Layout"): parameters in file units
+//! (loadable by [`FurParams::load`]), exposure, NRMSE as a fraction, uncertainty,
+//! correlation, solver statistics, data provenance and the convergence trace.
+//!
+//! Everything except the wall-clock fields (`solver.wall_time_s`, `solver.model_time_s`,
+//! `solver.model_time_share`, `trace[].time_s`) is a deterministic function of the data,
+//! the options and the seed.
+
+use super::{FitOptions, FitOutcome};
+use crate::params::{FurParams, ParamId};
+use serde_json::{json, Map, Value};
+
+/// Provenance of the data one fit used.
+#[derive(Clone, Debug, Default)]
+pub struct DataInfo {
+    /// `(path as given, sha256 of the content)` per file.
+    pub files: Vec<(String, String)>,
+    pub n_valid: usize,
+    pub n_invalid: usize,
+    pub synthetic: bool,
+    /// Channel name (empty for a single unnamed channel).
+    pub channel: String,
+}
+
+/// Units of the ten keys, in file units.
+pub fn units_json() -> Value {
+    let mut m = Map::new();
+    for id in ParamId::ALL {
+        m.insert(id.spec().name.into(), Value::from(id.spec().unit));
+    }
+    Value::Object(m)
+}
+
+fn num(x: f64) -> Value {
+    if x.is_finite() {
+        Value::from(x)
+    } else {
+        Value::Null
+    }
+}
+
+/// The JSON object of one channel's fit.
+pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
+    let unc = &out.uncertainty;
+    let mut se = Map::new();
+    for id in ParamId::ALL {
+        se.insert(
+            id.spec().name.into(),
+            unc.se[id.index()].map(num).unwrap_or(Value::Null),
+        );
+    }
+    let fixed: Vec<&str> = ParamId::ALL
+        .into_iter()
+        .filter(|id| opts.layout.fixed[id.index()].is_some())
+        .map(|id| id.spec().name)
+        .collect();
+    let unconstrained: Vec<Value> = unc
+        .unconstrained
+        .iter()
+        .map(|(id, why)| json!({"key": id.spec().name, "reason": why}))
+        .collect();
+    let keys: Vec<&str> = unc.free.iter().map(|id| id.spec().name).collect();
+    let matrix: Vec<Vec<Value>> = (0..unc.correlation.nrows())
+        .map(|i| {
+            (0..unc.correlation.ncols())
+                .map(|j| num(unc.correlation[(i, j)]))
+                .collect()
+        })
+        .collect();
+    let trace: Vec<Value> = out
+        .trace
+        .iter()
+        .map(|t| json!({"stage": t.stage, "iter": t.iter, "time_s": t.time_s, "nrmse": t.nrmse}))
+        .collect();
+    let files: Vec<Value> = data
+        .files
+        .iter()
+        .map(|(p, h)| json!({"path": p, "sha256": h}))
+        .collect();
+    json!({
+        "params": out.params.to_json_value(),
+        "units": units_json(),
+        "exposure": out.exposure,
+        "nrmse": out.nrmse,
+        "uncertainty": {
+            "standard_error": se,
+            "unconstrained": unconstrained,
+            "fixed": fixed,
+            "method": "linearised: s^2 (J^T J)^-1 in the solver's bounded-map coordinates, mapped to file units by the map's derivative",
+        },
+        "correlation": {"keys": keys, "matrix": matrix},
+        "solver": {
+            "name": "Levenberg-Marquardt (argmin), multi-start",
+            "iterations": out.iterations,
+            "evaluations": out.evaluations,
+            "sample_evaluations": out.sample_evaluations,
+            "starts": {"global": out.starts_global, "lm": out.starts_lm, "subsample": opts.n_sub},
+            "segments": {"unscattered": opts.far.n_unscattered, "scattered": opts.far.n_scattered},
+            "weighted": opts.weighted,
+            "wall_time_s": out.wall_time_s,
+            "model_time_s": out.model_time_s,
+            "model_time_share": out.model_time_s / out.wall_time_s.max(1e-12),
+            "termination": out.termination,
+        },
+        "data": {
+            "files": files,
+            "n_valid": data.n_valid,
+            "n_invalid": data.n_invalid,
+            "n_used": out.n_used,
+            "synthetic": data.synthetic,
+            "channel": data.channel,
+        },
+        "tool_version": concat!("furfit ", env!("CARGO_PKG_VERSION")),
+        "seed": opts.seed,
+        "trace": trace,
+    })
+}
+
+/// Read back the parameters and exposure of a fit file value (same rules as
+/// [`FurParams::from_json_value`]).
+pub fn params_of(v: &Value) -> crate::Result<(FurParams, f64)> {
+    FurParams::from_json_value(v)
+}

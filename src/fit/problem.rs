@@ -1,0 +1,325 @@
+//! The least-squares problem the fitter solves: normalised log residuals with the exposure
+//! in closed form (seed Sec. 5.1 "Validation"; MODEL.md "Error metric").
+//!
+//! For valid samples `y_i` with model values `m_i(x)` and weights `w_i` (mean 1):
+//!
+//! `r_i = sqrt(w_i) (ln m_i + ln k - ln y_i) / (max ln y - min ln y)`,
+//!
+//! with `ln k = sum w_i (ln y_i - ln m_i) / sum w_i`, the exact minimiser of `sum r_i^2`
+//! over `k` (set the derivative in `ln k` to zero). The exposure is therefore recomputed at
+//! every evaluation and never is a solver parameter. With unit weights
+//! `sqrt(sum r_i^2 / n)` is MODEL.md's NRMSE.
+//!
+//! Model values are floored at `f64::MIN_POSITIVE` before the logarithm, so a lobe that
+//! underflows to zero gives a large but finite residual instead of `-inf`.
+
+use super::forward::{predict_points, Points};
+use super::reparam;
+use crate::model::far::FarOptions;
+use crate::model::LobeSet;
+use crate::params::{FurParams, ParamId, N_PARAMS};
+use argmin::core::{Error as ArgminError, Jacobian, Operator};
+use nalgebra::{DMatrix, DVector};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
+
+/// One channel's valid samples, ready for the residuals.
+#[derive(Clone, Debug)]
+pub struct FitData {
+    pub points: Points,
+    /// `ln y_i`.
+    pub ln_y: Vec<f64>,
+    /// Weights, normalised to mean 1 (all 1 when unweighted).
+    pub w: Vec<f64>,
+    /// `max ln y - min ln y` (1 if all samples are equal, to stay finite).
+    pub range: f64,
+}
+
+impl FitData {
+    /// Build from points, measured values (all `> 0` and finite) and optional relative
+    /// standard errors `sigma_i / y_i` (weights `1 / rel^2`, normalised to mean 1).
+    pub fn new(points: Points, values: &[f64], rel_sigma: Option<&[f64]>) -> FitData {
+        let ln_y: Vec<f64> = values.iter().map(|v| v.ln()).collect();
+        let (lo, hi) = ln_y
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        let range = if hi > lo { hi - lo } else { 1.0 };
+        let mut w: Vec<f64> = match rel_sigma {
+            Some(rs) => rs
+                .iter()
+                .map(|&s| {
+                    if s.is_finite() && s > 0.0 {
+                        1.0 / (s * s)
+                    } else {
+                        1.0
+                    }
+                })
+                .collect(),
+            None => vec![1.0; ln_y.len()],
+        };
+        let mean = w.iter().sum::<f64>() / w.len().max(1) as f64;
+        if mean > 0.0 {
+            w.iter_mut().for_each(|x| *x /= mean);
+        }
+        FitData {
+            points,
+            ln_y,
+            w,
+            range,
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.ln_y.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.ln_y.is_empty()
+    }
+
+    /// The samples at `idx` (same normalising range as the whole, so costs are comparable).
+    pub fn subset(&self, idx: &[usize]) -> FitData {
+        FitData {
+            points: self.points.subset(idx),
+            ln_y: idx.iter().map(|&i| self.ln_y[i]).collect(),
+            w: idx.iter().map(|&i| self.w[i]).collect(),
+            range: self.range,
+        }
+    }
+}
+
+/// `ln k` minimising `sum w_i (ln m_i + ln k - ln y_i)^2`: the weighted mean of
+/// `ln y_i - ln m_i`.
+pub fn optimal_log_exposure(ln_m: &[f64], ln_y: &[f64], w: &[f64]) -> f64 {
+    let (mut s, mut sw) = (0.0, 0.0);
+    for ((m, y), w) in ln_m.iter().zip(ln_y).zip(w) {
+        s += w * (y - m);
+        sw += w;
+    }
+    if sw > 0.0 {
+        s / sw
+    } else {
+        0.0
+    }
+}
+
+/// `ln` of a model value, floored so that zero never enters a logarithm.
+pub fn ln_model(m: f64) -> f64 {
+    if m.is_finite() && m > f64::MIN_POSITIVE {
+        m.ln()
+    } else if m.is_finite() {
+        f64::MIN_POSITIVE.ln()
+    } else {
+        // NaN/inf from the model: a huge residual rather than a poisoned solve.
+        1e3
+    }
+}
+
+/// NRMSE per MODEL.md (unit weights, optimal exposure) of model values `m` against `ln_y`.
+/// Returns `(nrmse, exposure)`.
+pub fn nrmse(m: &[f64], ln_y: &[f64], range: f64) -> (f64, f64) {
+    let ln_m: Vec<f64> = m.iter().map(|&v| ln_model(v)).collect();
+    let ones = vec![1.0; ln_m.len()];
+    let lk = optimal_log_exposure(&ln_m, ln_y, &ones);
+    let ss: f64 = ln_m
+        .iter()
+        .zip(ln_y)
+        .map(|(a, b)| ((a + lk - b) / range).powi(2))
+        .sum();
+    ((ss / ln_m.len().max(1) as f64).sqrt(), lk.exp())
+}
+
+/// Which parameters are free (solved for) and the file-unit values of the fixed ones.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ParamLayout {
+    /// File-unit value of each fixed parameter, `None` for free ones.
+    pub fixed: [Option<f64>; N_PARAMS],
+}
+
+impl ParamLayout {
+    /// All ten free.
+    pub fn all_free() -> ParamLayout {
+        ParamLayout {
+            fixed: [None; N_PARAMS],
+        }
+    }
+
+    /// The free parameters in table order.
+    pub fn free(&self) -> Vec<ParamId> {
+        ParamId::ALL
+            .into_iter()
+            .filter(|id| self.fixed[id.index()].is_none())
+            .collect()
+    }
+
+    /// File-unit values at free coordinates `u` (one per free parameter).
+    pub fn file_values(&self, u: &[f64]) -> [f64; N_PARAMS] {
+        let mut out = [0.0; N_PARAMS];
+        let mut k = 0;
+        for id in ParamId::ALL {
+            out[id.index()] = match self.fixed[id.index()] {
+                Some(v) => v,
+                None => {
+                    k += 1;
+                    reparam::to_value(id, u[k - 1])
+                }
+            };
+        }
+        out
+    }
+
+    /// Model parameters (internal units) at free coordinates `u`. Always within the hard
+    /// bounds: the maps cannot leave them and fixed values are validated at the boundary.
+    pub fn params(&self, u: &[f64]) -> FurParams {
+        let f = self.file_values(u);
+        let mut a = [0.0; N_PARAMS];
+        for id in ParamId::ALL {
+            a[id.index()] = id.spec().to_internal(f[id.index()]);
+        }
+        FurParams::from_array(a)
+    }
+
+    /// Free coordinates of a full file-unit vector.
+    pub fn to_u(&self, file: &[f64; N_PARAMS]) -> Vec<f64> {
+        self.free()
+            .into_iter()
+            .map(|id| reparam::to_u(id, file[id.index()]))
+            .collect()
+    }
+}
+
+/// The residual operator handed to the solver (argmin [`Operator`] + [`Jacobian`]).
+pub struct LogResidualProblem<'a> {
+    pub data: &'a FitData,
+    pub layout: ParamLayout,
+    pub far: FarOptions,
+    /// Model evaluations (one per residual vector), including finite-difference columns.
+    pub evals: AtomicU64,
+    /// Last `(u, r)` computed, so the Jacobian reuses the residuals of its base point.
+    last: Mutex<Option<(DVector<f64>, DVector<f64>)>>,
+}
+
+/// Relative forward-difference step in `u`.
+pub const FD_STEP: f64 = 1e-6;
+
+impl<'a> LogResidualProblem<'a> {
+    pub fn new(data: &'a FitData, layout: ParamLayout, far: FarOptions) -> Self {
+        LogResidualProblem {
+            data,
+            layout,
+            far,
+            evals: AtomicU64::new(0),
+            last: Mutex::new(None),
+        }
+    }
+
+    /// Number of free parameters.
+    pub fn n_free(&self) -> usize {
+        self.layout.free().len()
+    }
+
+    /// Model values (no exposure) at `u` ([`predict_points`] is parallel inside).
+    pub fn model_values(&self, u: &[f64]) -> Vec<f64> {
+        let params = self.layout.params(u);
+        let mut out = vec![0.0; self.data.len()];
+        predict_points(
+            &params,
+            &self.data.points,
+            &self.far,
+            LobeSet::ALL,
+            &mut out,
+        );
+        self.evals.fetch_add(1, Ordering::Relaxed);
+        out
+    }
+
+    /// Residuals and `ln k` at `u`.
+    pub fn residuals_and_log_exposure(&self, u: &[f64]) -> (DVector<f64>, f64) {
+        let m = self.model_values(u);
+        let ln_m: Vec<f64> = m.iter().map(|&v| ln_model(v)).collect();
+        let d = self.data;
+        let lk = optimal_log_exposure(&ln_m, &d.ln_y, &d.w);
+        let inv = 1.0 / d.range;
+        let r = DVector::from_iterator(
+            d.len(),
+            (0..d.len()).map(|i| d.w[i].sqrt() * (ln_m[i] + lk - d.ln_y[i]) * inv),
+        );
+        (r, lk)
+    }
+
+    /// Residuals at `u`.
+    pub fn residuals(&self, u: &[f64]) -> DVector<f64> {
+        self.residuals_and_log_exposure(u).0
+    }
+
+    /// `0.5 sum r^2` at `u`.
+    pub fn cost(&self, u: &[f64]) -> f64 {
+        0.5 * self.residuals(u).norm_squared()
+    }
+
+    /// Forward-difference Jacobian `d r / d u`, one column per free parameter computed in
+    /// parallel; `r0` are the residuals at `u`. Step `FD_STEP * max(1, |u_j|)`.
+    pub fn jacobian_forward(&self, u: &DVector<f64>, r0: &DVector<f64>) -> DMatrix<f64> {
+        let n = u.len();
+        let cols: Vec<DVector<f64>> = (0..n)
+            .into_par_iter()
+            .map(|j| {
+                let h = FD_STEP * u[j].abs().max(1.0);
+                let mut up = u.clone();
+                up[j] += h;
+                let h = up[j] - u[j];
+                (self.residuals(up.as_slice()) - r0) / h
+            })
+            .collect();
+        DMatrix::from_columns(&cols)
+    }
+
+    /// Central-difference Jacobian (twice the cost; used to check the forward one).
+    pub fn jacobian_central(&self, u: &DVector<f64>, step: f64) -> DMatrix<f64> {
+        let cols: Vec<DVector<f64>> = (0..u.len())
+            .into_par_iter()
+            .map(|j| {
+                let h = step * u[j].abs().max(1.0);
+                let (mut a, mut b) = (u.clone(), u.clone());
+                a[j] += h;
+                b[j] -= h;
+                (self.residuals(a.as_slice()) - self.residuals(b.as_slice())) / (2.0 * h)
+            })
+            .collect();
+        DMatrix::from_columns(&cols)
+    }
+}
+
+impl Operator for LogResidualProblem<'_> {
+    type Param = DVector<f64>;
+    type Output = DVector<f64>;
+
+    fn apply(&self, u: &DVector<f64>) -> Result<DVector<f64>, ArgminError> {
+        let r = self.residuals(u.as_slice());
+        *self.last.lock().expect("residual cache poisoned") = Some((u.clone(), r.clone()));
+        Ok(r)
+    }
+}
+
+impl Jacobian for LogResidualProblem<'_> {
+    type Param = DVector<f64>;
+    type Jacobian = DMatrix<f64>;
+
+    fn jacobian(&self, u: &DVector<f64>) -> Result<DMatrix<f64>, ArgminError> {
+        let cached = self
+            .last
+            .lock()
+            .expect("residual cache poisoned")
+            .as_ref()
+            .filter(|(cu, _)| cu == u)
+            .map(|(_, r)| r.clone());
+        let r0 = match cached {
+            Some(r) => r,
+            None => self.residuals(u.as_slice()),
+        };
+        Ok(self.jacobian_forward(u, &r0))
+    }
+}

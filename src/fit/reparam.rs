@@ -1,0 +1,156 @@
+//! Smooth, bound-respecting reparameterisation of the ten parameters.
+//!
+//! The solver works on unbounded coordinates `u`; each parameter (in FILE units: degrees
+//! for angles) is a smooth monotone function of its `u` that can only produce values inside
+//! MODEL.md's hard bounds:
+//!
+//! | parameter | map | range |
+//! |---|---|---|
+//! | `eta` | `1 + 2 sigmoid(u)` | (1, 3) |
+//! | `kappa` | `sigmoid(u)` | (0, 1) (exactly 0 only through `--fix kappa=0`) |
+//! | `alpha` | `20 tanh(u)` deg | (-20, 20) |
+//! | `beta_m` | `60 sigmoid(u)` deg | (0, 60) |
+//! | `beta_n` | `90 sigmoid(u)` deg | (0, 90) |
+//! | `sigma_c_a`, `sigma_m_s`, `sigma_m_a` | `exp(u)` | (0, inf) |
+//! | `g` | `tanh(u)` | (-1, 1) |
+//! | `l` | `10 sigmoid(u)` | (0, 10) |
+//!
+//! `u` is clamped to [-`U_MAX`, `U_MAX`] before mapping so that floating-point rounding can
+//! never land exactly on an open bound (e.g. `sigmoid(40) == 1.0` in f64 would give
+//! `kappa = 1`). Bound-pushing data drives `u` to the clamp; the reported value then sits
+//! within ~1e-13 (relative) of the bound but inside it.
+
+use crate::params::ParamId;
+
+/// Clamp of the unbounded coordinate for sigmoid and exp maps (sigmoid(30) = 1 - 9.4e-14:
+/// representable below 1).
+pub const U_MAX: f64 = 30.0;
+/// Clamp for tanh maps: tanh(30) rounds to exactly 1.0 in f64, tanh(17) = 1 - 3.4e-15 does not.
+pub const U_MAX_TANH: f64 = 17.0;
+
+fn clamp_u(id: ParamId, u: f64) -> f64 {
+    let m = match map_of(id) {
+        Map::Tanh { .. } => U_MAX_TANH,
+        _ => U_MAX,
+    };
+    u.clamp(-m, m)
+}
+
+fn sigmoid(u: f64) -> f64 {
+    1.0 / (1.0 + (-u).exp())
+}
+
+fn logit(y: f64) -> f64 {
+    (y / (1.0 - y)).ln()
+}
+
+/// The shape of one parameter's map.
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Map {
+    /// `lo + span * sigmoid(u)`.
+    Sigmoid { lo: f64, span: f64 },
+    /// `scale * tanh(u)`.
+    Tanh { scale: f64 },
+    /// `exp(u)`.
+    Exp,
+}
+
+fn map_of(id: ParamId) -> Map {
+    match id {
+        ParamId::Eta => Map::Sigmoid { lo: 1.0, span: 2.0 },
+        ParamId::Kappa => Map::Sigmoid { lo: 0.0, span: 1.0 },
+        ParamId::Alpha => Map::Tanh { scale: 20.0 },
+        ParamId::BetaM => Map::Sigmoid {
+            lo: 0.0,
+            span: 60.0,
+        },
+        ParamId::BetaN => Map::Sigmoid {
+            lo: 0.0,
+            span: 90.0,
+        },
+        ParamId::SigmaCA | ParamId::SigmaMS | ParamId::SigmaMA => Map::Exp,
+        ParamId::G => Map::Tanh { scale: 1.0 },
+        ParamId::L => Map::Sigmoid {
+            lo: 0.0,
+            span: 10.0,
+        },
+    }
+}
+
+/// File-unit value of parameter `id` at unbounded coordinate `u`.
+pub fn to_value(id: ParamId, u: f64) -> f64 {
+    let u = clamp_u(id, u);
+    match map_of(id) {
+        Map::Sigmoid { lo, span } => lo + span * sigmoid(u),
+        Map::Tanh { scale } => scale * u.tanh(),
+        Map::Exp => u.exp(),
+    }
+}
+
+/// `d value / d u` at `u` (file units per unit of `u`); 0 beyond the clamp.
+pub fn derivative(id: ParamId, u: f64) -> f64 {
+    if clamp_u(id, u) != u {
+        return 0.0;
+    }
+    match map_of(id) {
+        Map::Sigmoid { span, .. } => {
+            let s = sigmoid(u);
+            span * s * (1.0 - s)
+        }
+        Map::Tanh { scale } => {
+            let t = u.tanh();
+            scale * (1.0 - t * t)
+        }
+        Map::Exp => u.exp(),
+    }
+}
+
+/// Unbounded coordinate of a file-unit value. Values on or beyond a bound (possible for a
+/// user's `--init`, e.g. `sigma_m_a = 0`) map to the clamp `±U_MAX`.
+pub fn to_u(id: ParamId, v: f64) -> f64 {
+    let u = match map_of(id) {
+        Map::Sigmoid { lo, span } => logit((v - lo) / span),
+        Map::Tanh { scale } => (v / scale).clamp(-1.0, 1.0).atanh(),
+        Map::Exp => v.ln(),
+    };
+    if u.is_nan() {
+        0.0
+    } else {
+        clamp_u(id, u)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_and_derivative() {
+        let vals = [1.55, 0.4, -3.0, 9.0, 12.0, 0.3, 2.0, 0.05, 0.2, 1.5];
+        for (id, v) in ParamId::ALL.into_iter().zip(vals) {
+            let u = to_u(id, v);
+            // Smooth maps inverted in closed form: agreement to float rounding (1e-12 rel).
+            assert!(
+                (to_value(id, u) - v).abs() < 1e-12 * v.abs().max(1.0),
+                "{id:?}"
+            );
+            let e = 1e-6;
+            let fd = (to_value(id, u + e) - to_value(id, u - e)) / (2.0 * e);
+            // Central difference with step 1e-6: truncation ~1e-12, rounding ~1e-10 rel.
+            assert!(
+                (fd - derivative(id, u)).abs() < 1e-7 * derivative(id, u).abs().max(1.0),
+                "{id:?}"
+            );
+        }
+    }
+
+    #[test]
+    fn extreme_u_stays_inside_hard_bounds() {
+        for id in ParamId::ALL {
+            for u in [-1e9, -U_MAX, -40.0, 0.0, 40.0, U_MAX, 1e9] {
+                let v = to_value(id, u);
+                assert!(id.spec().contains(v), "{id:?} u={u} -> {v}");
+            }
+        }
+    }
+}

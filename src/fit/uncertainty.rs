@@ -1,0 +1,99 @@
+//! Linearised parameter uncertainty at the optimum: covariance `s^2 (J^T J)^+` in the
+//! solver's unbounded coordinates `u`, mapped to file units with the reparameterisation
+//! derivative (delta method: `SE(x) = |dx/du| SE(u)`), and the correlation matrix.
+//!
+//! A free parameter is flagged *unconstrained* when the data does not pin it down:
+//! - it loads on a (numerically) null direction of `J^T J` (singular value below
+//!   `1e-10` of the largest): its standard error is reported as `null` (infinite);
+//! - or `SE(u) > 2`: within one standard error the bounded map moves across most of its
+//!   range (sigmoid/tanh) or by a factor `e^2` (exp parameters);
+//! - or, for `sigma_m_s`, `sigma_m_a` and `g`, when `kappa < 0.02`: the medulla is (nearly)
+//!   absent, so the scattered lobes that carry these parameters vanish.
+
+use super::problem::ParamLayout;
+use super::reparam;
+use crate::params::{ParamId, N_PARAMS};
+use nalgebra::{DMatrix, DVector};
+
+/// SE(u) above which a parameter counts as unconstrained.
+pub const MAX_SE_U: f64 = 2.0;
+/// kappa below which the medulla parameters count as unconstrained.
+pub const KAPPA_ABSENT: f64 = 0.02;
+
+#[derive(Clone, Debug, PartialEq)]
+pub struct Uncertainty {
+    /// File-unit standard error per parameter (`None`: fixed or infinite).
+    pub se: [Option<f64>; N_PARAMS],
+    /// Parameters flagged as not constrained by the data, with the reason.
+    pub unconstrained: Vec<(ParamId, &'static str)>,
+    /// Free parameters in the order of `correlation`.
+    pub free: Vec<ParamId>,
+    /// Correlation matrix of the free parameters (in `u`; NaN where undefined).
+    pub correlation: DMatrix<f64>,
+    /// Residual variance `s^2 = sum r^2 / (n - p)`.
+    pub s2: f64,
+}
+
+/// Uncertainty from the Jacobian `jac` (n x p, free parameters) and residuals `r` at `u`.
+pub fn estimate(
+    layout: &ParamLayout,
+    u: &DVector<f64>,
+    jac: &DMatrix<f64>,
+    r: &DVector<f64>,
+) -> Uncertainty {
+    let free = layout.free();
+    let (n, p) = (jac.nrows(), jac.ncols());
+    let dof = n.saturating_sub(p).max(1) as f64;
+    let s2 = r.norm_squared() / dof;
+    let jtj = jac.transpose() * jac;
+    let svd = jtj.clone().svd(true, true);
+    let smax = svd.singular_values.max();
+    let v_t = svd.v_t.clone().unwrap_or_else(|| DMatrix::identity(p, p));
+    let mut cov = DMatrix::zeros(p, p);
+    let mut null_load = vec![0.0; p];
+    for (k, &sv) in svd.singular_values.iter().enumerate() {
+        let row = v_t.row(k);
+        if sv > 1e-10 * smax && sv > 0.0 {
+            cov += row.transpose() * row / sv;
+        } else {
+            for j in 0..p {
+                null_load[j] += row[j] * row[j];
+            }
+        }
+    }
+    cov *= s2;
+    let mut se = [None; N_PARAMS];
+    let mut unconstrained = Vec::new();
+    let kappa = layout.file_values(u.as_slice())[ParamId::Kappa.index()];
+    for (j, id) in free.iter().enumerate() {
+        let se_u = cov[(j, j)].max(0.0).sqrt();
+        if null_load[j] > 1e-6 {
+            unconstrained.push((*id, "no information in the data (singular direction)"));
+            continue;
+        }
+        se[id.index()] = Some(reparam::derivative(*id, u[j]).abs() * se_u);
+        if se_u > MAX_SE_U {
+            unconstrained.push((*id, "standard error spans most of its range"));
+        } else if kappa < KAPPA_ABSENT
+            && matches!(id, ParamId::SigmaMS | ParamId::SigmaMA | ParamId::G)
+        {
+            unconstrained.push((*id, "kappa ~ 0: no medulla, scattered lobes absent"));
+        }
+    }
+    let mut corr = DMatrix::from_element(p, p, f64::NAN);
+    for i in 0..p {
+        for j in 0..p {
+            let d = (cov[(i, i)] * cov[(j, j)]).sqrt();
+            if d > 0.0 && null_load[i] <= 1e-6 && null_load[j] <= 1e-6 {
+                corr[(i, j)] = (cov[(i, j)] / d).clamp(-1.0, 1.0);
+            }
+        }
+    }
+    Uncertainty {
+        se,
+        unconstrained,
+        free,
+        correlation: corr,
+        s2,
+    }
+}

@@ -1,0 +1,9 @@
+//! Reports: tables and plots written under `reports/`.
+
+pub mod far_error;
+pub mod fig11;
+pub mod fit_time;
+pub mod model_vs_sim;
+pub mod nrmse;
+pub mod plot;
+pub mod stability;

@@ -1,0 +1,386 @@
+//! `reports/nrmse.{md,csv}`: a seed-Table-4-style table of the fits, one column per
+//! species (ten parameters, exposure, our NRMSE), with the paper's reported NRMSE (its own
+//! and Yan et al. 2015's, from [`crate::params::PRESETS`]) beside ours, headed with what
+//! data the fits ran on (from each fit file's `data.synthetic`).
+//!
+//! Also home of [`FitFile`], the reader of `fits/*.json` shared by the fit reports.
+
+use crate::error::{Error, Result};
+use crate::params::{preset_record, FurParams, ParamId};
+use serde_json::Value;
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// The parts of a fit file the reports use.
+#[derive(Clone, Debug)]
+pub struct FitFile {
+    pub path: PathBuf,
+    pub species: String,
+    pub params: FurParams,
+    pub exposure: f64,
+    pub nrmse: f64,
+    pub synthetic: bool,
+    /// Data files recorded in the fit (paths as given to `furfit fit`).
+    pub files: Vec<PathBuf>,
+    /// Channel name fitted at the top level ("" for a single channel).
+    pub channel: String,
+    /// Convergence trace: `(stage, iter, time_s, nrmse)`.
+    pub trace: Vec<(String, u64, f64, f64)>,
+    pub wall_time_s: f64,
+    pub unconstrained: Vec<String>,
+    /// Standard errors (file units) per parameter, `None` if fixed/infinite.
+    pub se: [Option<f64>; 10],
+}
+
+impl FitFile {
+    /// Read one fit file.
+    pub fn read(path: &Path) -> Result<FitFile> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let v: Value = serde_json::from_str(&text).map_err(|e| Error::Parse {
+            file: path.into(),
+            line: e.line(),
+            column: format!("column {}", e.column()),
+            msg: format!("invalid JSON: {e}"),
+        })?;
+        let (params, exposure) = FurParams::from_json_value(&v).map_err(|e| match e {
+            Error::Param { key, msg } => Error::Param {
+                key,
+                msg: format!("{msg} (in {})", path.display()),
+            },
+            o => o,
+        })?;
+        let species = v["species"]
+            .as_str()
+            .map(str::to_string)
+            .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
+            .unwrap_or_default();
+        let nrmse = v["nrmse"]
+            .as_f64()
+            .ok_or_else(|| Error::file(path, "fit file has no numeric 'nrmse'"))?;
+        let files = v["data"]["files"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|f| f["path"].as_str().map(PathBuf::from))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let trace = v["trace"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .map(|t| {
+                        (
+                            t["stage"].as_str().unwrap_or("").to_string(),
+                            t["iter"].as_u64().unwrap_or(0),
+                            t["time_s"].as_f64().unwrap_or(f64::NAN),
+                            t["nrmse"].as_f64().unwrap_or(f64::NAN),
+                        )
+                    })
+                    .collect()
+            })
+            .unwrap_or_default();
+        let unconstrained = v["uncertainty"]["unconstrained"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|u| u["key"].as_str().map(str::to_string))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let mut se = [None; 10];
+        for id in ParamId::ALL {
+            se[id.index()] = v["uncertainty"]["standard_error"][id.spec().name].as_f64();
+        }
+        Ok(FitFile {
+            path: path.to_path_buf(),
+            species,
+            params,
+            exposure,
+            nrmse,
+            synthetic: v["data"]["synthetic"].as_bool().unwrap_or(false),
+            files,
+            channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
+            trace,
+            wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
+            unconstrained,
+            se,
+        })
+    }
+}
+
+/// Every `*.json` fit file in `dir`, sorted by file name.
+pub fn read_fits(dir: &Path) -> Result<Vec<FitFile>> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut paths: Vec<PathBuf> = rd
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.extension().map(|x| x == "json").unwrap_or(false))
+        .collect();
+    paths.sort();
+    if paths.is_empty() {
+        return Err(Error::file(
+            dir,
+            "no fit files (*.json); run `furfit fit` first",
+        ));
+    }
+    paths.iter().map(|p| FitFile::read(p)).collect()
+}
+
+/// What data the fits ran on, for the table heading.
+pub fn data_label(fits: &[FitFile]) -> &'static str {
+    let n_syn = fits.iter().filter(|f| f.synthetic).count();
+    if n_syn == fits.len() {
+        "SYNTHETIC data (simulated profiles labelled synthetic in their files), not measurements"
+    } else if n_syn == 0 {
+        "measured data (no fit file marks its data synthetic)"
+    } else {
+        "a MIX of synthetic and measured data (see the `data` row)"
+    }
+}
+
+fn pct(x: f64) -> String {
+    if x.is_finite() {
+        format!("{:.1}%", 100.0 * x)
+    } else {
+        "-".into()
+    }
+}
+
+/// Rows of the table: `(label, unit, value per species)`.
+fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
+    let mut rows = Vec::new();
+    for id in ParamId::ALL {
+        let vals = fits
+            .iter()
+            .map(|f| {
+                let v = f.params.to_file_units()[id.index()];
+                let mark = if f.unconstrained.iter().any(|u| u == id.spec().name) {
+                    "*"
+                } else {
+                    ""
+                };
+                format!("{v:.2}{mark}")
+            })
+            .collect();
+        rows.push((id.spec().name.to_string(), id.spec().unit.to_string(), vals));
+    }
+    rows.push((
+        "exposure".into(),
+        "-".into(),
+        fits.iter().map(|f| format!("{:.4e}", f.exposure)).collect(),
+    ));
+    rows.push((
+        "data".into(),
+        "-".into(),
+        fits.iter()
+            .map(|f| if f.synthetic { "synthetic" } else { "measured" }.to_string())
+            .collect(),
+    ));
+    rows.push((
+        "NRMSE (this fit)".into(),
+        "%".into(),
+        fits.iter().map(|f| pct(f.nrmse)).collect(),
+    ));
+    let paper = |f: &FitFile, yan: bool| {
+        preset_record(&f.species)
+            .map(|p| {
+                pct(if yan {
+                    p.paper_nrmse_yan2015
+                } else {
+                    p.paper_nrmse
+                })
+            })
+            .unwrap_or_else(|| "-".into())
+    };
+    rows.push((
+        "NRMSE (paper, ours)".into(),
+        "%".into(),
+        fits.iter().map(|f| paper(f, false)).collect(),
+    ));
+    rows.push((
+        "NRMSE (paper, Yan et al. 2015)".into(),
+        "%".into(),
+        fits.iter().map(|f| paper(f, true)).collect(),
+    ));
+    rows
+}
+
+/// The Markdown table.
+pub fn markdown(fits: &[FitFile]) -> String {
+    let mut s = String::new();
+    let _ = writeln!(s, "# Fitted parameters and NRMSE (seed Table 4 layout)\n");
+    let _ = writeln!(s, "These fits ran on {}.\n", data_label(fits));
+    let _ = writeln!(
+        s,
+        "NRMSE = RMS of (ln model - ln measured) over the valid samples / (max - min ln measured), \
+         after the optimal exposure (MODEL.md). The paper's rows are the values it reports for \
+         ITS measured data; they are context, not a target this data can be compared with \
+         sample for sample. `*` marks a parameter the data does not constrain (see the fit \
+         file's `uncertainty.unconstrained`).\n"
+    );
+    let _ = write!(s, "| parameter | unit |");
+    for f in fits {
+        let _ = write!(s, " {} |", f.species);
+    }
+    let _ = write!(s, "\n|---|---|");
+    for _ in fits {
+        let _ = write!(s, "---:|");
+    }
+    s.push('\n');
+    for (label, unit, vals) in rows(fits) {
+        let _ = write!(s, "| {label} | {unit} |");
+        for v in vals {
+            let _ = write!(s, " {v} |");
+        }
+        s.push('\n');
+    }
+    s
+}
+
+/// The CSV table (same rows; NRMSE as fractions for machines).
+pub fn csv(fits: &[FitFile]) -> String {
+    let mut s = String::from("row,unit");
+    for f in fits {
+        s.push(',');
+        s.push_str(&f.species);
+    }
+    s.push('\n');
+    for id in ParamId::ALL {
+        let _ = write!(s, "{},{}", id.spec().name, id.spec().unit);
+        for f in fits {
+            let _ = write!(s, ",{}", f.params.to_file_units()[id.index()]);
+        }
+        s.push('\n');
+    }
+    let _ = write!(s, "exposure,-");
+    for f in fits {
+        let _ = write!(s, ",{}", f.exposure);
+    }
+    let _ = write!(s, "\nsynthetic,-");
+    for f in fits {
+        let _ = write!(s, ",{}", f.synthetic);
+    }
+    let _ = write!(s, "\nnrmse,fraction");
+    for f in fits {
+        let _ = write!(s, ",{}", f.nrmse);
+    }
+    for (name, yan) in [("paper_nrmse_ours", false), ("paper_nrmse_yan2015", true)] {
+        let _ = write!(s, "\n{name},fraction");
+        for f in fits {
+            match preset_record(&f.species) {
+                Some(p) => {
+                    let _ = write!(
+                        s,
+                        ",{}",
+                        if yan {
+                            p.paper_nrmse_yan2015
+                        } else {
+                            p.paper_nrmse
+                        }
+                    );
+                }
+                None => s.push(','),
+            }
+        }
+    }
+    s.push('\n');
+    s
+}
+
+/// Write `nrmse.md` and `nrmse.csv` into `out`.
+pub fn write(fits: &[FitFile], out: &Path) -> Result<()> {
+    crate::io::write_atomic(&out.join("nrmse.md"), markdown(fits).as_bytes())?;
+    crate::io::write_atomic(&out.join("nrmse.csv"), csv(fits).as_bytes())
+}
+
+/// What [`write_fit_reports`] wrote and what it had to skip.
+#[derive(Debug, Default)]
+pub struct ReportSummary {
+    pub written: Vec<PathBuf>,
+    /// `(species, reason)` for figures or entries that could not be made.
+    pub skipped: Vec<(String, String)>,
+}
+
+/// The entry point of the fit reports: `nrmse.{md,csv}`, `fig11_<species>.{png,svg}`,
+/// `fit_error_vs_time.{csv,png,svg}` and `model_vs_simulation.md` from the fit files in
+/// `fits_dir` and the profiles in `measurements` (a species' profile is read from
+/// `measurements/<species>/` when it exists, else from the files its fit recorded).
+pub fn write_fit_reports(
+    fits_dir: &Path,
+    measurements: &Path,
+    out: &Path,
+) -> Result<ReportSummary> {
+    use super::{fig11, fit_time, model_vs_sim};
+    let fits = read_fits(fits_dir)?;
+    let mut sum = ReportSummary::default();
+    write(&fits, out)?;
+    sum.written.push(out.join("nrmse.md"));
+    sum.written.push(out.join("nrmse.csv"));
+    fit_time::write(&fits, out)?;
+    for ext in ["csv", "png", "svg"] {
+        sum.written
+            .push(out.join(format!("fit_error_vs_time.{ext}")));
+    }
+    for f in &fits {
+        let dir = measurements.join(&f.species);
+        let prof = if dir.is_dir() {
+            crate::fit::job::load_inputs(&[dir])
+        } else if !f.files.is_empty() {
+            crate::fit::job::load_inputs(&f.files)
+        } else {
+            Err(Error::Invalid("no profile recorded".into()))
+        };
+        match prof.and_then(|p| fig11::write(f, &p, out)) {
+            Ok(paths) => sum.written.extend(paths),
+            Err(e) => sum.skipped.push((f.species.clone(), format!("fig11: {e}"))),
+        }
+    }
+    // Model vs simulation: every species folder with true parameters.
+    let mut entries = Vec::new();
+    if let Ok(rd) = std::fs::read_dir(measurements) {
+        let mut dirs: Vec<PathBuf> = rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.is_dir())
+            .collect();
+        dirs.sort();
+        for d in dirs {
+            let species = crate::fit::job::species_name(&d);
+            let truth = match model_vs_sim::true_params(&d) {
+                Ok(Some(t)) => t,
+                Ok(None) => continue,
+                Err(e) => {
+                    sum.skipped
+                        .push((species, format!("model_vs_simulation: {e}")));
+                    continue;
+                }
+            };
+            let fit = fits.iter().find(|f| f.species == species).cloned();
+            let prof = match crate::fit::job::load_inputs(std::slice::from_ref(&d)) {
+                Ok(p) => p,
+                Err(e) => {
+                    sum.skipped
+                        .push((species, format!("model_vs_simulation: {e}")));
+                    continue;
+                }
+            };
+            let ch = fit
+                .as_ref()
+                .and_then(|f| prof.channels.iter().position(|c| *c == f.channel))
+                .unwrap_or(0);
+            if let Some((e, k, n)) = model_vs_sim::nrmse_at(&truth, &prof, ch) {
+                entries.push(model_vs_sim::Entry {
+                    species,
+                    truth,
+                    nrmse_truth: e,
+                    exposure_truth: k,
+                    n_valid: n,
+                    fit,
+                });
+            }
+        }
+    }
+    let p = out.join("model_vs_simulation.md");
+    crate::io::write_atomic(&p, model_vs_sim::markdown(&entries).as_bytes())?;
+    sum.written.push(p);
+    Ok(sum)
+}

@@ -1,0 +1,196 @@
+//! End-to-end `furfit fit` + `furfit report` on a tiny synthesized profile, determinism of
+//! the fit file for a fixed seed, and error handling of bad input.
+
+use std::path::Path;
+use std::process::Command;
+
+fn furfit() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_furfit"))
+}
+
+/// A tiny synthetic species folder: 2 theta_i x 13 theta_r x 25 phi from the far-field
+/// model at the mouse preset (phi from -165: -180 and 180 are the same azimuth, and the
+/// loader rejects the pair when their values differ in the last bit), via `furfit synth`, plus a metadata.json with the truth.
+fn make_species(root: &Path, species: &str) {
+    let dir = root.join("measurements").join(species);
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = furfit()
+        .args([
+            "synth",
+            "--params",
+            "mouse",
+            "--theta-i",
+            "-20,20",
+            "--theta-r",
+            "-60:60:10",
+            "--phi",
+            "-165:180:15",
+            "--exposure",
+            "3.5",
+            "--out",
+        ])
+        .arg(dir.join("profile.csv"))
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "synth failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let truth = furfit::FurParams::preset("mouse").unwrap().to_json_value();
+    std::fs::write(
+        dir.join("metadata.json"),
+        serde_json::to_string(&serde_json::json!({"synthetic": true, "params": truth})).unwrap(),
+    )
+    .unwrap();
+}
+
+fn fit(root: &Path, species: &str, out: &str, seed: &str) -> serde_json::Value {
+    let o = furfit()
+        .current_dir(root)
+        .args(["fit"])
+        .arg(Path::new("measurements").join(species))
+        .args([
+            "--out",
+            out,
+            "--seed",
+            seed,
+            "--starts",
+            "16",
+            "--lm-starts",
+            "2",
+            "--threads",
+            "2",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "fit failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let text = std::fs::read_to_string(root.join(out)).unwrap();
+    serde_json::from_str(&text).unwrap()
+}
+
+/// Remove wall-clock fields (documented as the only non-deterministic ones).
+fn strip_times(v: &mut serde_json::Value) {
+    let s = v["solver"].as_object_mut().unwrap();
+    for k in ["wall_time_s", "model_time_s", "model_time_share"] {
+        assert!(s.remove(k).is_some(), "missing solver.{k}");
+    }
+    for t in v["trace"].as_array_mut().unwrap() {
+        assert!(t.as_object_mut().unwrap().remove("time_s").is_some());
+    }
+}
+
+#[test]
+fn fit_then_report_end_to_end_and_deterministic() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    let mut a = fit(root, "mouse", "fits/mouse.json", "7");
+    // The fit file loads as parameters.
+    let (p, k) = furfit::FurParams::load(root.join("fits/mouse.json").to_str().unwrap()).unwrap();
+    p.validate().unwrap();
+    assert!(k > 0.0);
+    // Noise-free data from the same model: the fit reaches it closely (1 % NRMSE is far
+    // above what LM reaches on exact data and far below what a wrong optimum gives).
+    let e = a["nrmse"].as_f64().unwrap();
+    assert!(e < 0.01, "NRMSE {e}");
+    assert_eq!(a["data"]["synthetic"], serde_json::Value::Bool(true));
+    assert_eq!(a["data"]["files"][0]["sha256"].as_str().unwrap().len(), 64);
+    for key in [
+        "units",
+        "exposure",
+        "uncertainty",
+        "correlation",
+        "solver",
+        "tool_version",
+        "seed",
+        "trace",
+    ] {
+        assert!(a.get(key).is_some(), "fit file lacks '{key}'");
+    }
+    // Same seed -> identical except wall time.
+    let mut b = fit(root, "mouse", "fits/again.json", "7");
+    strip_times(&mut a);
+    strip_times(&mut b);
+    for (k, va) in a.as_object().unwrap() {
+        assert_eq!(Some(va), b.get(k), "same seed gave a different '{k}'");
+    }
+    assert_eq!(a, b, "same seed gave different fits");
+
+    std::fs::remove_file(root.join("fits/again.json")).unwrap();
+    let o = furfit()
+        .current_dir(root)
+        .args(["report"])
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "report failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    for f in [
+        "nrmse.md",
+        "nrmse.csv",
+        "fig11_mouse.png",
+        "fig11_mouse.svg",
+        "fit_error_vs_time.csv",
+        "fit_error_vs_time.png",
+        "fit_error_vs_time.svg",
+        "model_vs_simulation.md",
+    ] {
+        let p = root.join("reports").join(f);
+        assert!(
+            p.exists() && std::fs::metadata(&p).unwrap().len() > 0,
+            "{f} missing"
+        );
+    }
+    let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
+    assert!(
+        md.contains("SYNTHETIC") && md.contains("mouse") && md.contains("4.7%"),
+        "{md}"
+    );
+    let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
+    // The data was synthesized with the same far field: NRMSE at truth is ~0.
+    assert!(mvs.contains("| mouse |"), "{mvs}");
+}
+
+#[test]
+fn all_invalid_profile_is_a_clear_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let p = tmp.path().join("dead.csv");
+    let mut text = String::from("theta_i,theta_r,phi,value\n");
+    for (i, tr) in [-30, 0, 30].iter().enumerate() {
+        text.push_str(&format!(
+            "0,{tr},{},{}\n",
+            10 * i,
+            if i == 0 { "0" } else { "-1" }
+        ));
+    }
+    std::fs::write(&p, text).unwrap();
+    let o = furfit()
+        .current_dir(tmp.path())
+        .args(["fit", "dead.csv"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no valid sample"), "{err}");
+    assert!(!tmp.path().join("fits/dead.json").exists());
+}
+
+#[test]
+fn bad_fix_is_rejected_with_its_bound() {
+    let tmp = tempfile::tempdir().unwrap();
+    let o = furfit()
+        .current_dir(tmp.path())
+        .args(["fit", "x.csv", "--fix", "kappa=1.5"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("kappa") && err.contains("[0, 1)"), "{err}");
+}
