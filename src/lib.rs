@@ -15,6 +15,7 @@ pub mod io;
 pub mod model;
 pub mod params;
 pub mod profile;
+pub mod render;
 
 pub use error::{Error, Result};
 pub use params::{FurParams, ParamId};

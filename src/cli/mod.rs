@@ -4,6 +4,7 @@
 use clap::{Parser, Subcommand};
 
 pub mod inspect;
+pub mod render;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -17,6 +18,8 @@ pub struct Cli {
 pub enum Command {
     /// Print sample counts, angle ranges, channels and metadata of profile files.
     Inspect(inspect::Args),
+    /// Path-trace a preview of fur on the built-in test lock.
+    Render(render::Args),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -24,6 +27,7 @@ pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
+        Command::Render(a) => render::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

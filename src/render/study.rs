@@ -1,0 +1,1 @@
+//! Convergence and culling studies (filled in below).
