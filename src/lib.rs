@@ -16,6 +16,8 @@ pub mod model;
 pub mod params;
 pub mod profile;
 pub mod render;
+pub mod report;
+pub mod synth;
 
 pub use error::{Error, Result};
 pub use params::{FurParams, ParamId};

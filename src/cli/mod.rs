@@ -3,8 +3,11 @@
 
 use clap::{Parser, Subcommand};
 
+pub mod bench_model;
 pub mod inspect;
 pub mod render;
+pub mod stability;
+pub mod synth;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -20,6 +23,12 @@ pub enum Command {
     Inspect(inspect::Args),
     /// Path-trace a preview of fur on the built-in test lock.
     Render(render::Args),
+    /// Synthesize a profile from parameters on an angle grid (far field or quadrature).
+    Synth(Box<synth::Args>),
+    /// Adversarial stability sweep of the far field; writes reports/stability.{md,csv}.
+    Stability(stability::Args),
+    /// Far-field error vs evaluation time against Gauss-Legendre quadrature.
+    BenchModel(bench_model::Args),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -28,6 +37,9 @@ pub fn main() -> std::process::ExitCode {
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
         Command::Render(a) => render::run(a),
+        Command::Synth(a) => synth::run(*a),
+        Command::Stability(a) => stability::run(a),
+        Command::BenchModel(a) => bench_model::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -8,10 +8,13 @@
 //! predicts is `k * sum_p M_p N_p` (MODEL.md).
 
 pub mod azimuthal;
+pub mod far;
 pub mod fresnel;
 pub mod geometry;
 pub mod longitudinal;
 pub mod medulla;
+pub mod multiscale;
+pub mod quadrature;
 
 use crate::params::FurParams;
 use azimuthal::Absorption;

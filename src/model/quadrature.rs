@@ -1,0 +1,216 @@
+//! Numerical quadrature used around the model: fixed Gauss-Legendre rules (cached) and an
+//! adaptive Gauss-Kronrod (G7-K15) integrator used as the *reference* for the far field
+//! (tests and reports only; it is slow on purpose, ~1e-10 relative).
+
+use std::sync::OnceLock;
+
+/// Gauss-Legendre nodes and weights on [-1, 1] for `n` points (Newton on the Legendre
+/// recurrence; nodes accurate to ~1e-15). Sorted by increasing node.
+pub fn gauss_legendre_rule(n: usize) -> (Vec<f64>, Vec<f64>) {
+    assert!(n >= 1, "Gauss-Legendre needs at least one point");
+    let mut xs = vec![0.0; n];
+    let mut ws = vec![0.0; n];
+    let m = n.div_ceil(2);
+    for i in 0..m {
+        let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
+        let mut dp = 1.0;
+        for _ in 0..100 {
+            let (mut p0, mut p1) = (1.0, x);
+            for k in 2..=n {
+                let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
+                p0 = p1;
+                p1 = p2;
+            }
+            if n == 1 {
+                p0 = 1.0;
+                p1 = x;
+            }
+            dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
+            let dx = p1 / dp;
+            x -= dx;
+            if dx.abs() < 1e-16 {
+                break;
+            }
+        }
+        if n == 1 {
+            x = 0.0;
+            dp = 1.0;
+        }
+        let w = 2.0 / ((1.0 - x * x) * dp * dp);
+        xs[i] = -x;
+        ws[i] = w;
+        xs[n - 1 - i] = x;
+        ws[n - 1 - i] = w;
+    }
+    (xs, ws)
+}
+
+/// A Gauss-Legendre rule with nodes and weights in one vector.
+pub struct GaussLegendre {
+    pub nodes: Vec<f64>,
+    pub weights: Vec<f64>,
+}
+
+impl GaussLegendre {
+    pub fn new(n: usize) -> Self {
+        let (nodes, weights) = gauss_legendre_rule(n);
+        GaussLegendre { nodes, weights }
+    }
+
+    /// Cached rule for `n` in 1..=256 (built once per process).
+    pub fn cached(n: usize) -> &'static GaussLegendre {
+        static CACHE: OnceLock<Vec<GaussLegendre>> = OnceLock::new();
+        let c = CACHE.get_or_init(|| (0..=256).map(|k| GaussLegendre::new(k.max(1))).collect());
+        &c[n.clamp(1, 256)]
+    }
+
+    /// `integral_a^b f(x) dx`.
+    pub fn integrate(&self, a: f64, b: f64, mut f: impl FnMut(f64) -> f64) -> f64 {
+        let (c, r) = (0.5 * (a + b), 0.5 * (b - a));
+        let mut s = 0.0;
+        for (x, w) in self.nodes.iter().zip(&self.weights) {
+            s += w * f(c + r * x);
+        }
+        s * r
+    }
+}
+
+// Gauss-Kronrod 7-15 nodes (abscissae on [0, 1], symmetric) and weights (QUADPACK qk15).
+const XGK: [f64; 8] = [
+    0.991_455_371_120_812_6,
+    0.949_107_912_342_758_5,
+    0.864_864_423_359_769_1,
+    0.741_531_185_599_394_4,
+    0.586_087_235_467_691_1,
+    0.405_845_151_377_397_2,
+    0.207_784_955_007_898_5,
+    0.0,
+];
+const WGK: [f64; 8] = [
+    0.022_935_322_010_529_22,
+    0.063_092_092_629_978_55,
+    0.104_790_010_322_250_2,
+    0.140_653_259_715_525_9,
+    0.169_004_726_639_267_9,
+    0.190_350_578_064_785_4,
+    0.204_432_940_075_298_9,
+    0.209_482_141_084_728,
+];
+const WG: [f64; 4] = [
+    0.129_484_966_168_869_7,
+    0.279_705_391_489_276_7,
+    0.381_830_050_505_118_9,
+    0.417_959_183_673_469_4,
+];
+
+/// One G7-K15 step on [a, b]: (Kronrod estimate, |Kronrod - Gauss|).
+fn gk15(a: f64, b: f64, f: &mut impl FnMut(f64) -> f64) -> (f64, f64) {
+    let c = 0.5 * (a + b);
+    let r = 0.5 * (b - a);
+    let fc = f(c);
+    let mut rk = fc * WGK[7];
+    let mut rg = fc * WG[3];
+    for j in 0..7 {
+        let dx = r * XGK[j];
+        let s = f(c - dx) + f(c + dx);
+        rk += WGK[j] * s;
+        if j % 2 == 1 {
+            rg += WG[j / 2] * s;
+        }
+    }
+    (rk * r, ((rk - rg) * r).abs())
+}
+
+/// Result of [`adaptive_gk`].
+#[derive(Clone, Copy, Debug)]
+pub struct GkResult {
+    pub value: f64,
+    /// Sum of the local |K15 - G7| estimates (a pessimistic error bound).
+    pub error: f64,
+    pub evaluations: usize,
+}
+
+/// Adaptive Gauss-Kronrod (G7-K15) of `f` over the ordered breakpoints `points` (each
+/// consecutive pair is one initial interval): bisects the interval with the largest error
+/// estimate until the total estimate is below `max(abs_tol, rel_tol * |value|)` or
+/// `max_intervals` intervals exist. Used as the reference integrator.
+pub fn adaptive_gk(
+    mut f: impl FnMut(f64) -> f64,
+    points: &[f64],
+    rel_tol: f64,
+    abs_tol: f64,
+    max_intervals: usize,
+) -> GkResult {
+    let mut ivs: Vec<(f64, f64, f64, f64)> = Vec::new();
+    let mut evals = 0usize;
+    for w in points.windows(2) {
+        if w[1] > w[0] {
+            let (v, e) = gk15(w[0], w[1], &mut f);
+            evals += 15;
+            ivs.push((w[0], w[1], v, e));
+        }
+    }
+    loop {
+        let value: f64 = ivs.iter().map(|iv| iv.2).sum();
+        let error: f64 = ivs.iter().map(|iv| iv.3).sum();
+        if error <= abs_tol.max(rel_tol * value.abs()) || ivs.len() >= max_intervals {
+            return GkResult {
+                value,
+                error,
+                evaluations: evals,
+            };
+        }
+        // Bisect the worst interval.
+        let (k, _) =
+            ivs.iter().enumerate().fold(
+                (0, -1.0),
+                |acc, (i, iv)| if iv.3 > acc.1 { (i, iv.3) } else { acc },
+            );
+        let (a, b, _, _) = ivs.swap_remove(k);
+        let m = 0.5 * (a + b);
+        if !(m > a && m < b) {
+            // Cannot bisect further in floating point: accept as is.
+            let (v, _) = gk15(a, b, &mut f);
+            ivs.push((a, b, v, 0.0));
+            continue;
+        }
+        let (v1, e1) = gk15(a, m, &mut f);
+        let (v2, e2) = gk15(m, b, &mut f);
+        evals += 30;
+        ivs.push((a, m, v1, e1));
+        ivs.push((m, b, v2, e2));
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn gauss_legendre_is_exact_for_polynomials() {
+        for n in [1usize, 2, 5, 8, 16, 64, 128] {
+            let gl = GaussLegendre::cached(n);
+            let sw: f64 = gl.weights.iter().sum();
+            // Weights sum to the interval length 2 (rounding only).
+            assert!((sw - 2.0).abs() < 1e-13, "n={n}: {sw}");
+            // Exact for degree 2n-1: integral_0^1 x^(2n-1) = 1/(2n).
+            let d = (2 * n - 1) as i32;
+            let v = gl.integrate(0.0, 1.0, |x| x.powi(d));
+            assert!((v - 1.0 / (2 * n) as f64).abs() < 1e-13, "n={n}: {v}");
+        }
+    }
+
+    #[test]
+    fn adaptive_gk_handles_sqrt_endpoint_and_peaks() {
+        // integral_0^1 sqrt(x) = 2/3 (endpoint singularity of the derivative).
+        let r = adaptive_gk(|x| x.sqrt(), &[0.0, 1.0], 1e-12, 0.0, 2000);
+        assert!((r.value - 2.0 / 3.0).abs() < 1e-11, "{r:?}");
+        // Narrow Gaussian of width 1e-3 at 0.3: integral = 1 (tails beyond [0,1] negligible).
+        let s = 1e-3;
+        let g = |x: f64| {
+            (-0.5 * ((x - 0.3) / s).powi(2)).exp() / (s * (2.0 * std::f64::consts::PI).sqrt())
+        };
+        let r = adaptive_gk(g, &[0.0, 0.3, 1.0], 1e-12, 0.0, 2000);
+        assert!((r.value - 1.0).abs() < 1e-10, "{r:?}");
+    }
+}

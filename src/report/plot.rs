@@ -1,0 +1,1 @@
+//! Shared plotting helpers (filled in below).
