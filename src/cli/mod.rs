@@ -6,6 +6,7 @@ use clap::{Parser, Subcommand};
 pub mod bench_model;
 pub mod inspect;
 pub mod render;
+pub mod render_convergence;
 pub mod stability;
 pub mod synth;
 
@@ -22,7 +23,9 @@ pub enum Command {
     /// Print sample counts, angle ranges, channels and metadata of profile files.
     Inspect(inspect::Args),
     /// Path-trace a preview of fur on the built-in test lock.
-    Render(render::Args),
+    Render(Box<render::Args>),
+    /// Convergence (RMSE vs spp/time per BCSDF scale) and culling studies of the renderer.
+    RenderConvergence(render_convergence::Args),
     /// Synthesize a profile from parameters on an angle grid (far field or quadrature).
     Synth(Box<synth::Args>),
     /// Adversarial stability sweep of the far field; writes reports/stability.{md,csv}.
@@ -36,7 +39,8 @@ pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
-        Command::Render(a) => render::run(a),
+        Command::Render(a) => render::run(*a),
+        Command::RenderConvergence(a) => render_convergence::run(a),
         Command::Synth(a) => synth::run(*a),
         Command::Stability(a) => stability::run(a),
         Command::BenchModel(a) => bench_model::run(a),

@@ -59,6 +59,7 @@
 
 use super::math::{Rgb, V3};
 use crate::model::azimuthal::{medulla_offset, wrap_angle, wrapped_gaussian};
+use crate::model::far::FarOptions;
 use crate::model::{geometry, longitudinal, FurModel, Lobe, LobeSet};
 use crate::params::FurParams;
 use std::f64::consts::{FRAC_PI_2, PI, SQRT_2};
@@ -171,6 +172,8 @@ pub struct BsdfSample {
 pub struct FiberBsdf {
     models: [FurModel; 3],
     lobes: LobeSet,
+    /// Options of the far field / multi-scale integration (culling, tolerance).
+    pub far_opts: FarOptions,
 }
 
 /// Mass of the normal (`mu`, `s`) inside [-pi/2, pi/2]. The problem is reflected so the
@@ -201,7 +204,11 @@ impl FiberBsdf {
             FurModel::new(&p)
         });
         let lobes = lobes.intersect(models[0].active_lobes());
-        FiberBsdf { models, lobes }
+        FiberBsdf {
+            models,
+            lobes,
+            far_opts: FarOptions::default(),
+        }
     }
 
     /// The lobes this BCSDF evaluates (requested ∩ active: scattered lobes are left out
@@ -247,29 +254,23 @@ impl FiberBsdf {
         out
     }
 
-    /// Far field / multi-scale: `M_p` times `N_p` averaged over `[h1, h2]` (seed Eq. 26).
-    /// Stop-gap until the analytic far field lands: composite Gauss-Legendre quadrature of
-    /// the model's near field (8 panels x 4 nodes).
+    /// Far field / multi-scale: `M_p` times the model's `N_p` averaged over `[h1, h2]`
+    /// (seed Eqs. 22, 26; [`crate::model::AzimuthalSlice::far`] for `[-1, 1]`,
+    /// [`crate::model::AzimuthalSlice::multiscale`] otherwise), per channel.
     pub fn eval_span(&self, theta_o: f64, theta: f64, phi: f64, h1: f64, h2: f64) -> LobeRgb {
-        // Composite Gauss-Legendre average of the near field over [h1, h2].
-        const N: usize = 8;
-        const GL: [(f64, f64); 4] = [
-            (-0.861_136_311_594_052_6, 0.347_854_845_137_453_9),
-            (-0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
-            (0.339_981_043_584_856_3, 0.652_145_154_862_546_1),
-            (0.861_136_311_594_052_6, 0.347_854_845_137_453_9),
-        ];
+        let m = self.models[0].longitudinal(theta_o, theta, phi, self.lobes);
+        let td = geometry::theta_d(theta_o, theta);
+        let full = h1 <= -1.0 && h2 >= 1.0;
         let mut out = [[0.0; 3]; 5];
-        let w = (h2 - h1) / N as f64;
-        for k in 0..N {
-            let c0 = h1 + (k as f64 + 0.5) * w;
-            for (x, wt) in GL {
-                let v = self.eval_near(theta_o, theta, phi, c0 + 0.5 * w * x);
-                for l in 0..5 {
-                    for c in 0..3 {
-                        out[l][c] += v[l][c] * wt * 0.5 / N as f64;
-                    }
-                }
+        for c in 0..3 {
+            let slice = self.models[c].azimuthal(td);
+            let n = if full {
+                slice.far(phi, self.lobes, &self.far_opts)
+            } else {
+                slice.multiscale(phi, h1, h2, self.lobes, &self.far_opts)
+            };
+            for l in self.lobes.iter() {
+                out[l.index()][c] = m.get(l) * n.get(l);
             }
         }
         out

@@ -112,6 +112,9 @@ pub struct RenderSettings {
     pub tint: Tint,
     /// Render only this window `(x0, y0, w, h)` of the full frame.
     pub region: Option<(usize, usize, usize, usize)>,
+    /// Cull far-field / multi-scale segments that cannot reach the queried azimuth
+    /// (`FarOptions::cull`).
+    pub far_cull: bool,
 }
 
 impl Default for RenderSettings {
@@ -139,6 +142,7 @@ impl Default for RenderSettings {
             strand: StrandSpec::default(),
             tint: Tint::default(),
             region: None,
+            far_cull: true,
         }
     }
 }
@@ -201,7 +205,8 @@ pub fn render_scene(
             "image size and spp must be positive".into(),
         ));
     }
-    let bsdf = FiberBsdf::new(params, s.tint, s.lobes);
+    let mut bsdf = FiberBsdf::new(params, s.tint, s.lobes);
+    bsdf.far_opts.cull = s.far_cull;
     let camera = Camera::look_at(
         V3::new(0.0, 0.0, 0.0),
         s.camera.dist,
