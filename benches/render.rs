@@ -51,7 +51,9 @@ fn kernels(c: &mut Criterion) {
             b.sample(0.3, HRange::At(0.2), [u, 0.5, 1.0 - u, 0.3])
         })
     });
-    c.bench_function("bsdf_eval_near", |bn| bn.iter(|| b.eval(0.3, -0.2, 1.0, HRange::At(0.2))));
+    c.bench_function("bsdf_eval_near", |bn| {
+        bn.iter(|| b.eval(0.3, -0.2, 1.0, HRange::At(0.2)))
+    });
     c.bench_function("bsdf_eval_far", |bn| {
         bn.iter(|| b.eval(0.3, -0.2, 1.0, HRange::Span(-1.0, 1.0)))
     });

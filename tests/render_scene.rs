@@ -1,7 +1,6 @@
 //! Image-level checks of the renderer: white furnace, determinism, multi-scale limits, and
 //! an end-to-end run of `furfit render`.
 
-use furfit::model::LobeSet;
 use furfit::params::FurParams;
 use furfit::render::bsdf::{Mode, Tint};
 use furfit::render::scene::{Environment, StrandSpec};
@@ -35,8 +34,8 @@ fn fur() -> FurParams {
 #[test]
 fn white_furnace_scene_stays_at_or_below_one() {
     // kappa = 0, no absorption, l = 1, constant white environment, no key light.
-    let p = FurParams::from_file_units([1.55, 0.0, 2.0, 8.0, 20.0, 0.0, 0.0, 0.0, 0.0, 1.0])
-        .unwrap();
+    let p =
+        FurParams::from_file_units([1.55, 0.0, 2.0, 8.0, 20.0, 0.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
     let mut s = small(Mode::Near);
     s.light = None;
     s.env = Environment::constant(1.0);
@@ -95,7 +94,11 @@ fn multiscale_tends_to_near_and_far() {
     // the same random numbers, so the images agree to rounding.
     assert!(ms0.rmse(&near) < 1e-9, "ms0 vs near {}", ms0.rmse(&near));
     // Full coverage: every query is the far field on [-1, 1].
-    assert!(ms_inf.rmse(&far) < 1e-9, "ms_inf vs far {}", ms_inf.rmse(&far));
+    assert!(
+        ms_inf.rmse(&far) < 1e-9,
+        "ms_inf vs far {}",
+        ms_inf.rmse(&far)
+    );
     // And the two limits differ (so the comparison above means something).
     assert!(near.rmse(&far) > 1e-4, "near vs far {}", near.rmse(&far));
 }
@@ -113,7 +116,11 @@ fn lobe_aovs_add_up_to_the_beauty() {
         for c in 0..3 {
             let sum: f64 = (0..5).map(|l| r.lobes[l].data[i][c]).sum();
             // Summation order differs: relative 1e-9.
-            assert!((sum - b[c]).abs() <= 1e-9 * b[c].max(1e-3), "pixel {i}: {sum} vs {}", b[c]);
+            assert!(
+                (sum - b[c]).abs() <= 1e-9 * b[c].max(1e-3),
+                "pixel {i}: {sum} vs {}",
+                b[c]
+            );
         }
         if b[1] > 0.0 {
             lit += 1;
@@ -130,12 +137,18 @@ fn cli_render_writes_png_exr_and_aovs() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("fox.png");
     let st = std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
-        .args(["render", "--params", "red-fox", "--size", "24x16", "--spp", "2"])
+        .args([
+            "render", "--params", "red-fox", "--size", "24x16", "--spp", "2",
+        ])
         .args(["--fibers", "100", "--threads", "1", "--out"])
         .arg(&out)
         .output()
         .unwrap();
-    assert!(st.status.success(), "{}", String::from_utf8_lossy(&st.stderr));
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
     let text = String::from_utf8_lossy(&st.stdout);
     assert!(text.contains("Mrays/s"), "{text}");
     let png = image::open(&out).unwrap();

@@ -241,10 +241,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             for l in Lobe::ALL {
                 if s.lobes.contains(l) {
                     let img = &r.lobes[l.index()];
-                    output::write_png(img, a.exposure, &with_suffix(&out, &format!("_{}", l.name()), "png"))?;
+                    output::write_png(
+                        img,
+                        a.exposure,
+                        &with_suffix(&out, &format!("_{}", l.name()), "png"),
+                    )?;
                 }
             }
-            println!("wrote per-lobe AOVs {}", with_suffix(&out, "_<lobe>", "png").display());
+            println!(
+                "wrote per-lobe AOVs {}",
+                with_suffix(&out, "_<lobe>", "png").display()
+            );
         }
         tiles.push((name.clone(), r.beauty));
     }

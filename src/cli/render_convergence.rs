@@ -42,7 +42,9 @@ pub struct Args {
 }
 
 fn size(s: &str) -> anyhow::Result<(usize, usize)> {
-    let (w, h) = s.split_once('x').with_context(|| format!("'{s}': expected WxH"))?;
+    let (w, h) = s
+        .split_once('x')
+        .with_context(|| format!("'{s}': expected WxH"))?;
     Ok((w.parse()?, h.parse()?))
 }
 
@@ -102,15 +104,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .split(',')
         .map(Mode::parse)
         .collect::<crate::Result<_>>()?;
-    let c = convergence(
-        &scene,
-        &params,
-        &base,
-        &modes,
-        a.max_spp,
-        a.ref_spp,
-        |m| println!("{m}"),
-    )?;
+    let c = convergence(&scene, &params, &base, &modes, a.max_spp, a.ref_spp, |m| {
+        println!("{m}")
+    })?;
     let csv = a.out.join("render_convergence.csv");
     crate::io::write_atomic(&csv, c.to_csv().as_bytes())?;
     plot_convergence(&c, &a.out.join("render_convergence.png"), false)?;
@@ -118,7 +114,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     println!("wrote {} (+ .png, .svg)", csv.display());
     for m in &modes {
         if let Some(v) = c.inefficiency(*m, 4) {
-            println!("{:10} RMSE^2 x seconds (median, spp >= 4): {v:.3e}", m.name());
+            println!(
+                "{:10} RMSE^2 x seconds (median, spp >= 4): {v:.3e}",
+                m.name()
+            );
         }
     }
     if let Some(s) = c.speedup(Mode::Near, Mode::Multiscale, 4) {

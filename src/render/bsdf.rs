@@ -167,6 +167,14 @@ pub struct BsdfSample {
     pub pdf: f64,
 }
 
+/// Lobe probabilities and truncated-`M` parameters at one (`theta_o`, `h`).
+struct Prep {
+    probs: [f64; 5],
+    mu: [f64; 5],
+    s: [f64; 5],
+    mass: [f64; 5],
+}
+
 /// RGB fiber BCSDF of one parameter set.
 #[derive(Clone, Debug)]
 pub struct FiberBsdf {
@@ -278,8 +286,19 @@ impl FiberBsdf {
 
     /// Lobe selection probabilities at (`theta_o`, `h`) (module doc, step 2).
     pub fn lobe_probs(&self, theta_o: f64, h: f64) -> [f64; 5] {
-        let mut w = [0.0; 5];
+        self.prepare(theta_o, h).probs
+    }
+
+    /// Everything the sampler and its pdf need that depends on (`theta_o`, `h`) only.
+    fn prepare(&self, theta_o: f64, h: f64) -> Prep {
+        let mut pr = Prep {
+            probs: [0.0; 5],
+            mu: [0.0; 5],
+            s: [1.0; 5],
+            mass: [0.0; 5],
+        };
         let geo = self.models[0].azimuthal(-theta_o).geometry(h);
+        let mut w = [0.0; 5];
         for c in 0..3 {
             let a = self.models[c]
                 .azimuthal(-theta_o)
@@ -292,21 +311,24 @@ impl FiberBsdf {
         for l in self.lobes.iter() {
             let i = l.index();
             if l.is_scattered() {
-                let frac = self.models[0].medulla().map_or(0.0, |m| {
-                    m.scattered_fraction(medulla_offset(&geo, p.kappa))
-                });
+                let frac = self.models[0]
+                    .medulla()
+                    .map_or(0.0, |m| m.scattered_fraction(medulla_offset(&geo, p.kappa)));
                 w[i] *= frac;
             } else {
-                w[i] *= longitudinal::m_p_mass_in_domain(l.p(), theta_o, p.alpha, p.beta_m)
-                    .max(MIN_MASS);
+                let (mu, s) = self.m_params(l, theta_o);
+                let mass = trunc_mass(mu, s);
+                pr.mu[i] = mu;
+                pr.s[i] = s;
+                pr.mass[i] = mass;
+                w[i] *= mass.max(MIN_MASS);
             }
         }
-        let s: f64 = w.iter().sum();
-        if s > 0.0 {
-            w.map(|x| x / s)
-        } else {
-            [0.0; 5]
+        let sum: f64 = w.iter().sum();
+        if sum > 0.0 {
+            pr.probs = w.map(|x| x / sum);
         }
+        pr
     }
 
     /// Centre and width of the truncated Gaussian `M_l` for camera side `theta_o`.
@@ -316,35 +338,41 @@ impl FiberBsdf {
         (-theta_o + a, b)
     }
 
-    /// pdf of lobe `l` alone in the `(theta, phi)` measure at offset `h`.
-    pub fn lobe_pdf(&self, l: Lobe, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
-        if l.is_scattered() {
-            return theta.cos().max(0.0) / (4.0 * PI);
-        }
-        let (mu, s) = self.m_params(l, theta_o);
-        let mass = trunc_mass(mu, s);
-        let pt = if mass < MIN_MASS {
-            1.0 / PI
-        } else {
-            longitudinal::gaussian(theta, mu, s) / mass
-        };
+    /// Mixture pdf with prepared lobe data, `(theta, phi)` measure.
+    fn pdf_prepared(&self, pr: &Prep, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
         let slice = self.models[0].azimuthal(geometry::theta_d(theta_o, theta));
         let geo = slice.geometry(h);
         let beta_n = self.models[0].params.beta_n;
-        pt * wrapped_gaussian(
-            slice.center(l, &geo) - phi,
-            crate::model::azimuthal::beta_p(l.p(), beta_n),
-        )
+        let mut pdf = 0.0;
+        for l in self.lobes.iter() {
+            let i = l.index();
+            if pr.probs[i] <= 0.0 {
+                continue;
+            }
+            let v = if l.is_scattered() {
+                theta.cos().max(0.0) / (4.0 * PI)
+            } else {
+                let pt = if pr.mass[i] < MIN_MASS {
+                    1.0 / PI
+                } else {
+                    longitudinal::gaussian(theta, pr.mu[i], pr.s[i]) / pr.mass[i]
+                };
+                pt * wrapped_gaussian(
+                    slice.center(l, &geo) - phi,
+                    crate::model::azimuthal::beta_p(l.p(), beta_n),
+                )
+            };
+            pdf += pr.probs[i] * v;
+        }
+        pdf
     }
 
-    /// Mixture pdf conditional on `h`, `(theta, phi)` measure.
+    /// Mixture pdf conditional on `h`, `(theta, phi)` measure: `sum_l P_l pdf_l`, with
+    /// `pdf_l` the truncated `M_l` times the wrapped Gaussian `D_l` (unscattered) or
+    /// `cos(theta) / (4 pi)` (scattered).
     pub fn pdf_at(&self, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
-        let probs = self.lobe_probs(theta_o, h);
-        self.lobes
-            .iter()
-            .filter(|l| probs[l.index()] > 0.0)
-            .map(|l| probs[l.index()] * self.lobe_pdf(l, theta_o, theta, phi, h))
-            .sum()
+        let pr = self.prepare(theta_o, h);
+        self.pdf_prepared(&pr, theta_o, theta, phi, h)
     }
 
     /// pdf used for MIS weights: exact for the near field; for a span, the 4-point
@@ -374,7 +402,8 @@ impl FiberBsdf {
             HRange::Span(h1, h2) => (h1 + u[0] * (h2 - h1), u[1]),
         };
         // In span mode u[1] picks the lobe; in near mode u[0] does and u[1] is free.
-        let probs = self.lobe_probs(theta_o, h);
+        let pr = self.prepare(theta_o, h);
+        let probs = pr.probs;
         let mut acc = 0.0;
         let mut lobe = None;
         for l in self.lobes.iter() {
@@ -393,13 +422,16 @@ impl FiberBsdf {
                 .last()?,
         };
         let (theta, phi) = if lobe.is_scattered() {
-            ((2.0 * u[2] - 1.0).clamp(-1.0, 1.0).asin(), PI * (2.0 * u[3] - 1.0))
+            (
+                (2.0 * u[2] - 1.0).clamp(-1.0, 1.0).asin(),
+                PI * (2.0 * u[3] - 1.0),
+            )
         } else {
-            let (mu, s) = self.m_params(lobe, theta_o);
-            let theta = if trunc_mass(mu, s) < MIN_MASS {
+            let i = lobe.index();
+            let theta = if pr.mass[i] < MIN_MASS {
                 PI * (u[2] - 0.5)
             } else {
-                trunc_sample(mu, s, u[2])
+                trunc_sample(pr.mu[i], pr.s[i], u[2])
             };
             let slice = self.models[0].azimuthal(geometry::theta_d(theta_o, theta));
             let geo = slice.geometry(h);
@@ -407,7 +439,7 @@ impl FiberBsdf {
             let z = SQRT_2 * puruspe::inverf((2.0 * u[3] - 1.0).clamp(-1.0 + 1e-16, 1.0 - 1e-16));
             (theta, wrap_angle(slice.center(lobe, &geo) + sigma * z))
         };
-        let pdf = self.pdf_at(theta_o, theta, phi, h);
+        let pdf = self.pdf_prepared(&pr, theta_o, theta, phi, h);
         if !(pdf > 0.0) || !pdf.is_finite() {
             return None;
         }
@@ -450,7 +482,11 @@ impl Frame {
             v = a - u * a.dot(u);
         }
         let v = v.normalized();
-        Frame { u, v, w: u.cross(v) }
+        Frame {
+            u,
+            v,
+            w: u.cross(v),
+        }
     }
 
     /// `(theta, phi)` of a unit world direction.

@@ -52,8 +52,12 @@ const NT: usize = 18;
 const NP: usize = 36;
 
 fn bin_of(theta: f64, phi: f64) -> usize {
-    let i = (((theta + FRAC_PI_2) / PI) * NT as f64).floor().clamp(0.0, NT as f64 - 1.0) as usize;
-    let j = (((phi + PI) / (2.0 * PI)) * NP as f64).floor().clamp(0.0, NP as f64 - 1.0) as usize;
+    let i = (((theta + FRAC_PI_2) / PI) * NT as f64)
+        .floor()
+        .clamp(0.0, NT as f64 - 1.0) as usize;
+    let j = (((phi + PI) / (2.0 * PI)) * NP as f64)
+        .floor()
+        .clamp(0.0, NP as f64 - 1.0) as usize;
     i * NP + j
 }
 
@@ -93,7 +97,10 @@ fn chi_square_z(counts: &[u64], probs: &[f64], n: u64) -> f64 {
         k += 1;
     } else {
         // A pooled remainder that is too small must also be (nearly) empty.
-        assert!(pool_o <= 5.0 + 5.0 * pool_e, "{pool_o} samples where {pool_e} expected");
+        assert!(
+            pool_o <= 5.0 + 5.0 * pool_e,
+            "{pool_o} samples where {pool_e} expected"
+        );
     }
     let dof = (k - 1) as f64;
     ((chi / dof).cbrt() - (1.0 - 2.0 / (9.0 * dof))) / (2.0 / (9.0 * dof)).sqrt()
@@ -114,18 +121,27 @@ fn sample_hist(b: &FiberBsdf, theta_o: f64, hr: HRange, n: u64, seed: u64) -> (V
             assert!((pdf - s.pdf).abs() <= 1e-12 * pdf.max(1.0));
             let w = lobe_sum(&s.weight)[1];
             let direct = lobe_sum(&b.eval_near(theta_o, s.theta, s.phi, s.h))[1] / pdf;
-            assert!((w - direct).abs() <= 1e-12 * direct.max(1.0), "{w} vs {direct}");
+            assert!(
+                (w - direct).abs() <= 1e-12 * direct.max(1.0),
+                "{w} vs {direct}"
+            );
             sw += w;
             sw2 += w * w;
         }
     }
-    (counts, sw / n as f64, (sw2 / n as f64 - (sw / n as f64).powi(2)).max(0.0))
+    (
+        counts,
+        sw / n as f64,
+        (sw2 / n as f64 - (sw / n as f64).powi(2)).max(0.0),
+    )
 }
 
 /// ∫∫ sum M N over (theta, phi), green channel, of the near field at `h`.
 fn albedo_near(b: &FiberBsdf, theta_o: f64, h: f64) -> f64 {
     integrate(-FRAC_PI_2, FRAC_PI_2, 24, &mut |t| {
-        integrate(-PI, PI, 48, &mut |p| lobe_sum(&b.eval_near(theta_o, t, p, h))[1])
+        integrate(-PI, PI, 48, &mut |p| {
+            lobe_sum(&b.eval_near(theta_o, t, p, h))[1]
+        })
     })
 }
 
@@ -148,9 +164,7 @@ fn check_sampling(p: &FurParams, lobes: LobeSet, theta_o: f64, hr: HRange, seed:
     let probs = match hr {
         HRange::At(h) => bin_probs(&mut |t, ph| b.pdf_at(theta_o, t, ph, h), 3),
         HRange::Span(h1, h2) => bin_probs(
-            &mut |t, ph| {
-                integrate(h1, h2, 6, &mut |h| b.pdf_at(theta_o, t, ph, h)) / (h2 - h1)
-            },
+            &mut |t, ph| integrate(h1, h2, 6, &mut |h| b.pdf_at(theta_o, t, ph, h)) / (h2 - h1),
             2,
         ),
     };
@@ -159,7 +173,10 @@ fn check_sampling(p: &FurParams, lobes: LobeSet, theta_o: f64, hr: HRange, seed:
     assert!((total - 1.0).abs() < 2e-3, "pdf mass {total}");
     let z = chi_square_z(&counts, &probs, n);
     // z ~ N(0,1) when sampling matches the pdf; 4.5 sigma keeps false alarms < 1e-5.
-    assert!(z < 4.5, "chi-square z = {z:.2} (lobes {lobes:?}, theta_o {theta_o}, {hr:?})");
+    assert!(
+        z < 4.5,
+        "chi-square z = {z:.2} (lobes {lobes:?}, theta_o {theta_o}, {hr:?})"
+    );
     // E[weight] equals the integral of the BCSDF (f cos / pdf consistency); 5 standard
     // errors plus 0.5 % for the quadrature of sharp lobes.
     let a = albedo(&b, theta_o, hr);

@@ -202,9 +202,7 @@ fn build_rec(
     centers: &[V3],
 ) -> usize {
     let me = nodes.len();
-    let bounds = order
-        .iter()
-        .fold(Aabb::empty(), |b, &i| b.union(boxes[i]));
+    let bounds = order.iter().fold(Aabb::empty(), |b, &i| b.union(boxes[i]));
     nodes.push(Node {
         bounds,
         index: first as u32,
@@ -328,7 +326,9 @@ mod tests {
                 .filter_map(|s| intersect_segment(s, o, d, 0.0, 1e9))
                 .map(|h| h.t)
                 .fold(f64::INFINITY, f64::min);
-            let got = bvh.intersect(o, d, 0.0, 1e9, None).map_or(f64::INFINITY, |h| h.t);
+            let got = bvh
+                .intersect(o, d, 0.0, 1e9, None)
+                .map_or(f64::INFINITY, |h| h.t);
             assert_eq!(brute, got);
             if got.is_finite() {
                 hits += 1;

@@ -18,11 +18,8 @@ static FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
 pub fn register_font() {
     static ONCE: std::sync::Once = std::sync::Once::new();
     ONCE.call_once(|| {
-        let _ = plotters::style::register_font(
-            FONT,
-            plotters::style::FontStyle::Normal,
-            FONT_BYTES,
-        );
+        let _ =
+            plotters::style::register_font(FONT, plotters::style::FontStyle::Normal, FONT_BYTES);
     });
 }
 
@@ -51,12 +48,7 @@ pub fn tonemap(img: &Image, exposure_ev: f64) -> Vec<u8> {
         .collect()
 }
 
-fn encode(
-    bytes: Vec<u8>,
-    w: usize,
-    h: usize,
-    path: &Path,
-) -> crate::Result<()> {
+fn encode(bytes: Vec<u8>, w: usize, h: usize, path: &Path) -> crate::Result<()> {
     let img = image::RgbImage::from_raw(w as u32, h as u32, bytes)
         .ok_or_else(|| crate::Error::file(path, "image buffer has the wrong size"))?;
     let mut buf = Cursor::new(Vec::new());
@@ -72,11 +64,7 @@ pub fn write_png(img: &Image, exposure_ev: f64, path: &Path) -> crate::Result<()
 
 /// Write the linear image as 32-bit float OpenEXR.
 pub fn write_exr(img: &Image, path: &Path) -> crate::Result<()> {
-    let data: Vec<f32> = img
-        .data
-        .iter()
-        .flat_map(|p| p.map(|v| v as f32))
-        .collect();
+    let data: Vec<f32> = img.data.iter().flat_map(|p| p.map(|v| v as f32)).collect();
     let buf = image::Rgb32FImage::from_raw(img.width as u32, img.height as u32, data)
         .ok_or_else(|| crate::Error::file(path, "image buffer has the wrong size"))?;
     let mut out = Cursor::new(Vec::new());

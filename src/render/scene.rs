@@ -86,11 +86,7 @@ pub fn build_lock(spec: &StrandSpec) -> Vec<Segment> {
             let x = x0 + bend * s * s - 0.12;
             let z = z0 + 0.05 * (PI * s).sin();
             let ph = curl_phase + TAU * curl_freq * s;
-            V3::new(
-                x + curl_amp * s * ph.cos(),
-                y,
-                z + curl_amp * s * ph.sin(),
-            )
+            V3::new(x + curl_amp * s * ph.cos(), y, z + curl_amp * s * ph.sin())
         };
         let radius = |s: f64| spec.radius * (1.0 - 0.6 * s);
         for k in 0..n_seg {

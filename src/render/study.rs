@@ -50,7 +50,13 @@ impl Convergence {
     pub fn to_csv(&self) -> String {
         let mut s = String::from("mode,spp,seconds,rmse\n");
         for p in &self.points {
-            s += &format!("{},{},{:.6},{:.6e}\n", p.mode.name(), p.spp, p.seconds, p.rmse);
+            s += &format!(
+                "{},{},{:.6},{:.6e}\n",
+                p.mode.name(),
+                p.spp,
+                p.seconds,
+                p.rmse
+            );
         }
         s
     }
@@ -119,12 +125,12 @@ pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> c
     if pts.is_empty() {
         return Err(crate::Error::file(path, "no convergence points to plot"));
     }
-    let (tmin, tmax) = pts
-        .iter()
-        .fold((f64::MAX, 0.0f64), |a, p| (a.0.min(p.seconds), a.1.max(p.seconds)));
-    let (emin, emax) = pts
-        .iter()
-        .fold((f64::MAX, 0.0f64), |a, p| (a.0.min(p.rmse), a.1.max(p.rmse)));
+    let (tmin, tmax) = pts.iter().fold((f64::MAX, 0.0f64), |a, p| {
+        (a.0.min(p.seconds), a.1.max(p.seconds))
+    });
+    let (emin, emax) = pts.iter().fold((f64::MAX, 0.0f64), |a, p| {
+        (a.0.min(p.rmse), a.1.max(p.rmse))
+    });
     #[allow(clippy::type_complexity)]
     fn draw_chart<DB: DrawingBackend>(
         root: DrawingArea<DB, plotters::coord::Shift>,
