@@ -1,17 +1,136 @@
-//! `furfit inspect <file>...`
+//! `furfit inspect <file>...`: per file, the format, sample counts (valid / invalid), the
+//! distinct values, range and most common step of each angle, channels, metadata and any
+//! loader notes. Every file is inspected even if an earlier one fails; each failure is
+//! printed to stderr and the command exits non-zero if any file failed.
 
+use crate::grid::parse_grid;
+use crate::profile::summary::{AxisStats, Summary};
+use crate::profile::{self, LoadOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Profile files (.csv, .npy, .npz, Yan-2015 .txt).
+    /// Profile files (.csv, .npy, .npz, Yan-2015 .txt/.dat) or species directories.
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
+    /// Incident angle (deg) for Yan-2015 files without a `# theta_i:` line; for a lone .npy,
+    /// its theta_i axis grid (e.g. `0,15,30`).
+    #[arg(long, allow_hyphen_values = true)]
+    pub theta_i: Option<String>,
+    /// theta_r axis grid (deg) of a lone .npy, e.g. `-60:60:2`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub theta_r: Option<String>,
+    /// phi axis grid (deg) of a lone .npy, e.g. `-180:180:2`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub phi: Option<String>,
+    /// Yan-2015: degrees added to the file's phi (after --flip-phi) before wrapping.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub phi_offset: f64,
+    /// Yan-2015: negate the file's phi.
+    #[arg(long)]
+    pub flip_phi: bool,
+    /// Yan-2015: negate the file's theta (theta_r).
+    #[arg(long)]
+    pub flip_theta_r: bool,
+}
+
+fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
+    match a {
+        None => format!("  {name:<8} -"),
+        Some(a) => format!(
+            "  {name:<8} {} distinct, {} .. {} deg, step {}",
+            a.distinct,
+            a.min,
+            a.max,
+            a.step
+                .map(|s| format!("{s} deg"))
+                .unwrap_or_else(|| "-".into())
+        ),
+    }
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::bail!(
-        "inspect is not built yet ({} file(s) given)",
-        args.files.len()
-    )
+    if !args.phi_offset.is_finite() {
+        anyhow::bail!("--phi-offset must be finite");
+    }
+    let grid = |what: &str, g: &Option<String>| -> anyhow::Result<Option<Vec<f64>>> {
+        Ok(match g {
+            Some(t) => Some(parse_grid(what, t)?),
+            None => None,
+        })
+    };
+    let opts = LoadOptions {
+        theta_i: grid("--theta-i", &args.theta_i)?,
+        theta_r: grid("--theta-r", &args.theta_r)?,
+        phi: grid("--phi", &args.phi)?,
+        phi_offset: args.phi_offset,
+        flip_phi: args.flip_phi,
+        flip_theta_r: args.flip_theta_r,
+    };
+    let mut failed = 0;
+    for (k, path) in args.files.iter().enumerate() {
+        let loaded = if path.is_dir() {
+            profile::load_dir(path, &opts)
+        } else {
+            profile::load_full(path, &opts)
+        };
+        let l = match loaded {
+            Ok(l) => l,
+            Err(e) => {
+                eprintln!("error: {e}");
+                failed += 1;
+                continue;
+            }
+        };
+        if k > 0 {
+            println!();
+        }
+        let p = &l.profile;
+        let s = Summary::of(p);
+        println!("{}", path.display());
+        println!("  format   {}", l.format.name());
+        println!(
+            "  samples  {} ({} valid, {} invalid){}",
+            s.n_samples,
+            s.n_valid,
+            s.n_invalid,
+            if s.n_sigma > 0 {
+                format!(", {} with sigma", s.n_sigma)
+            } else {
+                String::new()
+            }
+        );
+        println!("{}", axis_line("theta_i", &s.theta_i));
+        println!("{}", axis_line("theta_r", &s.theta_r));
+        println!("{}", axis_line("phi", &s.phi));
+        if p.channels.is_empty() {
+            println!("  channels 1 (unnamed)");
+        } else {
+            let list: Vec<String> = p
+                .channels
+                .iter()
+                .zip(&s.valid_per_channel)
+                .map(|(c, n)| format!("{c} ({n} valid)"))
+                .collect();
+            println!("  channels {}: {}", p.channels.len(), list.join(", "));
+        }
+        if p.metadata.is_empty() {
+            println!("  metadata -");
+        } else {
+            println!("  metadata");
+            for (key, v) in &p.metadata {
+                println!("    {key}: {v}");
+            }
+        }
+        if p.is_synthetic() {
+            println!("  (synthetic data)");
+        }
+        for n in &l.notes {
+            println!("  note: {n}");
+        }
+    }
+    if failed > 0 {
+        anyhow::bail!("{failed} of {} file(s) could not be read", args.files.len());
+    }
+    Ok(())
 }

@@ -9,6 +9,7 @@ pub mod render;
 pub mod render_convergence;
 pub mod stability;
 pub mod synth;
+pub mod tables;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -32,6 +33,8 @@ pub enum Command {
     Stability(stability::Args),
     /// Far-field error vs evaluation time against Gauss-Legendre quadrature.
     BenchModel(bench_model::Args),
+    /// Build or check the medulla scattering tables (C^N, C^M).
+    Tables(tables::Args),
 }
 
 /// Parse the command line, run, print errors; the exit code says whether it worked.
@@ -44,6 +47,7 @@ pub fn main() -> std::process::ExitCode {
         Command::Synth(a) => synth::run(*a),
         Command::Stability(a) => stability::run(a),
         Command::BenchModel(a) => bench_model::run(a),
+        Command::Tables(a) => tables::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,37 +1,736 @@
-//! PLACEHOLDER until the `tables` branch lands (the Monte Carlo + CP-ALS medulla tables).
-//! It has the final API; its values are a crude smooth stand-in (NOT the physics): do not
-//! write tests against these numbers.
-#[derive(Clone, Debug)]
-pub struct MedullaTables;
-#[derive(Clone, Debug)]
-pub struct MedullaSlice {
-    tau: f64,
-}
+//! Medulla scattering tables `C^N` and `C^M` (seed paper Sec. 3 Eqs. 8-10, Sec. 4.3
+//! Eqs. 17-19, Table 3), stored as rank-k CP factors and queried without decompression.
+//!
+//! # Conventions (the near-field model relies on these)
+//! * Azimuthal plane frame as in MODEL.md: exit azimuth `phi = 0` points back toward the
+//!   light, `|phi| = pi` straight through. The `p`-th internal segment has direction
+//!   `Phi^s_p` (seed Eq. 21), in the convention that a ray leaving along the segment without
+//!   deflection exits at `phi = Phi^s_p + pi`. The model queries
+//!   `D^s_p(h, phi) = C^N(x, psi = wrap(phi - Phi^s_p))`: `psi` is the exit azimuth
+//!   relative to the segment, `psi = 0` back along it, `|psi| = pi` straight on.
+//! * `x = sin(gamma_t) / kappa` in `[-1, 1]` is the signed entry offset into the medulla in
+//!   medulla radii (the chord's signed impact parameter; internal reflection preserves it).
+//!   Monte Carlo geometry ([`crate::model::medulla_mc`]): unit medulla disk, the ray enters
+//!   travelling toward `-x̂` at plane position `y = -x`, and `psi = atan2(d_y, d_x)` of the
+//!   exit direction.
+//! * `C^N(tau, g, x, psi)` is the density per radian of `psi` of the energy entering at
+//!   offset `x` that scatters at least once and leaves the medulla (index-matched, no
+//!   absorption). The unscattered part is NOT included (the model carries it through
+//!   `exp(-2 s_m sigma_m_s)`), so `integral C^N dpsi = 1 - exp(-2 tau sqrt(1 - x^2))`.
+//!   The ray enters perpendicular to the axis (`theta = 0`): like the paper's `C^N` the
+//!   table has no inclination dimension.
+//!   Stored: the normalised shape `C^N / P_s` (a density integrating to 1) on `x in [0, 1]`;
+//!   the query multiplies by the analytic `P_s(tau, x) = 1 - exp(-2 tau sqrt(1 - x^2))`
+//!   with the *query* `tau` (so the scattered fraction is exact even off the grid), and
+//!   negative `x` uses the mirror symmetry `C^N(x, psi) = C^N(-x, -psi)`.
+//! * `C^M(tau, g, theta_i, theta_r, side)`: a collimated beam (entry offset uniform over
+//!   the chord) entering with inclination `theta_i` (refraction ignored, seed Eq. 19);
+//!   density per radian of the exit inclination `theta_r` of the photons that scattered at
+//!   least once, split into `Front` (exit `|psi| < pi/2`, toward the light, the paper's
+//!   `C^M_{phi=0}`) and `Back` (`|psi| >= pi/2`, `C^M_{phi=pi}`). Each
+//!   `(tau, g, theta_i, side)` slice integrates to 1 over `theta_r in [-pi/2, pi/2]`.
+//!   Unscattered light would leave at `theta_r = -theta_i`. Stored on `theta_i in [0, pi/2]`;
+//!   negative `theta_i` uses `C^M(theta_i, theta_r) = C^M(-theta_i, -theta_r)`. At `tau = 0`
+//!   no photon scatters; the stored slice is the limit `tau -> 0` (one scattering event
+//!   uniformly placed on the chord), so `C^M` is continuous in `tau`. A slice that receives
+//!   no weight at all (not reachable on the shipped grid) falls back to `cos(theta_r) / 2`.
+//!
+//! # Grids, interpolation and clamping
+//! Shipped grid ([`crate::model::medulla_mc::McGrid::standard`]): 18 `tau` in `[0, 20]`,
+//! 16 `g` in `[-0.9, 0.95]`, 16 `x` in `[0, 1]`, 180 `psi` bin centres (2 deg), 16
+//! `theta_i` in `[0, 90]` deg, 90 `theta_r` bin centres (2 deg). Values are bin averages
+//! placed at bin centres. Every mode is interpolated linearly; `tau`, `g`, `x`, `theta_i`
+//! are clamped to their axis ends (the presets of seed Table 4 have `tau` below about 3,
+//! so clamping at `tau = 20` only concerns optically thick fits), `psi` is periodic, and
+//! `theta_r` is constant beyond the outermost bin centres (so the piecewise-linear density
+//! integrates to exactly the bin sum). Negative values produced by the compression are
+//! clamped to 0 by [`MedullaSlice::cn`] and [`MedullaSlice::cm`].
+//!
+//! # Compression and file format
+//! Each of the three 4-D tensors (`C^N`: `tau x g x x x psi`; `C^M` front and back:
+//! `tau x g x theta_i x theta_r`) is factored by CP-ALS ([`crate::model::cp`]) with the
+//! weights `lambda_r` folded into the `tau` factor. File (all little-endian):
+//! ```text
+//! magic  b"FURMEDUL"          8 bytes
+//! version u32 = 1
+//! seed u64, nominal paths per cell u64
+//! n_tensors u32 = 3           (kind 0 = C^N, 1 = C^M front, 2 = C^M back, in that order)
+//! per tensor: kind u32, rank u32, n_modes u32 = 4,
+//!             per mode: len u32, axis f64 x len (strictly increasing),
+//!             per mode: factor f32 x (len * rank), row-major [node][rank]
+//! sha256 of all preceding bytes (32 bytes)
+//! ```
+//! The shipped `assets/medulla_tables.bin` is produced by
+//! `furfit tables build --seed 2017` (see the module doc of `medulla_mc` for the budget
+//! and [`crate::model::medulla_mc::BuildOptions`] for the ranks); the exact command, its
+//! wall time and the per-rank errors are recorded in `cli/tables.rs`'s documentation.
+
+use crate::error::{Error, Result};
+use std::f64::consts::{FRAC_PI_2, PI};
+use std::path::Path;
+use std::sync::{Arc, OnceLock};
+
+/// File magic of the tables file.
+pub const MAGIC: &[u8; 8] = b"FURMEDUL";
+/// File format version.
+pub const VERSION: u32 = 1;
+
+/// Which half of the exit directions a `C^M` slice describes (seed Eq. 19).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Side {
+    /// Exit `|psi| < pi/2`: back toward the light (`C^M_{phi=0}`).
     Front,
+    /// Exit `|psi| >= pi/2`: onward (`C^M_{phi=pi}`).
     Back,
 }
-impl MedullaTables {
-    pub fn builtin() -> &'static MedullaTables {
-        static T: MedullaTables = MedullaTables;
-        &T
+
+/// Kind of a stored tensor.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TableKind {
+    Cn = 0,
+    CmFront = 1,
+    CmBack = 2,
+}
+
+/// One CP-compressed 4-D table: `value = sum_r prod_m f[m](axis_m; r)` with linear
+/// interpolation of each factor along its axis.
+#[derive(Clone, Debug, PartialEq)]
+pub struct CpTable {
+    pub rank: usize,
+    pub axes: [Vec<f64>; 4],
+    /// `factors[m][i * rank + r]`, lambda folded into mode 0.
+    pub factors: [Vec<f64>; 4],
+}
+
+/// Index and fraction of `v` on an increasing axis, clamped to the ends.
+#[inline]
+fn locate(axis: &[f64], v: f64) -> (usize, f64) {
+    let n = axis.len();
+    if v.is_nan() || v <= axis[0] {
+        return (0, 0.0);
     }
-    pub fn slice(&self, tau: f64, _g: f64) -> MedullaSlice {
-        MedullaSlice { tau }
+    if v >= axis[n - 1] {
+        return (n - 2, 1.0);
+    }
+    let i = axis.partition_point(|&a| a <= v).clamp(1, n - 1) - 1;
+    (i, (v - axis[i]) / (axis[i + 1] - axis[i]))
+}
+
+/// Periodic location of `psi` among `n` uniform bin centres starting at `c0` (step `d`).
+#[inline]
+fn locate_periodic(c0: f64, d: f64, n: usize, psi: f64) -> (usize, usize, f64) {
+    let u = (psi - c0) / d;
+    let fl = u.floor();
+    let f = u - fl;
+    let k0 = (fl as i64).rem_euclid(n as i64) as usize;
+    (k0, (k0 + 1) % n, f)
+}
+
+/// Location of `t` among `n` uniform bin centres, constant beyond the end centres.
+#[inline]
+fn locate_uniform(c0: f64, d: f64, n: usize, t: f64) -> (usize, f64) {
+    let u = ((t - c0) / d).clamp(0.0, (n - 1) as f64);
+    let k = (u.floor() as usize).min(n - 2);
+    (k, u - k as f64)
+}
+
+/// Wrap an angle to `(-pi, pi]`.
+#[inline]
+pub fn wrap_pi(a: f64) -> f64 {
+    let mut w = a.rem_euclid(2.0 * PI);
+    if w > PI {
+        w -= 2.0 * PI;
+    }
+    w
+}
+
+impl CpTable {
+    /// Per-rank weights after collapsing modes 0 and 1 at `(a, b)`.
+    fn collapse01(&self, a: f64, b: f64) -> Vec<f64> {
+        let r = self.rank;
+        let (i, fi) = locate(&self.axes[0], a);
+        let (j, fj) = locate(&self.axes[1], b);
+        let f0 = &self.factors[0];
+        let f1 = &self.factors[1];
+        (0..r)
+            .map(|k| {
+                let a0 = f0[i * r + k] + fi * (f0[(i + 1) * r + k] - f0[i * r + k]);
+                let b0 = f1[j * r + k] + fj * (f1[(j + 1) * r + k] - f1[j * r + k]);
+                a0 * b0
+            })
+            .collect()
+    }
+
+    /// Step and first centre of the uniform last axis.
+    fn last_axis(&self) -> (f64, f64, usize) {
+        let a = &self.axes[3];
+        (a[0], a[1] - a[0], a.len())
+    }
+
+    /// Evaluate `sum_r w_r f2(i2, f2) f3(k0, k1, f3)` (unclamped).
+    #[inline]
+    fn eval23(&self, w: &[f64], i: usize, fi: f64, k0: usize, k1: usize, fk: f64) -> f64 {
+        let r = self.rank;
+        let x0 = &self.factors[2][i * r..(i + 1) * r];
+        let x1 = &self.factors[2][(i + 1) * r..(i + 2) * r];
+        let p0 = &self.factors[3][k0 * r..(k0 + 1) * r];
+        let p1 = &self.factors[3][k1 * r..(k1 + 1) * r];
+        let mut s = 0.0;
+        for k in 0..r {
+            let a = x0[k] + fi * (x1[k] - x0[k]);
+            let b = p0[k] + fk * (p1[k] - p0[k]);
+            s += w[k] * a * b;
+        }
+        s
+    }
+
+    /// Value at mode-2 node `i` and mode-3 node `k` (unclamped).
+    fn node23(&self, w: &[f64], i: usize, k: usize) -> f64 {
+        let r = self.rank;
+        (0..r)
+            .map(|q| w[q] * self.factors[2][i * r + q] * self.factors[3][k * r + q])
+            .sum()
     }
 }
+
+/// The medulla tables: three CP-compressed tensors and their build metadata.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MedullaTables {
+    pub cn: Arc<CpTable>,
+    pub cm: [Arc<CpTable>; 2],
+    /// Seed and nominal paths per cell of the build.
+    pub seed: u64,
+    pub paths: u64,
+}
+
+struct Reader<'a> {
+    b: &'a [u8],
+    pos: usize,
+}
+
+impl<'a> Reader<'a> {
+    fn take(&mut self, n: usize) -> Result<&'a [u8]> {
+        let end = self
+            .pos
+            .checked_add(n)
+            .filter(|&e| e <= self.b.len())
+            .ok_or_else(|| bad("truncated file"))?;
+        let s = &self.b[self.pos..end];
+        self.pos = end;
+        Ok(s)
+    }
+    fn u32(&mut self) -> Result<u32> {
+        Ok(u32::from_le_bytes(self.take(4)?.try_into().unwrap()))
+    }
+    fn u64(&mut self) -> Result<u64> {
+        Ok(u64::from_le_bytes(self.take(8)?.try_into().unwrap()))
+    }
+    fn f64(&mut self) -> Result<f64> {
+        Ok(f64::from_le_bytes(self.take(8)?.try_into().unwrap()))
+    }
+    fn f32(&mut self) -> Result<f32> {
+        Ok(f32::from_le_bytes(self.take(4)?.try_into().unwrap()))
+    }
+}
+
+fn bad(msg: &str) -> Error {
+    Error::Invalid(format!("medulla tables: {msg}"))
+}
+
+impl MedullaTables {
+    /// The tables shipped in `assets/medulla_tables.bin`, parsed once.
+    pub fn builtin() -> &'static MedullaTables {
+        static T: OnceLock<MedullaTables> = OnceLock::new();
+        T.get_or_init(|| {
+            MedullaTables::from_bytes(include_bytes!("../../assets/medulla_tables.bin"))
+                .expect("the shipped medulla tables are valid (checked by tests)")
+        })
+    }
+
+    /// Load a tables file.
+    pub fn load(path: &Path) -> Result<MedullaTables> {
+        let b = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+        MedullaTables::from_bytes(&b).map_err(|e| Error::file(path, e.to_string()))
+    }
+
+    /// Parse the binary format (see the module doc). Errors, never panics.
+    pub fn from_bytes(b: &[u8]) -> Result<MedullaTables> {
+        use sha2::{Digest, Sha256};
+        if b.len() < 8 + 4 + 32 || &b[..8] != MAGIC {
+            return Err(bad("not a furfit medulla tables file (bad magic)"));
+        }
+        let (body, sum) = b.split_at(b.len() - 32);
+        if Sha256::digest(body).as_slice() != sum {
+            return Err(bad("checksum mismatch (corrupt or truncated file)"));
+        }
+        let mut r = Reader { b: body, pos: 8 };
+        let version = r.u32()?;
+        if version != VERSION {
+            return Err(bad(&format!("unsupported version {version}")));
+        }
+        let seed = r.u64()?;
+        let paths = r.u64()?;
+        let n = r.u32()?;
+        if n != 3 {
+            return Err(bad(&format!("expected 3 tensors, found {n}")));
+        }
+        let mut tabs = Vec::new();
+        for want in 0..3u32 {
+            let kind = r.u32()?;
+            if kind != want {
+                return Err(bad(&format!("tensor {want} has kind {kind}")));
+            }
+            let rank = r.u32()? as usize;
+            if rank == 0 || rank > 1024 {
+                return Err(bad(&format!("tensor {want}: bad rank {rank}")));
+            }
+            let modes = r.u32()?;
+            if modes != 4 {
+                return Err(bad(&format!("tensor {want}: {modes} modes, expected 4")));
+            }
+            let mut axes: [Vec<f64>; 4] = Default::default();
+            for (m, ax) in axes.iter_mut().enumerate() {
+                let len = r.u32()? as usize;
+                if !(2..=100_000).contains(&len) {
+                    return Err(bad(&format!("tensor {want} mode {m}: bad length {len}")));
+                }
+                for _ in 0..len {
+                    ax.push(r.f64()?);
+                }
+                if ax.iter().any(|v| !v.is_finite()) || ax.windows(2).any(|w| w[1] <= w[0]) {
+                    return Err(bad(&format!(
+                        "tensor {want} mode {m}: axis not finite and increasing"
+                    )));
+                }
+            }
+            let mut factors: [Vec<f64>; 4] = Default::default();
+            for (m, f) in factors.iter_mut().enumerate() {
+                let len = axes[m].len() * rank;
+                f.reserve(len);
+                for _ in 0..len {
+                    let v = r.f32()?;
+                    if !v.is_finite() {
+                        return Err(bad(&format!("tensor {want} mode {m}: non-finite factor")));
+                    }
+                    f.push(v as f64);
+                }
+            }
+            tabs.push(CpTable {
+                rank,
+                axes,
+                factors,
+            });
+        }
+        if r.pos != body.len() {
+            return Err(bad("trailing bytes after the last tensor"));
+        }
+        let mut it = tabs.into_iter().map(Arc::new);
+        let cn = it.next().unwrap();
+        let front = it.next().unwrap();
+        let back = it.next().unwrap();
+        Ok(MedullaTables {
+            cn,
+            cm: [front, back],
+            seed,
+            paths,
+        })
+    }
+
+    /// Serialise to the binary format (factors rounded to f32).
+    pub fn to_bytes(&self) -> Vec<u8> {
+        use sha2::{Digest, Sha256};
+        let mut b = Vec::new();
+        b.extend_from_slice(MAGIC);
+        b.extend_from_slice(&VERSION.to_le_bytes());
+        b.extend_from_slice(&self.seed.to_le_bytes());
+        b.extend_from_slice(&self.paths.to_le_bytes());
+        b.extend_from_slice(&3u32.to_le_bytes());
+        for (kind, t) in [&self.cn, &self.cm[0], &self.cm[1]].iter().enumerate() {
+            b.extend_from_slice(&(kind as u32).to_le_bytes());
+            b.extend_from_slice(&(t.rank as u32).to_le_bytes());
+            b.extend_from_slice(&4u32.to_le_bytes());
+            for ax in &t.axes {
+                b.extend_from_slice(&(ax.len() as u32).to_le_bytes());
+                for v in ax {
+                    b.extend_from_slice(&v.to_le_bytes());
+                }
+            }
+            for f in &t.factors {
+                for v in f {
+                    b.extend_from_slice(&(*v as f32).to_le_bytes());
+                }
+            }
+        }
+        let sum = Sha256::digest(&b);
+        b.extend_from_slice(&sum);
+        b
+    }
+
+    /// Round the factors to f32 exactly as a write/read round trip does.
+    pub fn rounded(mut self) -> Self {
+        let round = |t: &Arc<CpTable>| {
+            let mut c = (**t).clone();
+            for f in c.factors.iter_mut() {
+                for v in f.iter_mut() {
+                    *v = *v as f32 as f64;
+                }
+            }
+            Arc::new(c)
+        };
+        self.cn = round(&self.cn);
+        self.cm = [round(&self.cm[0]), round(&self.cm[1])];
+        self
+    }
+
+    /// Collapse the `tau` and `g` modes once per parameter set. `tau` and `g` are clamped
+    /// to the table axes for the shape; `tau` itself (clamped to `>= 0`) sets the analytic
+    /// scattered fraction of `C^N`.
+    pub fn slice(&self, tau: f64, g: f64) -> MedullaSlice {
+        let tau = if tau.is_finite() { tau.max(0.0) } else { 0.0 };
+        let g = if g.is_nan() { 0.0 } else { g };
+        let wn = self.cn.collapse01(tau, g);
+        let wm = [self.cm[0].collapse01(tau, g), self.cm[1].collapse01(tau, g)];
+        MedullaSlice {
+            tau,
+            g,
+            wn,
+            wm,
+            cn: self.cn.clone(),
+            cm: self.cm.clone(),
+            sampler: OnceLock::new(),
+        }
+    }
+}
+
+/// The tables at one `(tau, g)`: per-rank weights plus shared factors.
+#[derive(Clone, Debug)]
+pub struct MedullaSlice {
+    pub tau: f64,
+    pub g: f64,
+    wn: Vec<f64>,
+    wm: [Vec<f64>; 2],
+    cn: Arc<CpTable>,
+    cm: [Arc<CpTable>; 2],
+    sampler: OnceLock<Arc<MedullaSampler>>,
+}
+
+/// Analytic probability that a chord at offset `x` scatters at least once.
+#[inline]
+pub fn scatter_probability(tau: f64, x: f64) -> f64 {
+    let half = (1.0 - x * x).max(0.0).sqrt();
+    -(-2.0 * tau * half).exp_m1()
+}
+
 impl MedullaSlice {
-    pub fn scattered_fraction(&self, x: f64) -> f64 {
-        1.0 - (-2.0 * self.tau * (1.0 - x * x).max(0.0).sqrt()).exp()
+    /// Normalised `C^N` shape (integrates to ~1 over psi), unclamped.
+    #[inline]
+    fn cn_shape(&self, x: f64, psi: f64) -> f64 {
+        let (x, psi) = if x < 0.0 { (-x, -psi) } else { (x, psi) };
+        let t = &*self.cn;
+        let (i, fi) = locate(&t.axes[2], x);
+        let (c0, d, n) = t.last_axis();
+        let (k0, k1, fk) = locate_periodic(c0, d, n, psi);
+        t.eval23(&self.wn, i, fi, k0, k1, fk)
     }
+
+    /// `C^N(x, psi)`: per radian of `psi`, compressed negatives clamped to 0.
+    #[inline]
     pub fn cn(&self, x: f64, psi: f64) -> f64 {
-        self.scattered_fraction(x) * (1.0 - psi.cos()) / (2.0 * std::f64::consts::PI)
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
+        if psi.is_nan() {
+            return 0.0;
+        }
+        let s = self.cn_shape(x, psi);
+        if s > 0.0 {
+            s * scatter_probability(self.tau, x)
+        } else {
+            0.0
+        }
     }
-    pub fn cm(&self, _theta_i: f64, theta_r: f64, _side: Side) -> f64 {
-        theta_r.cos() / 2.0
+
+    /// `C^M(theta_i, theta_r, side)` per radian of `theta_r` (radians).
+    #[inline]
+    pub fn cm(&self, theta_i: f64, theta_r: f64, side: Side) -> f64 {
+        if theta_i.is_nan() || theta_r.is_nan() {
+            return 0.0;
+        }
+        let (ti, tr) = if theta_i < 0.0 {
+            (-theta_i, -theta_r)
+        } else {
+            (theta_i, theta_r)
+        };
+        let s = match side {
+            Side::Front => 0,
+            Side::Back => 1,
+        };
+        let t = &*self.cm[s];
+        let (i, fi) = locate(&t.axes[2], ti);
+        let (c0, d, n) = t.last_axis();
+        let (k, fk) = locate_uniform(c0, d, n, tr);
+        t.eval23(&self.wm[s], i, fi, k, k + 1, fk).max(0.0)
     }
-    pub fn cm_lerp(&self, theta_i: f64, theta_r: f64, _phi: f64) -> f64 {
-        self.cm(theta_i, theta_r, Side::Front)
+
+    /// Seed Eq. 19: `M_s = lerp(C^M_front, C^M_back, |phi| / pi)`.
+    #[inline]
+    pub fn cm_lerp(&self, theta_i: f64, theta_r: f64, phi: f64) -> f64 {
+        let t = wrap_pi(phi).abs() / PI;
+        let f = self.cm(theta_i, theta_r, Side::Front);
+        let b = self.cm(theta_i, theta_r, Side::Back);
+        f + t * (b - f)
+    }
+
+    /// Integral of the (unclamped) compressed `C^N` over `psi`:
+    /// `P_s(tau, x) * integral shape`. The shape integral is exact for the piecewise-linear
+    /// periodic factor (bin width times the node sum); clamping negatives in [`Self::cn`]
+    /// can only add the (tiny) mass of the negative lobes.
+    pub fn scattered_fraction(&self, x: f64) -> f64 {
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
+        let t = &*self.cn;
+        let r = t.rank;
+        let (i, fi) = locate(&t.axes[2], x.abs());
+        let (_, d, n) = t.last_axis();
+        let f2 = &t.factors[2];
+        let f3 = &t.factors[3];
+        let mut s = 0.0;
+        for q in 0..r {
+            let a = f2[i * r + q] + fi * (f2[(i + 1) * r + q] - f2[i * r + q]);
+            let p: f64 = (0..n).map(|k| f3[k * r + q]).sum();
+            s += self.wn[q] * a * p;
+        }
+        (s * d).max(0.0) * scatter_probability(self.tau, x)
+    }
+
+    /// The importance sampler of this slice (built on first use, then cached).
+    pub fn sampler(&self) -> Arc<MedullaSampler> {
+        self.sampler
+            .get_or_init(|| Arc::new(MedullaSampler::new(self)))
+            .clone()
+    }
+
+    /// Sample `psi` for entry offset `x` from `u in [0,1)`: see [`MedullaSampler::sample_cn`].
+    pub fn sample_cn(&self, x: f64, u: f64) -> (f64, f64) {
+        self.sampler().sample_cn(x, u)
+    }
+
+    /// Sample `theta_r`: see [`MedullaSampler::sample_cm`].
+    pub fn sample_cm(&self, theta_i: f64, phi: f64, u: f64) -> (f64, f64) {
+        self.sampler().sample_cm(theta_i, phi, u)
+    }
+}
+
+/// A piecewise-linear density on knots: values clamped to `>= 0` at every table node.
+#[derive(Clone, Debug)]
+struct PlDensity {
+    vals: Vec<f64>,
+    /// Cumulative mass at each knot (len = knots), `cdf[0] = 0`.
+    cdf: Vec<f64>,
+}
+
+impl PlDensity {
+    fn new(knots: &[f64], vals: Vec<f64>) -> Self {
+        let mut cdf = Vec::with_capacity(knots.len());
+        cdf.push(0.0);
+        for j in 1..knots.len() {
+            let m = 0.5 * (vals[j - 1] + vals[j]) * (knots[j] - knots[j - 1]);
+            cdf.push(cdf[j - 1] + m);
+        }
+        PlDensity { vals, cdf }
+    }
+    fn mass(&self) -> f64 {
+        *self.cdf.last().unwrap()
+    }
+    fn eval(&self, knots: &[f64], t: f64) -> f64 {
+        let (j, f) = locate(knots, t);
+        self.vals[j] + f * (self.vals[j + 1] - self.vals[j])
+    }
+    /// Invert the CDF at mass `m in [0, mass]`.
+    fn invert(&self, knots: &[f64], m: f64) -> f64 {
+        let n = knots.len();
+        let j = self.cdf.partition_point(|&c| c <= m).clamp(1, n - 1) - 1;
+        let t = (m - self.cdf[j]).max(0.0);
+        let w = knots[j + 1] - knots[j];
+        let (va, vb) = (self.vals[j], self.vals[j + 1]);
+        let k = (vb - va) / w;
+        let root = (va * va + 2.0 * k * t).max(0.0).sqrt();
+        let s = if va + root > 0.0 {
+            2.0 * t / (va + root)
+        } else {
+            0.0
+        };
+        knots[j] + s.clamp(0.0, w)
+    }
+}
+
+/// Per-slice tabulated CDFs for importance sampling.
+///
+/// The sampled density at an arbitrary `x` (or `theta_i`, `phi`) is the mixture of the
+/// node densities of the two neighbouring `x` nodes (four components for `C^M`: two
+/// `theta_i` nodes times front/back with the Eq. 19 weights), each component the
+/// piecewise-linear interpolation of the compressed values at the table nodes clamped to
+/// `>= 0`. This equals the normalised `cn`/`cm_lerp` wherever the compression left no
+/// negative node values; the returned pdf is always exactly the density sampled.
+#[derive(Clone, Debug)]
+pub struct MedullaSampler {
+    x_axis: Vec<f64>,
+    psi_knots: Vec<f64>,
+    cn: Vec<PlDensity>,
+    ti_axis: Vec<f64>,
+    tr_knots: Vec<f64>,
+    /// `cm[side][theta_i node]`.
+    cm: [Vec<PlDensity>; 2],
+}
+
+impl MedullaSampler {
+    fn new(s: &MedullaSlice) -> Self {
+        let t = &*s.cn;
+        let (c0, d, n) = t.last_axis();
+        // Periodic: knots -pi, centres, pi; the value at +-pi is the wrap midpoint.
+        let mut psi_knots = vec![c0 - 0.5 * d];
+        psi_knots.extend((0..n).map(|k| c0 + k as f64 * d));
+        psi_knots.push(c0 + (n as f64 - 0.5) * d);
+        let cn = (0..t.axes[2].len())
+            .map(|i| {
+                let v: Vec<f64> = (0..n).map(|k| t.node23(&s.wn, i, k).max(0.0)).collect();
+                let mut vals = vec![0.5 * (v[0] + v[n - 1])];
+                vals.extend_from_slice(&v);
+                vals.push(vals[0]);
+                PlDensity::new(&psi_knots, vals)
+            })
+            .collect();
+        let tm = &*s.cm[0];
+        let (c0, d, n) = tm.last_axis();
+        let mut tr_knots = vec![c0 - 0.5 * d];
+        tr_knots.extend((0..n).map(|k| c0 + k as f64 * d));
+        tr_knots.push(c0 + (n as f64 - 0.5) * d);
+        let cm = [0usize, 1].map(|side| {
+            let tab = &*s.cm[side];
+            (0..tab.axes[2].len())
+                .map(|i| {
+                    let v: Vec<f64> = (0..n)
+                        .map(|k| tab.node23(&s.wm[side], i, k).max(0.0))
+                        .collect();
+                    let mut vals = vec![v[0]];
+                    vals.extend_from_slice(&v);
+                    vals.push(v[n - 1]);
+                    PlDensity::new(&tr_knots, vals)
+                })
+                .collect()
+        });
+        MedullaSampler {
+            x_axis: t.axes[2].clone(),
+            psi_knots,
+            cn,
+            ti_axis: tm.axes[2].clone(),
+            tr_knots,
+            cm,
+        }
+    }
+
+    /// Sample a mixture `sum_c w_c p_c` from `u`; returns `(value, pdf)`.
+    fn sample_mixture(
+        comps: &[(f64, &PlDensity)],
+        knots: &[f64],
+        u: f64,
+        fallback: (f64, f64),
+    ) -> (f64, f64) {
+        let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
+        let u = if u.is_finite() {
+            u.clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            let (lo, hi) = fallback;
+            return (lo + u * (hi - lo), 1.0 / (hi - lo));
+        }
+        let target = u * total;
+        let mut acc = 0.0;
+        let mut chosen = comps.len() - 1;
+        for (c, (w, p)) in comps.iter().enumerate() {
+            let m = w * p.mass();
+            if m > 0.0 && target < acc + m {
+                chosen = c;
+                break;
+            }
+            acc += m;
+        }
+        // Skip trailing empty components.
+        while comps[chosen].0 * comps[chosen].1.mass() <= 0.0 && chosen > 0 {
+            chosen -= 1;
+        }
+        let (w, p) = comps[chosen];
+        let local = ((target - acc) / w).clamp(0.0, p.mass());
+        let v = p.invert(knots, local);
+        let pdf: f64 = comps.iter().map(|(w, p)| w * p.eval(knots, v)).sum::<f64>() / total;
+        (v, pdf)
+    }
+
+    /// Sample the exit azimuth `psi` of `C^N` at offset `x` from `u in [0, 1)`; returns
+    /// `(psi, pdf)` with the pdf per radian of the density actually sampled.
+    pub fn sample_cn(&self, x: f64, u: f64) -> (f64, f64) {
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
+        let (i, f) = locate(&self.x_axis, x.abs());
+        let comps = [(1.0 - f, &self.cn[i]), (f, &self.cn[i + 1])];
+        let (psi, pdf) = Self::sample_mixture(&comps, &self.psi_knots, u, (-PI, PI));
+        (if x < 0.0 { -psi } else { psi }, pdf)
+    }
+
+    /// The pdf [`Self::sample_cn`] samples, at `psi`.
+    pub fn pdf_cn(&self, x: f64, psi: f64) -> f64 {
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
+        let psi = wrap_pi(if x < 0.0 { -psi } else { psi });
+        let (i, f) = locate(&self.x_axis, x.abs());
+        let comps = [(1.0 - f, &self.cn[i]), (f, &self.cn[i + 1])];
+        let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
+        if total > 0.0 {
+            comps
+                .iter()
+                .map(|(w, p)| w * p.eval(&self.psi_knots, psi))
+                .sum::<f64>()
+                / total
+        } else {
+            1.0 / (2.0 * PI)
+        }
+    }
+
+    fn cm_comps(&self, theta_i: f64, phi: f64) -> [(f64, &PlDensity); 4] {
+        let (i, f) = locate(&self.ti_axis, theta_i.abs());
+        let t = if phi.is_nan() {
+            0.5
+        } else {
+            wrap_pi(phi).abs() / PI
+        };
+        [
+            ((1.0 - f) * (1.0 - t), &self.cm[0][i]),
+            (f * (1.0 - t), &self.cm[0][i + 1]),
+            ((1.0 - f) * t, &self.cm[1][i]),
+            (f * t, &self.cm[1][i + 1]),
+        ]
+    }
+
+    /// Sample the exit inclination `theta_r` of `M_s = lerp(C^M_front, C^M_back, |phi|/pi)`
+    /// (seed Eq. 19) for incidence `theta_i`; returns `(theta_r, pdf)` per radian.
+    pub fn sample_cm(&self, theta_i: f64, phi: f64, u: f64) -> (f64, f64) {
+        let ti = if theta_i.is_nan() { 0.0 } else { theta_i };
+        let comps = self.cm_comps(ti, phi);
+        let (tr, pdf) = Self::sample_mixture(&comps, &self.tr_knots, u, (-FRAC_PI_2, FRAC_PI_2));
+        (if ti < 0.0 { -tr } else { tr }, pdf)
+    }
+
+    /// The pdf [`Self::sample_cm`] samples, at `theta_r`.
+    pub fn pdf_cm(&self, theta_i: f64, theta_r: f64, phi: f64) -> f64 {
+        let ti = if theta_i.is_nan() { 0.0 } else { theta_i };
+        let tr = if ti < 0.0 { -theta_r } else { theta_r };
+        let comps = self.cm_comps(ti, phi);
+        let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
+        if total > 0.0 {
+            comps
+                .iter()
+                .map(|(w, p)| w * p.eval(&self.tr_knots, tr))
+                .sum::<f64>()
+                / total
+        } else {
+            1.0 / PI
+        }
     }
 }

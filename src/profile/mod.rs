@@ -3,8 +3,28 @@
 //!
 //! Angles are stored in **degrees**, exactly as read, so that a profile round-trips through
 //! every format bit for bit; use [`Sample::angles_rad`] to get the radians the model needs.
+//!
+//! Entry points: [`load`] / [`load_full`] pick the reader by extension ([`csv`], [`npz`]
+//! for `.npz` and lone `.npy`, [`yan`] for `.txt`/`.dat`), [`save`] writes `.csv` or `.npz`
+//! atomically, [`load_dir`] reads and [`merge`]s a species folder. [`summary`] computes what
+//! `furfit inspect` prints.
+//!
+//! Choices shared by every reader (each documented again in its module):
+//! - angles are normalised once: `-0` -> `0` and `phi = -180` -> `180` (MODEL.md's
+//!   (-180, 180] wrap), so one direction has one spelling;
+//! - a repeated direction (same `theta_i, theta_r, phi, channel`) whose other fields are
+//!   identical is collapsed into its first occurrence with a note in [`Loaded::notes`]; a
+//!   repeat that differs is an error naming both places;
+//! - invalid values (NaN, `<= 0`) are kept as samples, never dropped.
 
-use std::path::PathBuf;
+use crate::error::{Error, Result};
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+
+pub mod csv;
+pub mod npz;
+pub mod summary;
+pub mod yan;
 
 /// One goniometer sample: light from `theta_i`, camera at `(theta_r, phi)`.
 #[derive(Clone, Debug, PartialEq)]
@@ -97,4 +117,362 @@ impl Profile {
                 .map(|v| v.to_ascii_lowercase().contains("synthetic"))
                 .unwrap_or(false)
     }
+}
+
+impl Profile {
+    /// Sort the samples into grid order: `theta_i`, `theta_r`, `phi`, `channel` ascending
+    /// (the order an `.npz` load yields), so two profiles holding the same sample set write
+    /// byte-identical files.
+    pub fn sort_grid_order(&mut self) {
+        self.samples.sort_by(|a, b| {
+            a.theta_i
+                .total_cmp(&b.theta_i)
+                .then(a.theta_r.total_cmp(&b.theta_r))
+                .then(a.phi.total_cmp(&b.phi))
+                .then(a.channel.cmp(&b.channel))
+        });
+    }
+}
+
+/// File formats the loaders understand.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// DATA.md CSV (`.csv`).
+    Csv,
+    /// Dense grid archive (`.npz`), see [`npz`].
+    Npz,
+    /// A lone `value` array (`.npy`); the axes come from [`LoadOptions`].
+    Npy,
+    /// Yan-2015 whitespace text, one incident angle per file (`.txt`, `.dat`).
+    Yan,
+}
+
+impl Format {
+    /// The format implied by a file's extension (case-insensitive).
+    pub fn from_path(path: &Path) -> Result<Format> {
+        let ext = path
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase())
+            .unwrap_or_default();
+        match ext.as_str() {
+            "csv" => Ok(Format::Csv),
+            "npz" => Ok(Format::Npz),
+            "npy" => Ok(Format::Npy),
+            "txt" | "dat" => Ok(Format::Yan),
+            _ => Err(Error::file(
+                path,
+                format!(
+                    "unknown profile format '.{ext}' (expected .csv, .npz, .npy, or Yan-2015 .txt/.dat)"
+                ),
+            )),
+        }
+    }
+
+    /// Short human name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Csv => "csv",
+            Format::Npz => "npz",
+            Format::Npy => "npy",
+            Format::Yan => "yan-2015 text",
+        }
+    }
+}
+
+/// Options for loaders whose files do not carry everything themselves.
+#[derive(Clone, Debug, Default)]
+pub struct LoadOptions {
+    /// Incident angle grid (degrees). A Yan-2015 file uses it (exactly one value) when it
+    /// has no `# theta_i:` line; a lone `.npy` uses it as its first axis.
+    pub theta_i: Option<Vec<f64>>,
+    /// Outgoing angle grid (degrees) for a lone `.npy`.
+    pub theta_r: Option<Vec<f64>>,
+    /// Azimuth grid (degrees) for a lone `.npy`.
+    pub phi: Option<Vec<f64>>,
+    /// Yan-2015 only: degrees added to the file's phi before wrapping to (-180, 180].
+    pub phi_offset: f64,
+    /// Yan-2015 only: negate the file's phi (applied before `phi_offset`).
+    pub flip_phi: bool,
+    /// Yan-2015 only: negate the file's theta (theta_r).
+    pub flip_theta_r: bool,
+}
+
+/// A loaded profile with what the loader noticed on the way.
+#[derive(Clone, Debug)]
+pub struct Loaded {
+    pub profile: Profile,
+    pub format: Format,
+    /// Things the loader did that a user should know about (e.g. identical duplicate
+    /// samples collapsed into one). Never errors: those are returned as `Err`.
+    pub notes: Vec<String>,
+}
+
+/// Load a profile file, choosing the loader by extension: `.csv` ([`csv`]), `.npz`
+/// ([`npz`]), `.npy` ([`npz::parse_npy`], needs the three axis grids in `opts`),
+/// `.txt`/`.dat` ([`yan`]). `Profile::source` is set to `path`.
+pub fn load(path: &Path, opts: &LoadOptions) -> Result<Profile> {
+    load_full(path, opts).map(|l| l.profile)
+}
+
+/// [`load`], also returning the format and the loader's notes.
+pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
+    let format = Format::from_path(path)?;
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let (mut profile, notes) = match format {
+        Format::Csv => csv::parse(&bytes, path)?,
+        Format::Npz => npz::parse_npz(&bytes, path)?,
+        Format::Npy => npz::parse_npy(&bytes, path, opts)?,
+        Format::Yan => yan::parse(&bytes, path, opts)?,
+    };
+    profile.source = Some(path.to_path_buf());
+    Ok(Loaded {
+        profile,
+        format,
+        notes,
+    })
+}
+
+/// Save a profile as `.csv` or `.npz` (by extension), atomically via [`crate::io`].
+pub fn save(path: &Path, profile: &Profile) -> Result<()> {
+    match Format::from_path(path)? {
+        Format::Csv => {
+            let text = csv::to_string(profile)?;
+            crate::io::write_atomic(path, text.as_bytes())
+        }
+        Format::Npz => {
+            let bytes = npz::to_bytes(profile)?;
+            crate::io::write_atomic(path, &bytes)
+        }
+        f => Err(Error::file(
+            path,
+            format!("cannot write {} files; save as .csv or .npz", f.name()),
+        )),
+    }
+}
+
+/// Is this directory entry a profile file [`load_dir`] should read? Profile extensions
+/// only; `metadata.json`, README files and hidden files are skipped.
+pub fn is_profile_file(path: &Path) -> bool {
+    let name = match path.file_name() {
+        Some(n) => n.to_string_lossy().to_ascii_lowercase(),
+        None => return false,
+    };
+    if name.starts_with('.') || name.starts_with("readme") || name.starts_with("metadata") {
+        return false;
+    }
+    path.is_file() && Format::from_path(path).is_ok()
+}
+
+/// Load every profile file of a directory (e.g. `measurements/<species>/`), in file-name
+/// order, and [`merge`] them into one profile whose `source` is the directory.
+pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut files = Vec::new();
+    for entry in rd {
+        let entry = entry.map_err(|e| Error::io(dir, e))?;
+        let p = entry.path();
+        if is_profile_file(&p) {
+            files.push(p);
+        }
+    }
+    files.sort();
+    if files.is_empty() {
+        return Err(Error::file(
+            dir,
+            "no profile files (.csv, .npz, .npy, .txt, .dat) in this directory",
+        ));
+    }
+    let mut parts = Vec::new();
+    let mut notes = Vec::new();
+    let mut format = None;
+    for f in &files {
+        let l = load_full(f, opts)?;
+        format.get_or_insert(l.format);
+        notes.extend(l.notes.into_iter().map(|n| format!("{}: {n}", f.display())));
+        parts.push(l.profile);
+    }
+    let (mut profile, collapsed) = merge(parts)?;
+    if collapsed > 0 {
+        notes.push(format!(
+            "{collapsed} identical duplicate sample(s) across files collapsed"
+        ));
+    }
+    profile.source = Some(dir.to_path_buf());
+    Ok(Loaded {
+        profile,
+        format: format.unwrap_or(Format::Csv),
+        notes,
+    })
+}
+
+/// Merge profiles into one: channels are matched by name (the union, in order of first
+/// appearance; a part with one unnamed channel contributes to channel 0 of the merge),
+/// metadata entries are concatenated with exact repeats dropped, samples concatenated. A sample present in two parts with a different value is an error naming
+/// both sources; identical copies are collapsed (their count is returned).
+pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
+    let mut out = Profile::default();
+    let mut origin: Vec<usize> = Vec::new();
+    let sources: Vec<String> = parts
+        .iter()
+        .map(|p| {
+            p.source
+                .as_ref()
+                .map(|s| s.display().to_string())
+                .unwrap_or_else(|| "<memory>".into())
+        })
+        .collect();
+    for (k, part) in parts.into_iter().enumerate() {
+        let mut map = Vec::new();
+        if part.channels.is_empty() {
+            // One unnamed channel: it is channel 0 of the merge.
+            map.push(0);
+        }
+        for name in &part.channels {
+            let idx = match out.channels.iter().position(|c| c == name) {
+                Some(i) => i,
+                None => {
+                    out.channels.push(name.clone());
+                    out.channels.len() - 1
+                }
+            };
+            map.push(idx);
+        }
+        for kv in part.metadata {
+            if !out.metadata.contains(&kv) {
+                out.metadata.push(kv);
+            }
+        }
+        for mut s in part.samples {
+            s.channel = *map.get(s.channel).ok_or_else(|| {
+                Error::Invalid(format!(
+                    "{}: sample channel {} out of range",
+                    sources[k], s.channel
+                ))
+            })?;
+            out.samples.push(s);
+            origin.push(k);
+        }
+    }
+    let collapsed = dedupe(&mut out.samples, |first, dup, what| {
+        Error::Invalid(format!(
+            "{}: {what}; the first copy is in {}",
+            sources[origin[dup]], sources[origin[first]]
+        ))
+    })?;
+    Ok((out, collapsed))
+}
+
+/// Normalise an angle as every loader does: `-0` becomes `0` and `phi = -180` becomes
+/// `180`, following MODEL.md's wrap of phi to (-180, 180]; the two spellings are the same
+/// direction, and one canonical spelling keeps grids and duplicate checks exact.
+pub fn canonical_phi(phi: f64) -> f64 {
+    if phi == -180.0 {
+        180.0
+    } else {
+        phi + 0.0
+    }
+}
+
+/// Wrap any finite azimuth (degrees) to (-180, 180].
+pub fn wrap_phi(phi: f64) -> f64 {
+    let mut p = phi % 360.0;
+    if p <= -180.0 {
+        p += 360.0;
+    } else if p > 180.0 {
+        p -= 360.0;
+    }
+    canonical_phi(p)
+}
+
+/// Check an angle read from a file: finite and within `[-limit, limit]` degrees.
+/// Returns a message for the caller to place (file, line, column or array).
+pub(crate) fn check_angle(name: &str, v: f64, limit: f64) -> std::result::Result<f64, String> {
+    if !v.is_finite() {
+        return Err(format!("{name} must be a finite angle, found {v}"));
+    }
+    if v < -limit || v > limit {
+        return Err(format!(
+            "{name} = {v} deg is out of range [-{limit}, {limit}]"
+        ));
+    }
+    Ok(v + 0.0)
+}
+
+/// Same f64, treating NaN as equal to NaN (for duplicate checks and round-trip tests).
+pub fn same_f64(a: f64, b: f64) -> bool {
+    (a.is_nan() && b.is_nan()) || a == b
+}
+
+fn same_opt(a: Option<f64>, b: Option<f64>) -> bool {
+    match (a, b) {
+        (None, None) => true,
+        (Some(x), Some(y)) => same_f64(x, y),
+        _ => false,
+    }
+}
+
+/// Do two samples agree in every field (NaN equal to NaN)?
+pub fn same_sample(a: &Sample, b: &Sample) -> bool {
+    same_f64(a.theta_i, b.theta_i)
+        && same_f64(a.theta_r, b.theta_r)
+        && same_f64(a.phi, b.phi)
+        && a.channel == b.channel
+        && same_f64(a.value, b.value)
+        && same_opt(a.sigma, b.sigma)
+        && same_opt(a.phi_i, b.phi_i)
+}
+
+/// Remove identical duplicate samples (same `theta_i, theta_r, phi, channel` and the same
+/// value, sigma and phi_i), keeping the first; returns how many were removed. A repeat
+/// with any different field is an error built by `conflict(first_index, repeat_index,
+/// what_differs)`, indices into the original `samples`.
+pub(crate) fn dedupe<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<usize>
+where
+    F: Fn(usize, usize, String) -> Error,
+{
+    let mut seen: HashMap<(u64, u64, u64, usize), usize> = HashMap::with_capacity(samples.len());
+    let mut drop = vec![false; samples.len()];
+    for (j, s) in samples.iter().enumerate() {
+        let key = (
+            (s.theta_i + 0.0).to_bits(),
+            (s.theta_r + 0.0).to_bits(),
+            canonical_phi(s.phi).to_bits(),
+            s.channel,
+        );
+        match seen.get(&key) {
+            None => {
+                seen.insert(key, j);
+            }
+            Some(&i) => {
+                let a = &samples[i];
+                let diff = if !same_f64(a.value, s.value) {
+                    Some(format!("value ({} vs {})", a.value, s.value))
+                } else if !same_opt(a.sigma, s.sigma) {
+                    Some(format!("sigma ({:?} vs {:?})", a.sigma, s.sigma))
+                } else if !same_opt(a.phi_i, s.phi_i) {
+                    Some(format!("phi_i ({:?} vs {:?})", a.phi_i, s.phi_i))
+                } else {
+                    None
+                };
+                if let Some(d) = diff {
+                    let what = format!(
+                        "duplicate sample (theta_i {}, theta_r {}, phi {}, channel {}) with a different {d}",
+                        s.theta_i, s.theta_r, s.phi, s.channel
+                    );
+                    return Err(conflict(i, j, what));
+                }
+                drop[j] = true;
+            }
+        }
+    }
+    let n = drop.iter().filter(|d| **d).count();
+    if n > 0 {
+        let mut k = 0;
+        samples.retain(|_| {
+            let keep = !drop[k];
+            k += 1;
+            keep
+        });
+    }
+    Ok(n)
 }

@@ -1,0 +1,512 @@
+//! The DATA.md CSV profile format: reader and writer.
+//!
+//! # Reading
+//! - Each record is one line (a quoted field may not span lines).
+//! - Lines before the header that start with `#` are metadata `# key: value` (split at the
+//!   first `:`, both sides trimmed), kept in file order. A `#` line without a `:` or with
+//!   an empty key is a free comment and ignored. Blank lines and `#` lines are tolerated
+//!   anywhere (after the header they are comments).
+//! - The first other line is the header. Column names are trimmed and matched
+//!   case-insensitively; any order. Required: `theta_i, theta_r, phi, value`; optional:
+//!   `sigma, channel, phi_i`; any other column is ignored (its cells are never parsed).
+//!   A known column named twice is an error.
+//! - Angles: `theta_i`, `theta_r` in [-90, 90], `phi` in [-180, 180] degrees, finite.
+//!   `phi = -180` is read as `180` (MODEL.md wraps phi to (-180, 180]; they are the same
+//!   direction) and `-0` as `0`, so a grid has one spelling per direction.
+//! - `value`: empty, `nan` (any case), or `<= 0` gives an *invalid* sample, kept and counted
+//!   ([`Profile::n_invalid`]). An infinite value is an error (it is not a measurement).
+//! - `sigma`: empty or `nan` means "no sigma"; otherwise finite and `>= 0`.
+//! - `phi_i`: empty means none; otherwise a finite number (degrees, not range-checked: it is
+//!   only carried for round trips).
+//! - `channel`: any text (trimmed); channels are numbered in order of first appearance.
+//!   Without a `channel` column the profile has one unnamed channel.
+//! - Two rows with the same `(theta_i, theta_r, phi, channel)`: if every other field is
+//!   identical (NaN equal to NaN) the repeat is dropped and a note says how many were
+//!   collapsed (concatenated files are common and harmless); any difference is an error
+//!   naming both lines.
+//! - Errors name the file, the 1-based line and the column (number and name): a non-number,
+//!   a non-finite or out-of-range angle, a missing required column, a row with the wrong
+//!   number of fields, a conflicting duplicate. An empty file (no header) or a header with
+//!   no rows is an error naming the file.
+//!
+//! # Writing
+//! Metadata as `# key: value` lines, then the header `theta_i,theta_r,phi,value` plus
+//! `sigma` (if any sample has one), `channel` (if the profile names its channels) and
+//! `phi_i` (if any sample has one), then one row per sample in the profile's order.
+//! Numbers use Rust's shortest round-trip formatting (`Display`, or `LowerExp` for very
+//! large or small magnitudes), so every finite f64 reads back bit for bit; NaN is written
+//! as `nan`, a missing sigma/phi_i as an empty cell. Metadata keys may not contain `:` or
+//! line breaks and values may not contain line breaks (an error, not a silent edit).
+
+use super::{canonical_phi, check_angle, dedupe, Profile, Sample};
+use crate::error::{Error, Result};
+use std::path::Path;
+
+/// Parse CSV bytes; `path` is used in error messages only. Returns the profile and notes.
+pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
+    let perr = |line: usize, column: String, msg: String| Error::Parse {
+        file: path.to_path_buf(),
+        line,
+        column,
+        msg,
+    };
+
+    // Pass 1: metadata lines before the header; blank and comment lines dropped everywhere.
+    // The remaining lines go to the csv reader, with a table back to the file's line
+    // numbers (the csv crate does not count lines it is not given).
+    let mut metadata = Vec::new();
+    let mut header_line = None;
+    let mut kept: Vec<u8> = Vec::with_capacity(bytes.len());
+    let mut orig_line: Vec<usize> = Vec::new();
+    for (k, raw) in bytes.split(|b| *b == b'\n').enumerate() {
+        let raw = if k == 0 {
+            raw.strip_prefix("\u{feff}".as_bytes()).unwrap_or(raw)
+        } else {
+            raw
+        };
+        let t = raw.trim_ascii();
+        if t.is_empty() {
+            continue;
+        }
+        if let Some(c) = t.strip_prefix(b"#") {
+            if header_line.is_none() {
+                let c = String::from_utf8_lossy(c);
+                if let Some((key, val)) = c.split_once(':') {
+                    let key = key.trim();
+                    if !key.is_empty() {
+                        metadata.push((key.to_string(), val.trim().to_string()));
+                    }
+                }
+            }
+            continue;
+        }
+        header_line.get_or_insert(k + 1);
+        kept.extend_from_slice(raw);
+        kept.push(b'\n');
+        orig_line.push(k + 1);
+    }
+    let header_line = header_line.ok_or_else(|| {
+        Error::file(
+            path,
+            "empty file: no header line (expected theta_i,theta_r,phi,value)",
+        )
+    })?;
+    let line_of = |pos: Option<&::csv::Position>| -> usize {
+        pos.and_then(|p| orig_line.get((p.line() as usize).saturating_sub(1)))
+            .copied()
+            .unwrap_or(header_line)
+    };
+
+    let mut rdr = ::csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(::csv::Trim::All)
+        .from_reader(kept.as_slice());
+
+    let mut header: Option<Vec<String>> = None;
+    let mut cols = Columns::default();
+    let mut samples: Vec<Sample> = Vec::new();
+    let mut lines: Vec<usize> = Vec::new();
+    let mut channels: Vec<String> = Vec::new();
+    let mut record = ::csv::ByteRecord::new();
+    loop {
+        let more = rdr.read_byte_record(&mut record).map_err(|e| {
+            perr(
+                line_of(e.position()),
+                "-".into(),
+                format!("unreadable CSV: {e}"),
+            )
+        })?;
+        if !more {
+            break;
+        }
+        let line = line_of(record.position());
+        let Some(names) = &header else {
+            let names: Vec<String> = record
+                .iter()
+                .map(|f| String::from_utf8_lossy(f).trim().to_ascii_lowercase())
+                .collect();
+            cols = Columns::from_header(&names, |c, m| perr(line, c, m))?;
+            header = Some(names);
+            continue;
+        };
+        if record.len() != names.len() {
+            let col = record.len().min(names.len()) + 1;
+            return Err(perr(
+                line,
+                format!("column {col}"),
+                format!(
+                    "expected {} fields (as in the header), found {}",
+                    names.len(),
+                    record.len()
+                ),
+            ));
+        }
+        let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
+        let text = |i: usize| -> Result<&str> {
+            std::str::from_utf8(record.get(i).unwrap_or(b""))
+                .map(str::trim)
+                .map_err(|_| perr(line, label(i), "not valid UTF-8".into()))
+        };
+        let number = |i: usize| -> Result<Option<f64>> {
+            let t = text(i)?;
+            if t.is_empty() {
+                return Ok(None);
+            }
+            t.parse::<f64>()
+                .map(Some)
+                .map_err(|_| perr(line, label(i), format!("'{t}' is not a number")))
+        };
+        let angle = |i: usize, limit: f64| -> Result<f64> {
+            let v = number(i)?.ok_or_else(|| perr(line, label(i), "missing angle".into()))?;
+            check_angle(&names[i], v, limit).map_err(|m| perr(line, label(i), m))
+        };
+        let theta_i = angle(cols.theta_i, 90.0)?;
+        let theta_r = angle(cols.theta_r, 90.0)?;
+        let phi = canonical_phi(angle(cols.phi, 180.0)?);
+        let value = number(cols.value)?.unwrap_or(f64::NAN);
+        if value.is_infinite() {
+            return Err(perr(
+                line,
+                label(cols.value),
+                format!(
+                    "value {value} is infinite (write nan or leave it empty for a missing sample)"
+                ),
+            ));
+        }
+        let sigma = match cols.sigma {
+            None => None,
+            Some(i) => match number(i)? {
+                Some(s) if s.is_nan() => None,
+                Some(s) if s.is_finite() && s >= 0.0 => Some(s),
+                Some(s) => {
+                    return Err(perr(
+                        line,
+                        label(i),
+                        format!("sigma must be finite and >= 0, found {s}"),
+                    ))
+                }
+                None => None,
+            },
+        };
+        let phi_i = match cols.phi_i {
+            None => None,
+            Some(i) => match number(i)? {
+                Some(p) if p.is_finite() => Some(p + 0.0),
+                Some(p) => {
+                    return Err(perr(
+                        line,
+                        label(i),
+                        format!("phi_i must be a finite angle, found {p}"),
+                    ))
+                }
+                None => None,
+            },
+        };
+        let channel = match cols.channel {
+            None => 0,
+            Some(i) => {
+                let name = text(i)?;
+                match channels.iter().position(|c| c == name) {
+                    Some(k) => k,
+                    None => {
+                        channels.push(name.to_string());
+                        channels.len() - 1
+                    }
+                }
+            }
+        };
+        samples.push(Sample {
+            theta_i,
+            theta_r,
+            phi,
+            value,
+            sigma,
+            channel,
+            phi_i,
+        });
+        lines.push(line);
+    }
+    if samples.is_empty() {
+        return Err(Error::file(
+            path,
+            format!("no sample rows after the header on line {header_line}"),
+        ));
+    }
+    let names = header.unwrap_or_default();
+    let value_label = format!("column {} ({})", cols.value + 1, names[cols.value]);
+    let collapsed = dedupe(&mut samples, |i, j, what| {
+        perr(
+            lines[j],
+            value_label.clone(),
+            format!("{what}; first on line {}", lines[i]),
+        )
+    })?;
+    let mut notes = Vec::new();
+    if collapsed > 0 {
+        notes.push(format!(
+            "{collapsed} identical duplicate row(s) collapsed into their first occurrence"
+        ));
+    }
+    Ok((
+        Profile {
+            samples,
+            channels,
+            metadata,
+            source: Some(path.to_path_buf()),
+        },
+        notes,
+    ))
+}
+
+/// Column indices found in the header.
+#[derive(Default)]
+struct Columns {
+    theta_i: usize,
+    theta_r: usize,
+    phi: usize,
+    value: usize,
+    sigma: Option<usize>,
+    channel: Option<usize>,
+    phi_i: Option<usize>,
+}
+
+impl Columns {
+    fn from_header(names: &[String], err: impl Fn(String, String) -> Error) -> Result<Columns> {
+        let find = |want: &str| -> Result<Option<usize>> {
+            let mut hits = names.iter().enumerate().filter(|(_, n)| *n == want);
+            let first = hits.next().map(|(i, _)| i);
+            if let Some((j, _)) = hits.next() {
+                return Err(err(
+                    format!("column {} ({want})", j + 1),
+                    format!(
+                        "column '{want}' appears twice in the header (also column {})",
+                        first.unwrap_or(0) + 1
+                    ),
+                ));
+            }
+            Ok(first)
+        };
+        let required = |want: &str| -> Result<usize> {
+            find(want)?.ok_or_else(|| {
+                err(
+                    format!("column '{want}'"),
+                    format!(
+                        "required column '{want}' is missing from the header (found: {})",
+                        names.join(", ")
+                    ),
+                )
+            })
+        };
+        Ok(Columns {
+            theta_i: required("theta_i")?,
+            theta_r: required("theta_r")?,
+            phi: required("phi")?,
+            value: required("value")?,
+            sigma: find("sigma")?,
+            channel: find("channel")?,
+            phi_i: find("phi_i")?,
+        })
+    }
+}
+
+/// Format a float so that it parses back to the identical f64 (NaN as `nan`).
+pub fn fmt_f64(v: f64) -> String {
+    if v.is_nan() {
+        "nan".into()
+    } else if v != 0.0 && v.is_finite() && (v.abs() >= 1e16 || v.abs() < 1e-5) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// The CSV text of a profile (see the module doc for the layout).
+pub fn to_string(profile: &Profile) -> Result<String> {
+    let mut out = String::new();
+    for (k, v) in &profile.metadata {
+        if k.contains(':') || k.contains(['\n', '\r']) || k.trim().is_empty() {
+            return Err(Error::Invalid(format!(
+                "metadata key '{k}' cannot be written to CSV (empty, or holds ':' or a line break)"
+            )));
+        }
+        if v.contains(['\n', '\r']) {
+            return Err(Error::Invalid(format!(
+                "metadata '{k}' cannot be written to CSV: its value holds a line break"
+            )));
+        }
+        out.push_str(&format!("# {k}: {v}\n"));
+    }
+    let has_sigma = profile.samples.iter().any(|s| s.sigma.is_some());
+    let has_channel = !profile.channels.is_empty();
+    let has_phi_i = profile.samples.iter().any(|s| s.phi_i.is_some());
+    let mut w = ::csv::WriterBuilder::new()
+        .terminator(::csv::Terminator::Any(b'\n'))
+        .from_writer(Vec::new());
+    let csv_err = |e: ::csv::Error| Error::Invalid(format!("writing CSV: {e}"));
+    let mut head = vec!["theta_i", "theta_r", "phi", "value"];
+    if has_sigma {
+        head.push("sigma");
+    }
+    if has_channel {
+        head.push("channel");
+    }
+    if has_phi_i {
+        head.push("phi_i");
+    }
+    w.write_record(&head).map_err(csv_err)?;
+    for s in &profile.samples {
+        let mut row = vec![
+            fmt_f64(s.theta_i),
+            fmt_f64(s.theta_r),
+            fmt_f64(s.phi),
+            fmt_f64(s.value),
+        ];
+        if has_sigma {
+            row.push(s.sigma.map(fmt_f64).unwrap_or_default());
+        }
+        if has_channel {
+            let name = profile.channels.get(s.channel).ok_or_else(|| {
+                Error::Invalid(format!(
+                    "sample channel {} out of range ({} channels)",
+                    s.channel,
+                    profile.channels.len()
+                ))
+            })?;
+            row.push(name.clone());
+        }
+        if has_phi_i {
+            row.push(s.phi_i.map(fmt_f64).unwrap_or_default());
+        }
+        w.write_record(&row).map_err(csv_err)?;
+    }
+    let body = w
+        .into_inner()
+        .map_err(|e| Error::Invalid(format!("writing CSV: {e}")))?;
+    out.push_str(&String::from_utf8_lossy(&body));
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(text: &str) -> Result<(Profile, Vec<String>)> {
+        parse(text.as_bytes(), Path::new("t.csv"))
+    }
+
+    #[test]
+    fn float_format_round_trips() {
+        for v in [
+            0.0,
+            -0.0,
+            1.0,
+            0.1,
+            1.0 / 3.0,
+            -2.5e-300,
+            1.7976931348623157e308,
+            5e-324,
+            123456.789,
+            1e16,
+            9.999e15,
+            1e-5,
+        ] {
+            let s = fmt_f64(v);
+            let back: f64 = s.parse().unwrap();
+            assert_eq!(back.to_bits(), v.to_bits(), "{v} -> {s}");
+        }
+        assert!(fmt_f64(f64::NAN).parse::<f64>().unwrap().is_nan());
+    }
+
+    #[test]
+    fn minimal_and_invalid_values() {
+        let (pr, notes) =
+            p("theta_i,theta_r,phi,value\n0,0,0,1\n0,0,10,\n0,0,20,-1\n0,0,30,nan\n0,0,-180,0\n")
+                .unwrap();
+        assert!(notes.is_empty());
+        assert_eq!(pr.samples.len(), 5);
+        assert_eq!(pr.n_valid(), 1);
+        assert_eq!(pr.n_invalid(), 4);
+        assert_eq!(pr.samples[4].phi, 180.0);
+        assert!(pr.channels.is_empty());
+    }
+
+    #[test]
+    fn identical_duplicates_collapse_with_a_note() {
+        let (pr, notes) =
+            p("theta_i,theta_r,phi,value\n0,0,0,1\n0,0,0,1\n0,0,-180,2\n0,0,180,2\n").unwrap();
+        assert_eq!(pr.samples.len(), 2);
+        assert_eq!(notes.len(), 1);
+        assert!(notes[0].contains('2'), "{}", notes[0]);
+    }
+
+    #[test]
+    fn duplicate_with_different_sigma_is_an_error() {
+        let e = p("theta_i,theta_r,phi,value,sigma\n0,0,0,1,0.1\n0,0,0,1,0.2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("t.csv:3:") && e.contains("sigma") && e.contains("line 2"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn metadata_free_comments_and_blank_lines() {
+        let (pr, _) = p("\n# species: red fox\n# just a note\n\n#fiber:3\ntheta_i,theta_r,phi,value\n\n# mid comment\n0,0,0,1\n  \n")
+            .unwrap();
+        assert_eq!(
+            pr.metadata,
+            vec![
+                ("species".to_string(), "red fox".to_string()),
+                ("fiber".to_string(), "3".to_string())
+            ]
+        );
+        assert_eq!(pr.samples.len(), 1);
+    }
+
+    #[test]
+    fn wrong_field_count_names_line() {
+        let e = p("theta_i,theta_r,phi,value\n0,0,0,1\n0,0,1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("t.csv:3: column 4"), "{e}");
+    }
+
+    #[test]
+    fn sigma_rules() {
+        let (pr, _) =
+            p("theta_i,theta_r,phi,value,sigma\n0,0,0,1,\n0,0,1,1,nan\n0,0,2,1,0.5\n").unwrap();
+        assert_eq!(pr.samples[0].sigma, None);
+        assert_eq!(pr.samples[1].sigma, None);
+        assert_eq!(pr.samples[2].sigma, Some(0.5));
+        let e = p("theta_i,theta_r,phi,value,sigma\n0,0,0,1,-1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("t.csv:2: column 5 (sigma)"), "{e}");
+    }
+
+    #[test]
+    fn writer_rejects_unwritable_metadata() {
+        let mut pr = Profile::default();
+        pr.metadata.push(("a:b".into(), "x".into()));
+        assert!(to_string(&pr).is_err());
+        pr.metadata[0] = ("a".into(), "x\ny".into());
+        assert!(to_string(&pr).is_err());
+    }
+
+    #[test]
+    fn channels_in_first_appearance_order() {
+        let (pr, _) =
+            p("channel,theta_i,theta_r,phi,value\ng,0,0,0,1\nr,0,0,0,2\ng,0,0,1,3\n").unwrap();
+        assert_eq!(pr.channels, vec!["g".to_string(), "r".to_string()]);
+        assert_eq!(
+            pr.samples.iter().map(|s| s.channel).collect::<Vec<_>>(),
+            vec![0, 1, 0]
+        );
+        let text = to_string(&pr).unwrap();
+        let (back, _) = p(&text).unwrap();
+        assert_eq!(back.samples, pr.samples);
+        assert_eq!(back.channels, pr.channels);
+    }
+}

@@ -1,0 +1,660 @@
+//! Dense-grid profiles: `.npz` archives and lone `.npy` arrays (NumPy formats, read and
+//! written with `ndarray-npy`).
+//!
+//! # Arrays in a furfit `.npz`
+//! | name | dtype | shape | meaning |
+//! |---|---|---|---|
+//! | `theta_i` | float64 | `[I]` | incident inclinations, degrees, in [-90, 90] (required) |
+//! | `theta_r` | float64 | `[R]` | outgoing inclinations, degrees, in [-90, 90] (required) |
+//! | `phi` | float64 | `[P]` | relative azimuths, degrees, in [-180, 180] (required) |
+//! | `value` | float64 | `[I, R, P]` or `[I, R, P, C]` | intensity; NaN = missing (required) |
+//! | `present` | uint8 (or bool) | same as `value` | 1 = a sample exists at this cell, 0 = none (optional) |
+//! | `sigma` | float64 | same as `value` | standard error; NaN = none (optional) |
+//! | `phi_i` | float64 | same as `value` | absolute incident azimuth; NaN = none (optional) |
+//! | `meta_json` | uint8 | `[n]` | UTF-8 JSON `{"metadata": [[key, value], ...], "channels": [name, ...]}` (optional) |
+//!
+//! float32 arrays are accepted too and widened to float64.
+//!
+//! A cell is a sample when `present` is non-zero; without `present`, when `value` is not
+//! NaN. The `present` mask is what lets a sparse CSV profile, including its invalid NaN
+//! samples, round trip exactly: the writer always writes it, and stores invalid values as
+//! they are (a negative value stays negative, NaN stays NaN). Channel names come from
+//! `meta_json` (`channels` must then have `C` entries for a 4-D `value`, at most one for a
+//! 3-D one); a 4-D `value` without names gets the names `"0"`, `"1"`, .... The writer
+//! writes a 3-D `value` for a profile without channel names, 4-D otherwise.
+//!
+//! Axis values are normalised as in the CSV reader (`-0` -> `0`, `phi = -180` -> `180`). Two
+//! cells that land on the same direction (an axis holding both -180 and 180, or a repeated
+//! axis value) are duplicates: identical ones are collapsed (with a note), different ones are
+//! an error naming the `value` array and both cells. Samples come out in grid order
+//! (`theta_i`, `theta_r`, `phi`, channel, in array order); the writer sorts each axis
+//! ascending, so a written-and-reloaded profile is in [`Profile::sort_grid_order`] order.
+//!
+//! Before an array is decoded its header is checked against the bytes actually present, so
+//! a truncated or corrupt array is an error naming it (never a huge allocation or a panic);
+//! an array larger than 512 MiB uncompressed is refused. Archives from `numpy.savez` and
+//! `numpy.savez_compressed` (deflate) are both read; the writer stores arrays uncompressed
+//! (NumPy reads them with `numpy.load`). Checked by hand with NumPy 2.4:
+//! `np.savez(f, theta_i=ti, theta_r=tr, phi=ph, value=v)` loads, and `np.load` reads what
+//! [`to_bytes`] writes, `meta_json` decoding with `json.loads(bytes(z["meta_json"]))`.
+//!
+//! # A lone `.npy`
+//! A `.npy` file holds only `value` (3-D or 4-D, float64/float32, NaN = missing); its three
+//! axes must be given as grids in [`LoadOptions`] (`--theta-i`, `--theta-r`, `--phi` on
+//! the command line) and their lengths must match the array's shape.
+
+use super::{canonical_phi, check_angle, dedupe, LoadOptions, Profile, Sample};
+use crate::error::{Error, Result};
+use ndarray::{ArrayD, IxDyn};
+use ndarray_npy::{NpzWriter, ReadNpyExt};
+use std::io::{Cursor, Read};
+use std::path::Path;
+
+/// Largest array (decompressed bytes) the reader accepts.
+const MAX_ARRAY_BYTES: u64 = 1 << 29;
+/// Largest grid (cells) the writer produces; a sparser profile should be saved as CSV.
+const MAX_WRITE_CELLS: usize = 50_000_000;
+
+/// What the `.npy` header of an array says.
+#[derive(Debug)]
+struct NpyHeader {
+    descr: String,
+    shape: Vec<usize>,
+}
+
+impl NpyHeader {
+    /// `(kind, item size)` of the dtype, e.g. `('f', 8)` for `<f8`.
+    fn kind(&self) -> (char, usize) {
+        let d = self.descr.trim_start_matches(['<', '>', '|', '=']);
+        let mut chars = d.chars();
+        let k = chars.next().unwrap_or('?');
+        (k, chars.as_str().parse().unwrap_or(0))
+    }
+}
+
+/// Parse and sanity-check an `.npy` header against the data that follows it.
+fn npy_header(bytes: &[u8]) -> std::result::Result<NpyHeader, String> {
+    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+        return Err("not an .npy array (bad magic bytes)".into());
+    }
+    let (hlen, start): (usize, usize) = match bytes[6] {
+        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
+        2 | 3 if bytes.len() >= 12 => (
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+            12,
+        ),
+        v => return Err(format!("unsupported .npy version {v} or truncated header")),
+    };
+    let end = start
+        .checked_add(hlen)
+        .filter(|e| *e <= bytes.len())
+        .ok_or("truncated .npy header")?;
+    let text = String::from_utf8_lossy(&bytes[start..end]);
+    let after = |key: &str| -> std::result::Result<&str, String> {
+        let k = text
+            .find(&format!("'{key}'"))
+            .or_else(|| text.find(&format!("\"{key}\"")))
+            .ok_or(format!("corrupt .npy header: no '{key}'"))?;
+        let rest = &text[k + key.len() + 2..];
+        let colon = rest.find(':').ok_or("corrupt .npy header")?;
+        Ok(rest[colon + 1..].trim_start())
+    };
+    let d = after("descr")?;
+    let q = d.chars().next().ok_or("corrupt .npy header")?;
+    if q != '\'' && q != '"' {
+        return Err("unsupported dtype (structured arrays are not profiles)".into());
+    }
+    let descr = d[1..]
+        .split(q)
+        .next()
+        .ok_or("corrupt .npy header")?
+        .to_string();
+    let s = after("shape")?;
+    let s = s
+        .strip_prefix('(')
+        .and_then(|s| s.split(')').next())
+        .ok_or("corrupt .npy header: bad shape")?;
+    let mut shape = Vec::new();
+    for part in s.split(',').map(str::trim).filter(|p| !p.is_empty()) {
+        shape.push(
+            part.trim_end_matches('L')
+                .parse::<usize>()
+                .map_err(|_| format!("corrupt .npy header: bad shape entry '{part}'"))?,
+        );
+    }
+    let h = NpyHeader { descr, shape };
+    let (_, size) = h.kind();
+    let need = h
+        .shape
+        .iter()
+        .try_fold(size.max(1), |a, &n| a.checked_mul(n))
+        .ok_or("corrupt .npy header: shape overflows")?;
+    let have = bytes.len() - end;
+    if size > 0 && need != have {
+        return Err(format!(
+            "truncated or corrupt: header declares shape {:?} of '{}' ({need} bytes) but {have} bytes follow",
+            h.shape, h.descr
+        ));
+    }
+    Ok(h)
+}
+
+fn arr_err(path: &Path, array: &str, msg: impl Into<String>) -> Error {
+    Error::Array {
+        file: path.to_path_buf(),
+        array: array.to_string(),
+        msg: msg.into(),
+    }
+}
+
+/// Decode a float array (float64, or float32 widened).
+fn read_float(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
+    let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
+    let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
+    match h.kind() {
+        ('f', 8) => ArrayD::<f64>::read_npy(bytes).map_err(npy),
+        ('f', 4) => Ok(ArrayD::<f32>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
+        _ => Err(arr_err(
+            path,
+            name,
+            format!("wrong dtype '{}': expected float64 (or float32)", h.descr),
+        )),
+    }
+}
+
+/// Decode a byte array (uint8 or bool).
+fn read_bytes_array(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<u8>> {
+    let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
+    let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
+    match h.kind() {
+        ('u', 1) => ArrayD::<u8>::read_npy(bytes).map_err(npy),
+        ('b', 1) => Ok(ArrayD::<bool>::read_npy(bytes).map_err(npy)?.mapv(u8::from)),
+        _ => Err(arr_err(
+            path,
+            name,
+            format!("wrong dtype '{}': expected uint8 (or bool)", h.descr),
+        )),
+    }
+}
+
+/// The raw bytes of array `name` (`name.npy` or `name`) in the archive, if present.
+fn entry<R: Read + std::io::Seek>(
+    zip: &mut zip::ZipArchive<R>,
+    path: &Path,
+    name: &str,
+) -> Result<Option<Vec<u8>>> {
+    let want = format!("{name}.npy");
+    let idx = zip
+        .index_for_name(&want)
+        .or_else(|| zip.index_for_name(name));
+    let Some(idx) = idx else { return Ok(None) };
+    let mut f = zip
+        .by_index(idx)
+        .map_err(|e| arr_err(path, name, format!("unreadable archive entry: {e}")))?;
+    let mut out = Vec::new();
+    (&mut f)
+        .take(MAX_ARRAY_BYTES + 1)
+        .read_to_end(&mut out)
+        .map_err(|e| {
+            arr_err(
+                path,
+                name,
+                format!("truncated or corrupt archive entry: {e}"),
+            )
+        })?;
+    if out.len() as u64 > MAX_ARRAY_BYTES {
+        return Err(arr_err(path, name, "array too large"));
+    }
+    Ok(Some(out))
+}
+
+#[derive(serde::Deserialize, Default)]
+struct MetaJson {
+    #[serde(default)]
+    metadata: Vec<(String, String)>,
+    #[serde(default)]
+    channels: Vec<String>,
+}
+
+/// Read a furfit `.npz` (see the module doc). Returns the profile and loader notes.
+pub fn parse_npz(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
+    let mut zip = zip::ZipArchive::new(Cursor::new(bytes)).map_err(|e| {
+        Error::file(
+            path,
+            format!("not a readable .npz (zip) archive (truncated or corrupt?): {e}"),
+        )
+    })?;
+    let mut required = |name: &str| -> Result<Vec<u8>> {
+        entry(&mut zip, path, name)?
+            .ok_or_else(|| arr_err(path, name, "missing from the archive (required)"))
+    };
+    let ti = required("theta_i")?;
+    let tr = required("theta_r")?;
+    let ph = required("phi")?;
+    let va = required("value")?;
+    let axes = [
+        axis(&read_float(&ti, path, "theta_i")?, path, "theta_i", 90.0)?,
+        axis(&read_float(&tr, path, "theta_r")?, path, "theta_r", 90.0)?,
+        axis(&read_float(&ph, path, "phi")?, path, "phi", 180.0)?,
+    ];
+    let value = read_float(&va, path, "value")?;
+    let present = match entry(&mut zip, path, "present")? {
+        Some(b) => Some(read_bytes_array(&b, path, "present")?),
+        None => None,
+    };
+    let sigma = match entry(&mut zip, path, "sigma")? {
+        Some(b) => Some(read_float(&b, path, "sigma")?),
+        None => None,
+    };
+    let phi_i = match entry(&mut zip, path, "phi_i")? {
+        Some(b) => Some(read_float(&b, path, "phi_i")?),
+        None => None,
+    };
+    let meta = match entry(&mut zip, path, "meta_json")? {
+        Some(b) => {
+            let raw = read_bytes_array(&b, path, "meta_json")?;
+            if raw.ndim() != 1 {
+                return Err(arr_err(path, "meta_json", "must be 1-D"));
+            }
+            let text: Vec<u8> = raw.iter().copied().collect();
+            serde_json::from_slice::<MetaJson>(&text).map_err(|e| {
+                arr_err(
+                    path,
+                    "meta_json",
+                    format!("not the expected JSON {{\"metadata\": [[k, v], ...], \"channels\": [...]}}: {e}"),
+                )
+            })?
+        }
+        None => MetaJson::default(),
+    };
+    grid_to_profile(
+        path,
+        axes,
+        value,
+        Extras {
+            present,
+            sigma,
+            phi_i,
+        },
+        meta,
+    )
+}
+
+/// Read a lone `.npy` holding `value`; the axes come from `opts`.
+pub fn parse_npy(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, Vec<String>)> {
+    let value = read_float(bytes, path, "value")?;
+    let need = |g: &Option<Vec<f64>>, opt: &str| -> Result<Vec<f64>> {
+        g.clone().ok_or_else(|| {
+            Error::file(
+                path,
+                format!(
+                    "a lone .npy holds only the value array: give its axes as grids ({opt} missing; \
+                     --theta-i, --theta-r and --phi are all needed), or use an .npz with axis arrays"
+                ),
+            )
+        })
+    };
+    let grid = |g: Vec<f64>, opt: &str, limit: f64| -> Result<Vec<f64>> {
+        g.into_iter()
+            .map(|v| {
+                check_angle(opt, v, limit)
+                    .map(|v| if limit == 180.0 { canonical_phi(v) } else { v })
+                    .map_err(|m| Error::Invalid(format!("{}: {m}", path.display())))
+            })
+            .collect()
+    };
+    let axes = [
+        grid(need(&opts.theta_i, "--theta-i")?, "--theta-i", 90.0)?,
+        grid(need(&opts.theta_r, "--theta-r")?, "--theta-r", 90.0)?,
+        grid(need(&opts.phi, "--phi")?, "--phi", 180.0)?,
+    ];
+    grid_to_profile(
+        path,
+        axes,
+        value,
+        Extras {
+            present: None,
+            sigma: None,
+            phi_i: None,
+        },
+        MetaJson::default(),
+    )
+}
+
+/// Validate a 1-D axis array.
+fn axis(a: &ArrayD<f64>, path: &Path, name: &str, limit: f64) -> Result<Vec<f64>> {
+    if a.ndim() != 1 {
+        return Err(arr_err(
+            path,
+            name,
+            format!("wrong shape {:?}: an axis must be 1-D", a.shape()),
+        ));
+    }
+    if a.is_empty() {
+        return Err(arr_err(path, name, "empty axis"));
+    }
+    a.iter()
+        .enumerate()
+        .map(|(k, &v)| {
+            check_angle(name, v, limit)
+                .map(|v| if name == "phi" { canonical_phi(v) } else { v })
+                .map_err(|m| arr_err(path, name, format!("element {k}: {m}")))
+        })
+        .collect()
+}
+
+struct Extras {
+    present: Option<ArrayD<u8>>,
+    sigma: Option<ArrayD<f64>>,
+    phi_i: Option<ArrayD<f64>>,
+}
+
+fn grid_to_profile(
+    path: &Path,
+    axes: [Vec<f64>; 3],
+    value: ArrayD<f64>,
+    extras: Extras,
+    meta: MetaJson,
+) -> Result<(Profile, Vec<String>)> {
+    let shape = value.shape().to_vec();
+    let lens = [axes[0].len(), axes[1].len(), axes[2].len()];
+    if !(shape.len() == 3 || shape.len() == 4) || shape[..3] != lens {
+        return Err(arr_err(
+            path,
+            "value",
+            format!(
+                "wrong shape {shape:?}: expected [theta_i, theta_r, phi] = {lens:?} (optionally with a trailing channel axis)"
+            ),
+        ));
+    }
+    let nc = if shape.len() == 4 { shape[3] } else { 1 };
+    if nc == 0 {
+        return Err(arr_err(path, "value", "channel axis has length 0"));
+    }
+    for (name, s) in [
+        ("present", extras.present.as_ref().map(|a| a.shape())),
+        ("sigma", extras.sigma.as_ref().map(|a| a.shape())),
+        ("phi_i", extras.phi_i.as_ref().map(|a| a.shape())),
+    ] {
+        if let Some(s) = s {
+            if s != shape.as_slice() {
+                return Err(arr_err(
+                    path,
+                    name,
+                    format!("wrong shape {s:?}: must match value's shape {shape:?}"),
+                ));
+            }
+        }
+    }
+    let channels = if shape.len() == 4 {
+        if meta.channels.is_empty() {
+            (0..nc).map(|c| c.to_string()).collect()
+        } else if meta.channels.len() == nc {
+            meta.channels
+        } else {
+            return Err(arr_err(
+                path,
+                "meta_json",
+                format!(
+                    "{} channel names for a channel axis of length {nc}",
+                    meta.channels.len()
+                ),
+            ));
+        }
+    } else if meta.channels.len() <= 1 {
+        meta.channels
+    } else {
+        return Err(arr_err(
+            path,
+            "meta_json",
+            format!(
+                "{} channel names but value is 3-D (one channel)",
+                meta.channels.len()
+            ),
+        ));
+    };
+    let mut samples = Vec::new();
+    let mut cells: Vec<[usize; 4]> = Vec::new();
+    let opt = |a: &Option<ArrayD<f64>>, ix: &IxDyn| -> Option<f64> {
+        a.as_ref().map(|a| a[ix]).filter(|v| !v.is_nan())
+    };
+    for (i, &theta_i) in axes[0].iter().enumerate() {
+        for (r, &theta_r) in axes[1].iter().enumerate() {
+            for (p, &phi) in axes[2].iter().enumerate() {
+                for c in 0..nc {
+                    let ix = if shape.len() == 4 {
+                        IxDyn(&[i, r, p, c])
+                    } else {
+                        IxDyn(&[i, r, p])
+                    };
+                    let v = value[&ix];
+                    let here = match &extras.present {
+                        Some(m) => m[&ix] != 0,
+                        None => !v.is_nan(),
+                    };
+                    if !here {
+                        continue;
+                    }
+                    samples.push(Sample {
+                        theta_i,
+                        theta_r,
+                        phi,
+                        value: v,
+                        sigma: opt(&extras.sigma, &ix),
+                        channel: c,
+                        phi_i: opt(&extras.phi_i, &ix),
+                    });
+                    cells.push([i, r, p, c]);
+                }
+            }
+        }
+    }
+    if samples.is_empty() {
+        return Err(arr_err(
+            path,
+            "value",
+            "no samples (every cell is NaN or marked absent)",
+        ));
+    }
+    let collapsed = dedupe(&mut samples, |a, b, what| {
+        arr_err(
+            path,
+            "value",
+            format!("{what}: cells {:?} and {:?}", cells[a], cells[b]),
+        )
+    })?;
+    let mut notes = Vec::new();
+    if collapsed > 0 {
+        notes.push(format!(
+            "{collapsed} grid cell(s) repeating the same direction (e.g. phi -180 and 180) with identical data collapsed"
+        ));
+    }
+    Ok((
+        Profile {
+            samples,
+            channels,
+            metadata: meta.metadata,
+            source: Some(path.to_path_buf()),
+        },
+        notes,
+    ))
+}
+
+/// Sorted distinct values of one angle over the samples.
+fn axis_of(profile: &Profile, get: impl Fn(&Sample) -> f64) -> Result<Vec<f64>> {
+    let mut v: Vec<f64> = Vec::with_capacity(profile.samples.len());
+    for s in &profile.samples {
+        let a = get(s);
+        if !a.is_finite() {
+            return Err(Error::Invalid(format!(
+                "cannot write npz: a sample has a non-finite angle ({a})"
+            )));
+        }
+        v.push(a + 0.0);
+    }
+    v.sort_by(f64::total_cmp);
+    v.dedup_by(|a, b| a.to_bits() == b.to_bits());
+    Ok(v)
+}
+
+/// Encode a profile as a furfit `.npz` (see the module doc); uncompressed, with fixed zip
+/// timestamps, so the same profile always gives the same bytes.
+pub fn to_bytes(profile: &Profile) -> Result<Vec<u8>> {
+    let ax = [
+        axis_of(profile, |s| s.theta_i)?,
+        axis_of(profile, |s| s.theta_r)?,
+        axis_of(profile, |s| s.phi)?,
+    ];
+    let nc = profile.n_channels();
+    let four = !profile.channels.is_empty();
+    let mut shape = vec![ax[0].len(), ax[1].len(), ax[2].len()];
+    if four {
+        shape.push(nc);
+    }
+    let cells = shape
+        .iter()
+        .try_fold(1usize, |a, &n| a.checked_mul(n))
+        .filter(|n| *n <= MAX_WRITE_CELLS)
+        .ok_or_else(|| {
+            Error::Invalid(format!(
+                "grid {shape:?} too large for npz (limit {MAX_WRITE_CELLS} cells); save as .csv"
+            ))
+        })?;
+    let _ = cells;
+    let mut value = ArrayD::<f64>::from_elem(IxDyn(&shape), f64::NAN);
+    let mut present = ArrayD::<u8>::zeros(IxDyn(&shape));
+    let mut sigma = ArrayD::<f64>::from_elem(IxDyn(&shape), f64::NAN);
+    let mut phi_i = ArrayD::<f64>::from_elem(IxDyn(&shape), f64::NAN);
+    let find = |a: &[f64], v: f64| a.binary_search_by(|x| x.total_cmp(&(v + 0.0))).unwrap_or(0);
+    for s in &profile.samples {
+        if s.channel >= nc {
+            return Err(Error::Invalid(format!(
+                "cannot write npz: sample channel {} out of range ({nc} channels)",
+                s.channel
+            )));
+        }
+        let mut ix = vec![
+            find(&ax[0], s.theta_i),
+            find(&ax[1], s.theta_r),
+            find(&ax[2], s.phi),
+        ];
+        if four {
+            ix.push(s.channel);
+        }
+        let ix = IxDyn(&ix);
+        if present[&ix] != 0 {
+            return Err(Error::Invalid(format!(
+                "cannot write npz: two samples share the grid cell theta_i {}, theta_r {}, phi {}, channel {}",
+                s.theta_i, s.theta_r, s.phi, s.channel
+            )));
+        }
+        present[&ix] = 1;
+        value[&ix] = s.value;
+        if let Some(x) = s.sigma {
+            sigma[&ix] = x;
+        }
+        if let Some(x) = s.phi_i {
+            phi_i[&ix] = x;
+        }
+    }
+    let meta = serde_json::json!({
+        "metadata": profile.metadata,
+        "channels": profile.channels,
+    });
+    let meta = serde_json::to_vec(&meta)
+        .map_err(|e| Error::Invalid(format!("cannot encode npz metadata: {e}")))?;
+    let werr = |e: ndarray_npy::WriteNpzError| Error::Invalid(format!("writing npz: {e}"));
+    let mut w = NpzWriter::new(Cursor::new(Vec::new()));
+    for (name, a) in [("theta_i", &ax[0]), ("theta_r", &ax[1]), ("phi", &ax[2])] {
+        w.add_array(name, &ndarray::Array1::from(a.clone()))
+            .map_err(werr)?;
+    }
+    w.add_array("value", &value).map_err(werr)?;
+    w.add_array("present", &present).map_err(werr)?;
+    if profile.samples.iter().any(|s| s.sigma.is_some()) {
+        w.add_array("sigma", &sigma).map_err(werr)?;
+    }
+    if profile.samples.iter().any(|s| s.phi_i.is_some()) {
+        w.add_array("phi_i", &phi_i).map_err(werr)?;
+    }
+    w.add_array("meta_json", &ndarray::Array1::from(meta))
+        .map_err(werr)?;
+    Ok(w.finish().map_err(werr)?.into_inner())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample(ti: f64, tr: f64, phi: f64, value: f64) -> Sample {
+        Sample {
+            theta_i: ti,
+            theta_r: tr,
+            phi,
+            value,
+            sigma: None,
+            channel: 0,
+            phi_i: None,
+        }
+    }
+
+    #[test]
+    fn round_trip_keeps_invalid_values_and_sparsity() {
+        let mut p = Profile {
+            samples: vec![
+                sample(0.0, -10.0, 0.0, 1.5),
+                sample(0.0, 10.0, 90.0, -2.0),
+                sample(30.0, 10.0, 180.0, f64::NAN),
+            ],
+            ..Default::default()
+        };
+        p.samples[1].sigma = Some(0.25);
+        p.metadata.push(("species".into(), "test".into()));
+        let bytes = to_bytes(&p).unwrap();
+        let (back, notes) = parse_npz(&bytes, Path::new("x.npz")).unwrap();
+        assert!(notes.is_empty());
+        assert_eq!(back.samples.len(), 3);
+        assert_eq!(back.samples[1].value, -2.0);
+        assert_eq!(back.samples[1].sigma, Some(0.25));
+        assert!(back.samples[2].value.is_nan());
+        assert_eq!(back.metadata, p.metadata);
+        // Deterministic bytes.
+        assert_eq!(to_bytes(&back).unwrap(), bytes);
+    }
+
+    #[test]
+    fn header_check_catches_truncation() {
+        let mut w = Vec::new();
+        ndarray_npy::WriteNpyExt::write_npy(&ndarray::Array1::<f64>::zeros(4), &mut w).unwrap();
+        assert!(npy_header(&w).is_ok());
+        let e = npy_header(&w[..w.len() - 3]).unwrap_err();
+        assert!(e.contains("truncated"), "{e}");
+    }
+
+    #[test]
+    fn lone_npy_needs_axes() {
+        let mut w = Vec::new();
+        let a = ArrayD::<f64>::from_elem(IxDyn(&[1, 2, 3]), 1.0);
+        ndarray_npy::WriteNpyExt::write_npy(&a, &mut w).unwrap();
+        let path = Path::new("v.npy");
+        let e = parse_npy(&w, path, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("v.npy") && e.contains("--theta-i"), "{e}");
+        let opts = LoadOptions {
+            theta_i: Some(vec![0.0]),
+            theta_r: Some(vec![0.0, 10.0]),
+            phi: Some(vec![0.0, 90.0, -180.0]),
+            ..Default::default()
+        };
+        let (p, _) = parse_npy(&w, path, &opts).unwrap();
+        assert_eq!(p.samples.len(), 6);
+        assert_eq!(p.samples[2].phi, 180.0);
+        let bad = LoadOptions {
+            phi: Some(vec![0.0, 90.0]),
+            ..opts
+        };
+        let e = parse_npy(&w, path, &bad).unwrap_err().to_string();
+        assert!(e.contains("'value'") && e.contains("wrong shape"), "{e}");
+    }
+}

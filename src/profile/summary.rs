@@ -1,0 +1,118 @@
+//! What `furfit inspect` prints about a profile: counts, and per angle the distinct values,
+//! range and most common step.
+
+use super::{Profile, Sample};
+
+/// The distinct values one angle takes over a profile's samples.
+#[derive(Clone, Debug, PartialEq)]
+pub struct AxisStats {
+    /// Number of distinct values.
+    pub distinct: usize,
+    pub min: f64,
+    pub max: f64,
+    /// The most common difference between consecutive distinct values (the smallest one on
+    /// a tie); `None` with fewer than two distinct values. Differences are grouped after
+    /// rounding to 1e-9 deg, so `0.1`-step grids with float noise count as one step.
+    pub step: Option<f64>,
+}
+
+impl AxisStats {
+    /// Stats of `get` over the samples; `None` for an empty profile.
+    pub fn of(samples: &[Sample], get: impl Fn(&Sample) -> f64) -> Option<AxisStats> {
+        let mut v: Vec<f64> = samples.iter().map(get).filter(|x| x.is_finite()).collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        v.dedup();
+        let mut steps: Vec<i64> = v
+            .windows(2)
+            .map(|w| ((w[1] - w[0]) * 1e9).round() as i64)
+            .collect();
+        steps.sort_unstable();
+        let mut best: Option<(i64, usize)> = None;
+        let mut k = 0;
+        while k < steps.len() {
+            let run = steps[k..].iter().take_while(|s| **s == steps[k]).count();
+            if best.map_or(true, |(_, n)| run > n) {
+                best = Some((steps[k], run));
+            }
+            k += run;
+        }
+        Some(AxisStats {
+            distinct: v.len(),
+            min: v[0],
+            max: v[v.len() - 1],
+            step: best.map(|(s, _)| s as f64 / 1e9),
+        })
+    }
+}
+
+/// A profile's summary.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Summary {
+    pub n_samples: usize,
+    pub n_valid: usize,
+    pub n_invalid: usize,
+    pub theta_i: Option<AxisStats>,
+    pub theta_r: Option<AxisStats>,
+    pub phi: Option<AxisStats>,
+    /// Samples with a sigma.
+    pub n_sigma: usize,
+    /// Valid samples per channel (index as in `Profile::channels`).
+    pub valid_per_channel: Vec<usize>,
+}
+
+impl Summary {
+    pub fn of(p: &Profile) -> Summary {
+        let mut per = vec![0; p.n_channels()];
+        for s in p.samples.iter().filter(|s| s.is_valid()) {
+            if let Some(c) = per.get_mut(s.channel) {
+                *c += 1;
+            }
+        }
+        Summary {
+            n_samples: p.samples.len(),
+            n_valid: p.n_valid(),
+            n_invalid: p.n_invalid(),
+            theta_i: AxisStats::of(&p.samples, |s| s.theta_i),
+            theta_r: AxisStats::of(&p.samples, |s| s.theta_r),
+            phi: AxisStats::of(&p.samples, |s| s.phi),
+            n_sigma: p.samples.iter().filter(|s| s.sigma.is_some()).count(),
+            valid_per_channel: per,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn s(phi: f64) -> Sample {
+        Sample {
+            theta_i: 0.0,
+            theta_r: 0.0,
+            phi,
+            value: 1.0,
+            sigma: None,
+            channel: 0,
+            phi_i: None,
+        }
+    }
+
+    #[test]
+    fn most_common_step() {
+        let v: Vec<Sample> = [0.0, 0.1, 0.2, 0.30000000000000004, 0.4, 1.0, 1.0]
+            .into_iter()
+            .map(s)
+            .collect();
+        let a = AxisStats::of(&v, |x| x.phi).unwrap();
+        assert_eq!(a.distinct, 6);
+        assert_eq!((a.min, a.max), (0.0, 1.0));
+        // Four steps of 0.1 (up to float noise, hence the 1e-12 tolerance) and one of 0.6.
+        assert!((a.step.unwrap() - 0.1).abs() < 1e-12, "{:?}", a.step);
+        let one = AxisStats::of(&v[..1], |x| x.phi).unwrap();
+        assert_eq!(one.step, None);
+        assert!(AxisStats::of(&[], |x| x.phi).is_none());
+    }
+}

@@ -1,0 +1,259 @@
+//! The Yan-2015 text format: one file per incident angle, whitespace-separated rows
+//! `phi theta value`.
+//!
+//! # Layout
+//! - Each data row holds exactly three whitespace-separated fields `phi theta value`.
+//!   `value` is a number or `?` for a missing measurement (read as NaN: an *invalid* sample,
+//!   kept and counted, as DATA.md asks for missing values); `nan` is accepted as well.
+//! - `#` starts a comment line. A comment of the form `# key: value` is metadata (kept in
+//!   file order), except `# theta_i: <deg>`, which gives the file's incident angle.
+//! - Blank lines are ignored; a trailing `\r` is ignored.
+//! - The incident angle comes from the `# theta_i:` line or from [`LoadOptions::theta_i`]
+//!   (exactly one value). If both are given they must agree; if neither is, it is an error.
+//!
+//! # Angle convention (an assumption, stated here because the files do not carry it)
+//! The files give `phi` and `theta` in degrees. We read `theta` as `theta_r` with MODEL.md's
+//! sign (positive toward the fiber tip) and `phi` as MODEL.md's relative azimuth
+//! `phi_r - phi_i` (0 = backward scattering, +-180 = forward), possibly written in
+//! [0, 360): any finite `phi` in [-360, 360] is accepted and wrapped to (-180, 180]
+//! (`-180` becomes `180`). If a data set uses another origin or handedness, the loader
+//! options fix it without editing the file: [`LoadOptions::flip_phi`] negates phi,
+//! [`LoadOptions::phi_offset`] then adds a constant (e.g. 180 when the file's 0 is forward
+//! scattering) before the wrap, and [`LoadOptions::flip_theta_r`] negates theta
+//! (`furfit inspect --flip-phi --phi-offset 180 --flip-theta-r`).
+//!
+//! # Errors
+//! Like the CSV reader: a non-number, a non-finite or out-of-range angle, a row with other
+//! than three fields, two rows for the same direction with different values (identical
+//! repeats are collapsed with a note), a bad `# theta_i:` line; each names the file, the
+//! 1-based line and the column (`column 2 (theta)`). A file without data rows is an error.
+
+use super::{check_angle, dedupe, wrap_phi, LoadOptions, Profile, Sample};
+use crate::error::{Error, Result};
+use std::path::Path;
+
+const NAMES: [&str; 3] = ["phi", "theta", "value"];
+
+/// Parse a Yan-2015 text file; `path` is used in error messages.
+pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, Vec<String>)> {
+    let perr = |line: usize, column: String, msg: String| Error::Parse {
+        file: path.to_path_buf(),
+        line,
+        column,
+        msg,
+    };
+    let label = |i: usize| format!("column {} ({})", i + 1, NAMES[i]);
+    let mut metadata = Vec::new();
+    let mut file_theta_i: Option<(f64, usize)> = None;
+    let mut samples = Vec::new();
+    let mut lines = Vec::new();
+    for (k, raw) in bytes.split(|b| *b == b'\n').enumerate() {
+        let line = k + 1;
+        let text = std::str::from_utf8(raw)
+            .map_err(|_| perr(line, "column 1".into(), "not valid UTF-8".into()))?;
+        let t = text.trim().trim_start_matches('\u{feff}');
+        if t.is_empty() {
+            continue;
+        }
+        if let Some(c) = t.strip_prefix('#') {
+            if let Some((key, val)) = c.split_once(':') {
+                let key = key.trim();
+                let val = val.trim();
+                if key.eq_ignore_ascii_case("theta_i") {
+                    let col = "theta_i comment".to_string();
+                    let v: f64 = val
+                        .parse()
+                        .map_err(|_| perr(line, col.clone(), format!("'{val}' is not a number")))?;
+                    let v =
+                        check_angle("theta_i", v, 90.0).map_err(|m| perr(line, col.clone(), m))?;
+                    if let Some((old, l0)) = file_theta_i {
+                        if old != v {
+                            return Err(perr(
+                                line,
+                                col,
+                                format!("theta_i {v} contradicts theta_i {old} on line {l0}"),
+                            ));
+                        }
+                    }
+                    file_theta_i = Some((v, line));
+                } else if !key.is_empty() {
+                    metadata.push((key.to_string(), val.to_string()));
+                }
+            }
+            continue;
+        }
+        let fields: Vec<&str> = t.split_whitespace().collect();
+        if fields.len() != 3 {
+            return Err(perr(
+                line,
+                format!("column {}", fields.len().min(3) + 1),
+                format!(
+                    "expected 3 fields (phi theta value), found {}",
+                    fields.len()
+                ),
+            ));
+        }
+        let num = |i: usize| -> Result<f64> {
+            fields[i]
+                .parse::<f64>()
+                .map_err(|_| perr(line, label(i), format!("'{}' is not a number", fields[i])))
+        };
+        let phi = check_angle("phi", num(0)?, 360.0).map_err(|m| perr(line, label(0), m))?;
+        let theta = check_angle("theta", num(1)?, 90.0).map_err(|m| perr(line, label(1), m))?;
+        let value = if fields[2] == "?" {
+            f64::NAN
+        } else {
+            let v = num(2)?;
+            if v.is_infinite() {
+                return Err(perr(
+                    line,
+                    label(2),
+                    format!("value {v} is infinite (write ? for a missing value)"),
+                ));
+            }
+            v
+        };
+        let phi = if opts.flip_phi { -phi } else { phi } + opts.phi_offset;
+        if !phi.is_finite() {
+            return Err(perr(line, label(0), "phi + offset is not finite".into()));
+        }
+        let theta_r = if opts.flip_theta_r { -theta } else { theta } + 0.0;
+        samples.push(Sample {
+            theta_i: 0.0,
+            theta_r,
+            phi: wrap_phi(phi),
+            value,
+            sigma: None,
+            channel: 0,
+            phi_i: None,
+        });
+        lines.push(line);
+    }
+    let opt_theta_i = match &opts.theta_i {
+        None => None,
+        Some(v) if v.len() == 1 => Some(
+            check_angle("--theta-i", v[0], 90.0)
+                .map_err(|m| Error::Invalid(format!("{}: {m}", path.display())))?,
+        ),
+        Some(v) => {
+            return Err(Error::Invalid(format!(
+                "{}: a Yan-2015 file holds one incident angle; --theta-i gave {} values",
+                path.display(),
+                v.len()
+            )))
+        }
+    };
+    let theta_i = match (file_theta_i, opt_theta_i) {
+        (Some((f, l)), Some(o)) if f != o => {
+            return Err(perr(
+                l,
+                "theta_i comment".into(),
+                format!("the file says theta_i {f} but --theta-i is {o}"),
+            ))
+        }
+        (Some((f, _)), _) => f,
+        (None, Some(o)) => o,
+        (None, None) => {
+            return Err(Error::file(
+                path,
+                "no incident angle: add a '# theta_i: <deg>' line or pass --theta-i <deg>",
+            ))
+        }
+    };
+    if samples.is_empty() {
+        return Err(Error::file(path, "no data rows (phi theta value)"));
+    }
+    for s in &mut samples {
+        s.theta_i = theta_i;
+    }
+    let collapsed = dedupe(&mut samples, |i, j, what| {
+        perr(
+            lines[j],
+            label(2),
+            format!("{what}; first on line {}", lines[i]),
+        )
+    })?;
+    let mut notes = Vec::new();
+    if collapsed > 0 {
+        notes.push(format!(
+            "{collapsed} identical duplicate row(s) collapsed into their first occurrence"
+        ));
+    }
+    Ok((
+        Profile {
+            samples,
+            channels: Vec::new(),
+            metadata,
+            source: Some(path.to_path_buf()),
+        },
+        notes,
+    ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn p(text: &str, opts: &LoadOptions) -> Result<(Profile, Vec<String>)> {
+        parse(text.as_bytes(), Path::new("y.txt"), opts)
+    }
+
+    #[test]
+    fn reads_rows_question_marks_and_theta_i() {
+        let (pr, _) = p(
+            "# theta_i: 30\n# fiber: 2\n0 10 1.5\n90 -10 ?\n270 0 2\n-180 5 1\n",
+            &LoadOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(pr.samples.len(), 4);
+        assert!(pr.samples.iter().all(|s| s.theta_i == 30.0));
+        assert!(pr.samples[1].value.is_nan());
+        assert_eq!(pr.n_invalid(), 1);
+        assert_eq!(pr.samples[2].phi, -90.0, "270 wraps to -90");
+        assert_eq!(pr.samples[3].phi, 180.0, "-180 maps to 180");
+        assert_eq!(pr.metadata, vec![("fiber".to_string(), "2".to_string())]);
+    }
+
+    #[test]
+    fn theta_i_from_options_and_conflicts() {
+        let text = "0 10 1\n";
+        let e = p(text, &LoadOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("y.txt") && e.contains("theta_i"), "{e}");
+        let o = LoadOptions {
+            theta_i: Some(vec![45.0]),
+            ..Default::default()
+        };
+        assert_eq!(p(text, &o).unwrap().0.samples[0].theta_i, 45.0);
+        let e = p("# theta_i: 30\n0 10 1\n", &o).unwrap_err().to_string();
+        assert!(e.starts_with("y.txt:1:"), "{e}");
+    }
+
+    #[test]
+    fn offset_and_flips() {
+        let o = LoadOptions {
+            theta_i: Some(vec![0.0]),
+            phi_offset: 180.0,
+            flip_phi: true,
+            flip_theta_r: true,
+            ..Default::default()
+        };
+        let (pr, _) = p("30 20 1\n", &o).unwrap();
+        // -30 + 180 = 150
+        assert_eq!(pr.samples[0].phi, 150.0);
+        assert_eq!(pr.samples[0].theta_r, -20.0);
+    }
+
+    #[test]
+    fn bad_token_and_field_count() {
+        let o = LoadOptions {
+            theta_i: Some(vec![0.0]),
+            ..Default::default()
+        };
+        let e = p("0 10 1\n# c\n5 1x 2\n", &o).unwrap_err().to_string();
+        assert!(e.starts_with("y.txt:3: column 2 (theta): '1x'"), "{e}");
+        let e = p("0 10 1 4\n", &o).unwrap_err().to_string();
+        assert!(e.starts_with("y.txt:1: column 4"), "{e}");
+        let e = p("0 95 1\n", &o).unwrap_err().to_string();
+        assert!(e.contains("out of range"), "{e}");
+    }
+}

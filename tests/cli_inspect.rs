@@ -1,0 +1,95 @@
+//! End-to-end runs of `furfit inspect` on the example files.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn data(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/data")
+        .join(name)
+}
+
+fn inspect(args: &[&std::ffi::OsStr]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_furfit"))
+        .arg("inspect")
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn inspect_csv_npz_and_yan_examples() {
+    let csv = data("example.csv");
+    let npz = data("example.npz");
+    let yan = data("yan_theta30.txt");
+    let (ok, out, err) = inspect(&[csv.as_os_str(), npz.as_os_str(), yan.as_os_str()]);
+    assert!(ok, "stderr: {err}");
+    // CSV and its npz twin: 24 samples, 2 invalid (hand-counted in tests/data/example.csv).
+    assert_eq!(
+        out.matches("samples  24 (22 valid, 2 invalid), 8 with sigma")
+            .count(),
+        2,
+        "{out}"
+    );
+    assert!(
+        out.contains("format   csv") && out.contains("format   npz"),
+        "{out}"
+    );
+    assert!(
+        out.contains("theta_i  2 distinct, 0 .. 30 deg, step 30 deg"),
+        "{out}"
+    );
+    assert!(
+        out.contains("theta_r  3 distinct, -30 .. 30 deg, step 30 deg"),
+        "{out}"
+    );
+    assert!(
+        out.contains("phi      4 distinct, 0 .. 180 deg, step 60 deg"),
+        "{out}"
+    );
+    assert!(
+        out.contains("species: test fiber (hand-made example)"),
+        "{out}"
+    );
+    // Yan: 12 rows, two `?`; phi 0, 90, 180, 270 -> -90 .. 180 step 90.
+    assert!(out.contains("format   yan-2015 text"), "{out}");
+    assert!(out.contains("samples  12 (10 valid, 2 invalid)"), "{out}");
+    assert!(
+        out.contains("phi      4 distinct, -90 .. 180 deg, step 90 deg"),
+        "{out}"
+    );
+}
+
+#[test]
+fn inspect_yan_with_theta_i_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("no_theta.txt");
+    std::fs::write(&p, "0 0 1\n90 0 2\n").unwrap();
+    let (ok, _, err) = inspect(&[p.as_os_str()]);
+    assert!(!ok && err.contains("no incident angle"), "{err}");
+    let (ok, out, err) = inspect(&[p.as_os_str(), "--theta-i".as_ref(), "-20".as_ref()]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("theta_i  1 distinct, -20 .. -20 deg, step -"),
+        "{out}"
+    );
+}
+
+#[test]
+fn inspect_bad_file_fails_with_location_but_reports_the_rest() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.csv");
+    std::fs::write(&bad, "theta_i,theta_r,phi,value\n0,0,0,1\n0,zero,0,1\n").unwrap();
+    let good = data("example.csv");
+    let (ok, out, err) = inspect(&[bad.as_os_str(), good.as_os_str()]);
+    assert!(!ok);
+    assert!(err.contains("bad.csv:3: column 2 (theta_r)"), "{err}");
+    assert!(err.contains("1 of 2 file(s)"), "{err}");
+    // The good file is still inspected.
+    assert!(out.contains("samples  24"), "{out}");
+}
