@@ -113,13 +113,12 @@ fn lobe_aovs_add_up_to_the_beauty() {
     let r = render_scene(&scene, &fur(), &s).unwrap();
     let mut lit = 0;
     for (i, b) in r.beauty.data.iter().enumerate() {
-        for c in 0..3 {
+        for (c, &bc) in b.iter().enumerate() {
             let sum: f64 = (0..5).map(|l| r.lobes[l].data[i][c]).sum();
             // Summation order differs: relative 1e-9.
             assert!(
-                (sum - b[c]).abs() <= 1e-9 * b[c].max(1e-3),
-                "pixel {i}: {sum} vs {}",
-                b[c]
+                (sum - bc).abs() <= 1e-9 * bc.max(1e-3),
+                "pixel {i}: {sum} vs {bc}"
             );
         }
         if b[1] > 0.0 {

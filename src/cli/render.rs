@@ -136,10 +136,11 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
     if a.spp == 0 {
         bail!("--spp must be at least 1");
     }
-    if !(a.light_intensity >= 0.0) || !(a.cam_dist > 0.0) || !(a.fov > 0.0 && a.fov < 170.0) {
+    let ok = a.light_intensity >= 0.0 && a.cam_dist > 0.0 && a.fov > 0.0 && a.fov < 170.0;
+    if !ok {
         bail!("--light-intensity must be >= 0, --cam-dist > 0, --fov in (0, 170)");
     }
-    if !(a.footprint_scale >= 0.0) {
+    if a.footprint_scale.is_nan() || a.footprint_scale < 0.0 {
         bail!("--footprint-scale must be >= 0");
     }
     let mut s = RenderSettings {

@@ -17,15 +17,15 @@
 //! reciprocal: `C^M` is a Monte Carlo table for light entering at `theta_i`.
 
 pub mod azimuthal;
-pub mod far;
 pub mod cp;
+pub mod far;
 pub mod fresnel;
 pub mod geometry;
 pub mod longitudinal;
 pub mod medulla;
+pub mod medulla_mc;
 pub mod multiscale;
 pub mod quadrature;
-pub mod medulla_mc;
 
 use crate::params::FurParams;
 use azimuthal::Absorption;

@@ -28,6 +28,7 @@
 //! * the albedo is `∫∫ sum M_p N_p dtheta dphi`, equal to `sum_p A_p` times the part of
 //!   each `M_p` inside `[-90°, 90°]` when `A_p` does not vary with `theta_d` — the white
 //!   furnace test checks `<= 1` and `≈ A_0 + A_1 + A_2`.
+//!
 //! `cos theta_light` is floored at [`MIN_COS`] (a light exactly along the fiber).
 //!
 //! # Sampling (seed Sec. 6)
@@ -440,7 +441,7 @@ impl FiberBsdf {
             (theta, wrap_angle(slice.center(lobe, &geo) + sigma * z))
         };
         let pdf = self.pdf_prepared(&pr, theta_o, theta, phi, h);
-        if !(pdf > 0.0) || !pdf.is_finite() {
+        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }
         let mut weight = self.eval_near(theta_o, theta, phi, h);

@@ -168,7 +168,7 @@ impl Integrator<'_> {
                 thr[c] *= wsum[c];
             }
             let m = thr[0].max(thr[1]).max(thr[2]);
-            if !(m > 0.0) || !m.is_finite() {
+            if m.is_nan() || m <= 0.0 || !m.is_finite() {
                 break;
             }
             if depth >= 2 {

@@ -11,6 +11,10 @@
 //! Determinism: every pixel has its own RNG seeded from (`seed`, pixel index), so an image
 //! depends on the seed only, not on the number of threads.
 
+// Per-channel / per-lobe loops over fixed [_; 3] and [_; 5] arrays index several arrays at
+// once, as the formulas do; iterator chains would obscure them.
+#![allow(clippy::needless_range_loop)]
+
 pub mod bsdf;
 pub mod bvh;
 pub mod integrator;
