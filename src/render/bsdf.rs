@@ -43,7 +43,8 @@
 //!    lobe falls back to uniform `theta`, pdf `1/pi`); then `phi` from the wrapped Gaussian
 //!    `D_l` about `Phi_l(h)` at the sampled `theta_d` (pdf = the model's `D_l` exactly).
 //!    Scattered lobes: `phi` uniform, `theta` cosine (`sin theta` uniform), i.e. uniform on
-//!    the sphere, as the seed does (the medulla tables' own samplers can replace it).
+//!    the sphere, as the seed does. (The real tables now offer `MedullaSlice::sample_cn` /
+//!    `sample_cm` with exact pdfs; switching the scattered lobes to them is future work.)
 //! 4. pdf: the full mixture `sum_l P_l pdf_l(theta, phi | h)` in the `(theta, phi)` measure.
 //!
 //! For far field and multi-scale the marginal over `h` has no closed form. The renderer
