@@ -16,6 +16,7 @@ pub mod io;
 pub mod model;
 pub mod params;
 pub mod profile;
+pub mod render;
 pub mod report;
 pub mod simulate;
 pub mod synth;

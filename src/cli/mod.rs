@@ -6,6 +6,8 @@ use clap::{Parser, Subcommand};
 pub mod bench_model;
 pub mod fit;
 pub mod inspect;
+pub mod render;
+pub mod render_convergence;
 pub mod report;
 pub mod simulate;
 pub mod stability;
@@ -26,6 +28,10 @@ pub enum Command {
     Inspect(inspect::Args),
     /// Build or check the medulla scattering tables (C^N, C^M).
     Tables(tables::Args),
+    /// Path-trace a preview of fur on the built-in test lock.
+    Render(Box<render::Args>),
+    /// Convergence (RMSE vs spp/time per BCSDF scale) and culling studies of the renderer.
+    RenderConvergence(render_convergence::Args),
     /// Synthesize a profile from parameters on an angle grid (far field or quadrature).
     Synth(Box<synth::Args>),
     /// Adversarial stability sweep of the far field; writes reports/stability.{md,csv}.
@@ -52,6 +58,8 @@ pub fn main() -> std::process::ExitCode {
         Command::Fit(a) => fit::run(*a),
         Command::Report(a) => report::run(a),
         Command::Simulate(a) => simulate::run(*a),
+        Command::Render(a) => render::run(*a),
+        Command::RenderConvergence(a) => render_convergence::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

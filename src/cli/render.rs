@@ -1,0 +1,264 @@
+//! `furfit render`: preview fur on the built-in test lock (see `crate::render`).
+
+use crate::model::{Lobe, LobeSet};
+use crate::params::FurParams;
+use crate::render::bsdf::{Mode, Tint};
+use crate::render::math::V3;
+use crate::render::scene::{DirectionalLight, Environment};
+use crate::render::{output, render_scene, RenderSettings, Scene};
+use anyhow::{bail, Context};
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Fit file (fits/X.json) to render.
+    #[arg(long, conflicts_with = "params")]
+    pub fit: Option<String>,
+    /// Parameter file or preset name (e.g. red-fox, human).
+    #[arg(long)]
+    pub params: Option<String>,
+    /// Render every fits/*.json and write a labelled contact sheet to --out.
+    #[arg(long, conflicts_with_all = ["fit", "params"])]
+    pub all: bool,
+    /// Directory searched by --all.
+    #[arg(long, default_value = "fits")]
+    pub fits_dir: PathBuf,
+    /// BCSDF scale: near, far or multiscale.
+    #[arg(long, default_value = "multiscale")]
+    pub mode: String,
+    #[arg(long, default_value_t = 64)]
+    pub spp: usize,
+    /// Image size WxH.
+    #[arg(long, default_value = "512x512")]
+    pub size: String,
+    /// Lobes to render: R,TT,TRT,TTs,TRTs or all.
+    #[arg(long, default_value = "all")]
+    pub lobes: String,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Worker threads (0 = all cores).
+    #[arg(long, default_value_t = 0)]
+    pub threads: usize,
+    #[arg(long, default_value_t = 3.0)]
+    pub cam_dist: f64,
+    /// Camera elevation in degrees.
+    #[arg(long, default_value_t = 10.0)]
+    pub cam_elev: f64,
+    /// Camera azimuth in degrees about the vertical.
+    #[arg(long, default_value_t = 0.0)]
+    pub cam_azim: f64,
+    /// Vertical field of view in degrees.
+    #[arg(long, default_value_t = 26.0)]
+    pub fov: f64,
+    /// Direction toward the key light, x,y,z.
+    #[arg(long, default_value = "-0.5,0.6,0.62")]
+    pub light_dir: String,
+    /// Key light irradiance (0 = no key light).
+    #[arg(long, default_value_t = 2.5)]
+    pub light_intensity: f64,
+    /// Environment radiance: one value (constant) or TOP,BOTTOM (vertical grey gradient).
+    #[arg(long, default_value = "0.34,0.10")]
+    pub env: String,
+    /// Per-channel absorption ratios r,g,b applied to sigma_c_a and sigma_m_a, or
+    /// `melanin` (default, eumelanin-like) or `grey`.
+    #[arg(long, default_value = "melanin")]
+    pub tint: String,
+    /// Exposure in stops applied before the tone map.
+    #[arg(long, default_value_t = 0.0)]
+    pub exposure: f64,
+    /// Number of fibers in the test lock.
+    #[arg(long, default_value_t = 1500)]
+    pub fibers: usize,
+    #[arg(long, default_value_t = 16)]
+    pub max_depth: usize,
+    /// Multiplier of the pixel coverage (0 = near field, large = far field).
+    #[arg(long, default_value_t = 1.0)]
+    pub footprint_scale: f64,
+    /// Skip the per-lobe AOV images.
+    #[arg(long)]
+    pub no_aovs: bool,
+    /// Output PNG (a linear .exr is written beside it).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+fn parse_list(what: &str, s: &str) -> anyhow::Result<Vec<f64>> {
+    s.split(',')
+        .map(|p| {
+            p.trim()
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.is_finite())
+                .with_context(|| format!("--{what}: '{p}' is not a number"))
+        })
+        .collect()
+}
+
+fn parse_size(s: &str) -> anyhow::Result<(usize, usize)> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .with_context(|| format!("--size '{s}': expected WxH"))?;
+    let w: usize = w.trim().parse().with_context(|| format!("--size '{s}'"))?;
+    let h: usize = h.trim().parse().with_context(|| format!("--size '{s}'"))?;
+    if w == 0 || h == 0 || w > 8192 || h > 8192 {
+        bail!("--size '{s}': width and height must be in 1..=8192");
+    }
+    Ok((w, h))
+}
+
+/// Settings shared by `render` and `render-convergence`.
+pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
+    let (width, height) = parse_size(&a.size)?;
+    let ld = parse_list("light-dir", &a.light_dir)?;
+    if ld.len() != 3 || ld.iter().all(|v| *v == 0.0) {
+        bail!("--light-dir: expected a non-zero x,y,z");
+    }
+    let env = parse_list("env", &a.env)?;
+    let env = match env.as_slice() {
+        [v] if *v >= 0.0 => Environment::constant(*v),
+        [t, b] if *t >= 0.0 && *b >= 0.0 => Environment {
+            top: [*t; 3],
+            bottom: [*b; 3],
+        },
+        _ => bail!("--env: expected one or two non-negative values"),
+    };
+    let tint = match a.tint.as_str() {
+        "melanin" => Tint::default(),
+        "grey" | "gray" => Tint::GREY,
+        s => {
+            let v = parse_list("tint", s)?;
+            if v.len() != 3 || v.iter().any(|x| *x < 0.0) {
+                bail!("--tint: expected melanin, grey or three non-negative ratios r,g,b");
+            }
+            Tint([v[0], v[1], v[2]])
+        }
+    };
+    if a.spp == 0 {
+        bail!("--spp must be at least 1");
+    }
+    let ok = a.light_intensity >= 0.0 && a.cam_dist > 0.0 && a.fov > 0.0 && a.fov < 170.0;
+    if !ok {
+        bail!("--light-intensity must be >= 0, --cam-dist > 0, --fov in (0, 170)");
+    }
+    if a.footprint_scale.is_nan() || a.footprint_scale < 0.0 {
+        bail!("--footprint-scale must be >= 0");
+    }
+    let mut s = RenderSettings {
+        width,
+        height,
+        spp: a.spp,
+        seed: a.seed,
+        threads: a.threads,
+        mode: Mode::parse(&a.mode)?,
+        lobes: LobeSet::parse(&a.lobes)?,
+        max_depth: a.max_depth.max(1),
+        footprint_scale: a.footprint_scale,
+        env,
+        tint,
+        ..RenderSettings::default()
+    };
+    s.camera.dist = a.cam_dist;
+    s.camera.elev_deg = a.cam_elev;
+    s.camera.azim_deg = a.cam_azim;
+    s.camera.fov_deg = a.fov;
+    s.light = (a.light_intensity > 0.0).then(|| DirectionalLight {
+        dir: V3::new(ld[0], ld[1], ld[2]).normalized(),
+        irradiance: [a.light_intensity; 3],
+    });
+    s.strand.fibers = a.fibers.max(1);
+    Ok(s)
+}
+
+fn with_suffix(out: &Path, suffix: &str, ext: &str) -> PathBuf {
+    let stem = out
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "render".into());
+    out.with_file_name(format!("{stem}{suffix}.{ext}"))
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    let s = settings_from(&a)?;
+    let scene = Scene::build(&s.strand);
+    println!(
+        "scene: {} fibers, {} segments; {}x{} at {} spp, mode {}",
+        s.strand.fibers,
+        scene.bvh.segments().len(),
+        s.width,
+        s.height,
+        s.spp,
+        s.mode.name()
+    );
+    let jobs: Vec<(String, FurParams)> = if a.all {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&a.fits_dir)
+            .with_context(|| format!("reading {}", a.fits_dir.display()))?
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| p.extension().is_some_and(|e| e == "json"))
+            .collect();
+        files.sort();
+        if files.is_empty() {
+            bail!("{}: no *.json fit files", a.fits_dir.display());
+        }
+        files
+            .iter()
+            .map(|f| {
+                let (p, _) = FurParams::load(&f.to_string_lossy())?;
+                let name = f.file_stem().unwrap().to_string_lossy().into_owned();
+                Ok((name, p))
+            })
+            .collect::<anyhow::Result<_>>()?
+    } else {
+        let spec = a
+            .fit
+            .clone()
+            .or(a.params.clone())
+            .context("give --fit FILE, --params FILE|PRESET or --all")?;
+        // The fit's exposure k is a measurement scale, not a light level: not used here.
+        let (p, _) = FurParams::load(&spec)?;
+        let name = Path::new(&spec)
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or(spec.clone());
+        vec![(name, p)]
+    };
+    let mut tiles = Vec::new();
+    for (name, p) in &jobs {
+        let r = render_scene(&scene, p, &s)?;
+        println!(
+            "{name}: {:.2} s, {} rays, {:.3} Mrays/s",
+            r.seconds,
+            r.rays,
+            r.rays_per_second() / 1e6
+        );
+        let out = if a.all {
+            a.out.with_file_name(format!("{name}.png"))
+        } else {
+            a.out.clone()
+        };
+        output::write_png(&r.beauty, a.exposure, &out)?;
+        output::write_exr(&r.beauty, &with_suffix(&out, "", "exr"))?;
+        println!("wrote {} (+ .exr)", out.display());
+        if !a.no_aovs {
+            for l in Lobe::ALL {
+                if s.lobes.contains(l) {
+                    let img = &r.lobes[l.index()];
+                    output::write_png(
+                        img,
+                        a.exposure,
+                        &with_suffix(&out, &format!("_{}", l.name()), "png"),
+                    )?;
+                }
+            }
+            println!(
+                "wrote per-lobe AOVs {}",
+                with_suffix(&out, "_<lobe>", "png").display()
+            );
+        }
+        tiles.push((name.clone(), r.beauty));
+    }
+    if a.all {
+        output::write_contact_sheet(&tiles, a.exposure, &a.out)?;
+        println!("wrote contact sheet {}", a.out.display());
+    }
+    Ok(())
+}

@@ -1,0 +1,507 @@
+//! The fiber BCSDF as the renderer uses it: evaluation in RGB, importance sampling and the
+//! exact pdf of that sampling. All physics comes from [`crate::model`]; this file only
+//! arranges the model's terms (M_p, A_p, D_p) for light transport.
+//!
+//! # Frame and arguments
+//! At a hit the fiber tangent `u` (root to tip) and the direction toward the camera `w_o`
+//! define the local frame `(v, w, u)`, right-handed, `v` = `w_o` projected on the normal
+//! plane, so `phi_o = 0`. A direction has `theta = asin(d . u)` (out of the normal plane)
+//! and `phi = atan2(d . w, d . v)`, MODEL.md's conventions.
+//!
+//! The model describes light entering the fiber at offset `h` from direction `theta_i`.
+//! A camera ray that hits the fiber at offset `h_o` (see [`super::bvh`]) follows the same
+//! internal path as light entering there from the camera side (reciprocity of the ray
+//! paths), so the renderer queries the model with the **camera side as the model's
+//! incident side**: model `theta_i := theta_o`, model `theta_r := theta_light`,
+//! `phi := phi_light - phi_o`, `h := h_o`.
+//!
+//! # Units: the renderer's BCSDF
+//! Seed Eq. 1 gives `L_o = ∫ L_i S cos(theta_i) dw_i` with `cos(theta_i)` the fiber's
+//! projected width toward the light and, by seed Eq. 12, `S = sum_p M_p N_p / cos^2 theta_i`.
+//! Hence per unit solid angle the integrand is
+//! `f cos = sum_p M_p N_p / cos theta_i`, and in the `(theta, phi)` measure
+//! (`dw = cos theta dtheta dphi`) it is just `sum_p M_p N_p`, the value a goniometer
+//! measures (MODEL.md). Consequences used throughout:
+//! * a directional light of irradiance `E` contributes `E * sum M N / cos theta_l`;
+//! * a sampled direction has weight `f cos / pdf_w = sum M N / pdf_(theta,phi)` (the cosine
+//!   cancels exactly);
+//! * the albedo is `∫∫ sum M_p N_p dtheta dphi`, equal to `sum_p A_p` times the part of
+//!   each `M_p` inside `[-90°, 90°]` when `A_p` does not vary with `theta_d` — the white
+//!   furnace test checks `<= 1` and `≈ A_0 + A_1 + A_2`.
+//!
+//! `cos theta_light` is floored at [`MIN_COS`] (a light exactly along the fiber).
+//!
+//! # Sampling (seed Sec. 6)
+//! 1. `h`: near field uses the hit's `h`; far field / multi-scale draw `h` uniformly in
+//!    `[h1, h2]`.
+//! 2. Lobe `l` with probability ∝ its energy at the camera side's specular `theta_d`
+//!    (`theta_d = -theta_o`): `A_l(h) * (mass of M_l inside the domain)` for R/TT/TRT,
+//!    `A^s_l(h) * C^N scattered fraction` for TTs/TRTs, averaged over RGB. The
+//!    probabilities depend only on `(theta_o, h)`, so the mixture pdf below is exact.
+//! 3. Unscattered lobes: `theta` from `M_l` (a Gaussian) **truncated to [-90°, 90°]** by
+//!    inverse-CDF sampling (pdf = Gaussian / in-domain mass; when that mass is < 1e-10 the
+//!    lobe falls back to uniform `theta`, pdf `1/pi`); then `phi` from the wrapped Gaussian
+//!    `D_l` about `Phi_l(h)` at the sampled `theta_d` (pdf = the model's `D_l` exactly).
+//!    Scattered lobes: `phi` uniform, `theta` cosine (`sin theta` uniform), i.e. uniform on
+//!    the sphere, as the seed does. (The real tables now offer `MedullaSlice::sample_cn` /
+//!    `sample_cm` with exact pdfs; switching the scattered lobes to them is future work.)
+//! 4. pdf: the full mixture `sum_l P_l pdf_l(theta, phi | h)` in the `(theta, phi)` measure.
+//!
+//! For far field and multi-scale the marginal over `h` has no closed form. The renderer
+//! therefore treats `h` as one more sampled dimension: the continuation weight is
+//! `sum M N(h) / pdf(theta, phi | h)` (near field at the sampled `h` over its exact
+//! conditional pdf). With `h` uniform on `[h1, h2]` the pair `(h, direction)` has density
+//! `pdf(direction | h) / (h2 - h1)` and the far/multi-scale value is the `h`-average of the
+//! near field (seed Eq. 26), so this weight is an unbiased estimate of the far/multi-scale
+//! integrand over its sampling density.
+//! MIS weights against environment sampling only need to sum to one per direction, so
+//! they use [`FiberBsdf::pdf_mis`], a deterministic 4-point midpoint average of the
+//! conditional pdf over `[h1, h2]`; the light and environment estimators evaluate the
+//! analytic far/multi-scale BCSDF (the point of the far field: no noise from `h`).
+
+use super::math::{Rgb, V3};
+use crate::model::azimuthal::{medulla_offset, wrap_angle, wrapped_gaussian};
+use crate::model::far::FarOptions;
+use crate::model::{geometry, longitudinal, FurModel, Lobe, LobeSet};
+use crate::params::FurParams;
+use std::f64::consts::{FRAC_PI_2, PI, SQRT_2};
+
+/// Floor for `cos theta` of a light direction.
+pub const MIN_COS: f64 = 1e-3;
+
+/// Truncated-Gaussian mass below which a lobe samples `theta` uniformly instead.
+const MIN_MASS: f64 = 1e-10;
+
+/// Which scale of the model a shading query uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    Near,
+    Far,
+    Multiscale,
+}
+
+impl Mode {
+    pub fn parse(s: &str) -> crate::Result<Mode> {
+        match s.to_ascii_lowercase().as_str() {
+            "near" => Ok(Mode::Near),
+            "far" => Ok(Mode::Far),
+            "multiscale" | "multi-scale" | "ms" => Ok(Mode::Multiscale),
+            _ => Err(crate::Error::Invalid(format!(
+                "unknown mode '{s}' (expected near, far or multiscale)"
+            ))),
+        }
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            Mode::Near => "near",
+            Mode::Far => "far",
+            Mode::Multiscale => "multiscale",
+        }
+    }
+}
+
+/// The azimuthal offsets one shading query covers.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum HRange {
+    /// Near field at one offset.
+    At(f64),
+    /// Multi-scale over `[h1, h2]` (seed Eq. 26); `Span(-1, 1)` is the far field (Eq. 22).
+    Span(f64, f64),
+}
+
+impl HRange {
+    /// Multi-scale range for a hit at `h` with pixel coverage `c` (seed Eq. 27, in units of
+    /// `h`): `[h - c/2, h + c/2]` clamped to [-1, 1]; a width below 1e-6 is the near field.
+    pub fn footprint(h: f64, c: f64) -> HRange {
+        let (h1, h2) = ((h - 0.5 * c).max(-1.0), (h + 0.5 * c).min(1.0));
+        if h2 - h1 < 1e-6 {
+            HRange::At(h)
+        } else {
+            HRange::Span(h1, h2)
+        }
+    }
+}
+
+/// Per-lobe, per-channel values (`[lobe][channel]`).
+pub type LobeRgb = [[f64; 3]; 5];
+
+pub fn lobe_sum(v: &LobeRgb) -> Rgb {
+    let mut s = [0.0; 3];
+    for l in v {
+        for c in 0..3 {
+            s[c] += l[c];
+        }
+    }
+    s
+}
+
+/// Per-channel absorption ratios applied to `sigma_c_a` and `sigma_m_a` (scattering,
+/// geometry and roughness are shared by the channels).
+///
+/// The default is a eumelanin-like tint: the relative eumelanin absorption at R, G, B of
+/// d'Eon et al. 2011 / Chiang et al. 2016 (`0.419 : 0.697 : 1.37`), normalised so the
+/// green channel keeps the fitted value. A fit made per channel should pass its own ratios.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tint(pub [f64; 3]);
+
+impl Default for Tint {
+    fn default() -> Self {
+        Tint([0.419 / 0.697, 1.0, 1.37 / 0.697])
+    }
+}
+
+impl Tint {
+    pub const GREY: Tint = Tint([1.0, 1.0, 1.0]);
+}
+
+/// A sampled light-side direction.
+#[derive(Clone, Copy, Debug)]
+pub struct BsdfSample {
+    pub theta: f64,
+    pub phi: f64,
+    /// The offset the sample was drawn at.
+    pub h: f64,
+    pub lobe: Lobe,
+    /// `sum M N` per lobe at the sampled `h` over the conditional pdf: the per-lobe parts
+    /// of the sample weight `f cos / pdf_w`.
+    pub weight: LobeRgb,
+    /// Conditional pdf in the `(theta, phi)` measure.
+    pub pdf: f64,
+}
+
+/// Lobe probabilities and truncated-`M` parameters at one (`theta_o`, `h`).
+struct Prep {
+    probs: [f64; 5],
+    mu: [f64; 5],
+    s: [f64; 5],
+    mass: [f64; 5],
+}
+
+/// RGB fiber BCSDF of one parameter set.
+#[derive(Clone, Debug)]
+pub struct FiberBsdf {
+    models: [FurModel; 3],
+    lobes: LobeSet,
+    /// Options of the far field / multi-scale integration (culling, tolerance).
+    pub far_opts: FarOptions,
+}
+
+/// Mass of the normal (`mu`, `s`) inside [-pi/2, pi/2]. The problem is reflected so the
+/// centre is <= 0, which keeps the erfc tails precise.
+#[inline]
+fn trunc_mass(mu: f64, s: f64) -> f64 {
+    let m = -mu.abs();
+    let q = |x: f64| 0.5 * puruspe::erfc((x - m) / (s * SQRT_2));
+    q(-FRAC_PI_2) - q(FRAC_PI_2)
+}
+
+fn trunc_sample(mu: f64, s: f64, u: f64) -> f64 {
+    let sign = if mu > 0.0 { -1.0 } else { 1.0 };
+    let m = -mu.abs();
+    let q = |x: f64| 0.5 * puruspe::erfc((x - m) / (s * SQRT_2));
+    let (qa, qb) = (q(-FRAC_PI_2), q(FRAC_PI_2));
+    let qq = qa - u * (qa - qb);
+    let x = m + s * SQRT_2 * puruspe::inverfc(2.0 * qq);
+    sign * x.clamp(-FRAC_PI_2, FRAC_PI_2)
+}
+
+impl FiberBsdf {
+    pub fn new(params: &FurParams, tint: Tint, lobes: LobeSet) -> FiberBsdf {
+        let models = [0, 1, 2].map(|c| {
+            let mut p = *params;
+            p.sigma_c_a *= tint.0[c];
+            p.sigma_m_a *= tint.0[c];
+            FurModel::new(&p)
+        });
+        let lobes = lobes.intersect(models[0].active_lobes());
+        FiberBsdf {
+            models,
+            lobes,
+            far_opts: FarOptions::default(),
+        }
+    }
+
+    /// The lobes this BCSDF evaluates (requested ∩ active: scattered lobes are left out
+    /// when `kappa = 0` or `sigma_m_s = 0`).
+    pub fn lobes(&self) -> LobeSet {
+        self.lobes
+    }
+
+    pub fn model(&self, c: usize) -> &FurModel {
+        &self.models[c]
+    }
+
+    /// `M_p N_p` per lobe and channel for camera-side `theta_o` and light-side
+    /// (`theta`, `phi`) (see module doc for the argument mapping).
+    pub fn eval(&self, theta_o: f64, theta: f64, phi: f64, hr: HRange) -> LobeRgb {
+        match hr {
+            HRange::At(h) => self.eval_near(theta_o, theta, phi, h),
+            HRange::Span(h1, h2) => self.eval_span(theta_o, theta, phi, h1, h2),
+        }
+    }
+
+    /// Near field: the model's `M_p` and `D_p` once, `A_p` per channel.
+    pub fn eval_near(&self, theta_o: f64, theta: f64, phi: f64, h: f64) -> LobeRgb {
+        let m0 = &self.models[0];
+        let m = m0.longitudinal(theta_o, theta, phi, self.lobes);
+        let td = geometry::theta_d(theta_o, theta);
+        let s0 = m0.azimuthal(td);
+        let geo = s0.geometry(h);
+        let mut out = [[0.0; 3]; 5];
+        let mut md = [0.0; 5];
+        for l in self.lobes.iter() {
+            let ml = m.get(l);
+            if ml != 0.0 {
+                md[l.index()] = ml * s0.distribution(l, &geo, phi);
+            }
+        }
+        for c in 0..3 {
+            let a = self.models[c].azimuthal(td).attenuation(&geo, self.lobes);
+            for l in self.lobes.iter() {
+                out[l.index()][c] = a.get(l) * md[l.index()];
+            }
+        }
+        out
+    }
+
+    /// Far field / multi-scale: `M_p` times the model's `N_p` averaged over `[h1, h2]`
+    /// (seed Eqs. 22, 26; [`crate::model::AzimuthalSlice::far`] for `[-1, 1]`,
+    /// [`crate::model::AzimuthalSlice::multiscale`] otherwise), per channel.
+    pub fn eval_span(&self, theta_o: f64, theta: f64, phi: f64, h1: f64, h2: f64) -> LobeRgb {
+        let m = self.models[0].longitudinal(theta_o, theta, phi, self.lobes);
+        let td = geometry::theta_d(theta_o, theta);
+        let full = h1 <= -1.0 && h2 >= 1.0;
+        let mut out = [[0.0; 3]; 5];
+        for c in 0..3 {
+            let slice = self.models[c].azimuthal(td);
+            let n = if full {
+                slice.far(phi, self.lobes, &self.far_opts)
+            } else {
+                slice.multiscale(phi, h1, h2, self.lobes, &self.far_opts)
+            };
+            for l in self.lobes.iter() {
+                out[l.index()][c] = m.get(l) * n.get(l);
+            }
+        }
+        out
+    }
+
+    /// Lobe selection probabilities at (`theta_o`, `h`) (module doc, step 2).
+    pub fn lobe_probs(&self, theta_o: f64, h: f64) -> [f64; 5] {
+        self.prepare(theta_o, h).probs
+    }
+
+    /// Everything the sampler and its pdf need that depends on (`theta_o`, `h`) only.
+    fn prepare(&self, theta_o: f64, h: f64) -> Prep {
+        let mut pr = Prep {
+            probs: [0.0; 5],
+            mu: [0.0; 5],
+            s: [1.0; 5],
+            mass: [0.0; 5],
+        };
+        let geo = self.models[0].azimuthal(-theta_o).geometry(h);
+        let mut w = [0.0; 5];
+        for c in 0..3 {
+            let a = self.models[c]
+                .azimuthal(-theta_o)
+                .attenuation(&geo, self.lobes);
+            for l in self.lobes.iter() {
+                w[l.index()] += a.get(l) / 3.0;
+            }
+        }
+        let p = &self.models[0].params;
+        for l in self.lobes.iter() {
+            let i = l.index();
+            if l.is_scattered() {
+                let frac = self.models[0]
+                    .medulla()
+                    .map_or(0.0, |m| m.scattered_fraction(medulla_offset(&geo, p.kappa)));
+                w[i] *= frac;
+            } else {
+                let (mu, s) = self.m_params(l, theta_o);
+                let mass = trunc_mass(mu, s);
+                pr.mu[i] = mu;
+                pr.s[i] = s;
+                pr.mass[i] = mass;
+                w[i] *= mass.max(MIN_MASS);
+            }
+        }
+        let sum: f64 = w.iter().sum();
+        if sum > 0.0 {
+            pr.probs = w.map(|x| x / sum);
+        }
+        pr
+    }
+
+    /// Centre and width of the truncated Gaussian `M_l` for camera side `theta_o`.
+    fn m_params(&self, l: Lobe, theta_o: f64) -> (f64, f64) {
+        let p = &self.models[0].params;
+        let (a, b) = longitudinal::shift_width(l.p(), p.alpha, p.beta_m);
+        (-theta_o + a, b)
+    }
+
+    /// Mixture pdf with prepared lobe data, `(theta, phi)` measure.
+    fn pdf_prepared(&self, pr: &Prep, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
+        let slice = self.models[0].azimuthal(geometry::theta_d(theta_o, theta));
+        let geo = slice.geometry(h);
+        let beta_n = self.models[0].params.beta_n;
+        let mut pdf = 0.0;
+        for l in self.lobes.iter() {
+            let i = l.index();
+            if pr.probs[i] <= 0.0 {
+                continue;
+            }
+            let v = if l.is_scattered() {
+                theta.cos().max(0.0) / (4.0 * PI)
+            } else {
+                let pt = if pr.mass[i] < MIN_MASS {
+                    1.0 / PI
+                } else {
+                    longitudinal::gaussian(theta, pr.mu[i], pr.s[i]) / pr.mass[i]
+                };
+                pt * wrapped_gaussian(
+                    slice.center(l, &geo) - phi,
+                    crate::model::azimuthal::beta_p(l.p(), beta_n),
+                )
+            };
+            pdf += pr.probs[i] * v;
+        }
+        pdf
+    }
+
+    /// Mixture pdf conditional on `h`, `(theta, phi)` measure: `sum_l P_l pdf_l`, with
+    /// `pdf_l` the truncated `M_l` times the wrapped Gaussian `D_l` (unscattered) or
+    /// `cos(theta) / (4 pi)` (scattered).
+    pub fn pdf_at(&self, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
+        let pr = self.prepare(theta_o, h);
+        self.pdf_prepared(&pr, theta_o, theta, phi, h)
+    }
+
+    /// pdf used for MIS weights: exact for the near field; for a span, the 4-point
+    /// midpoint average of [`Self::pdf_at`] (any deterministic function of the direction
+    /// keeps MIS unbiased; see module doc).
+    pub fn pdf_mis(&self, theta_o: f64, theta: f64, phi: f64, hr: HRange) -> f64 {
+        match hr {
+            HRange::At(h) => self.pdf_at(theta_o, theta, phi, h),
+            HRange::Span(h1, h2) => {
+                const K: usize = 4;
+                (0..K)
+                    .map(|k| {
+                        let h = h1 + (k as f64 + 0.5) / K as f64 * (h2 - h1);
+                        self.pdf_at(theta_o, theta, phi, h)
+                    })
+                    .sum::<f64>()
+                    / K as f64
+            }
+        }
+    }
+
+    /// Draw a light-side direction with four uniforms (module doc). `None` when no lobe
+    /// carries energy.
+    pub fn sample(&self, theta_o: f64, hr: HRange, u: [f64; 4]) -> Option<BsdfSample> {
+        let (h, u1) = match hr {
+            HRange::At(h) => (h, u[0]),
+            HRange::Span(h1, h2) => (h1 + u[0] * (h2 - h1), u[1]),
+        };
+        // In span mode u[1] picks the lobe; in near mode u[0] does and u[1] is free.
+        let pr = self.prepare(theta_o, h);
+        let probs = pr.probs;
+        let mut acc = 0.0;
+        let mut lobe = None;
+        for l in self.lobes.iter() {
+            acc += probs[l.index()];
+            if probs[l.index()] > 0.0 && u1 < acc {
+                lobe = Some(l);
+                break;
+            }
+        }
+        let lobe = match lobe {
+            Some(l) => l,
+            None => self
+                .lobes
+                .iter()
+                .filter(|l| probs[l.index()] > 0.0)
+                .last()?,
+        };
+        let (theta, phi) = if lobe.is_scattered() {
+            (
+                (2.0 * u[2] - 1.0).clamp(-1.0, 1.0).asin(),
+                PI * (2.0 * u[3] - 1.0),
+            )
+        } else {
+            let i = lobe.index();
+            let theta = if pr.mass[i] < MIN_MASS {
+                PI * (u[2] - 0.5)
+            } else {
+                trunc_sample(pr.mu[i], pr.s[i], u[2])
+            };
+            let slice = self.models[0].azimuthal(geometry::theta_d(theta_o, theta));
+            let geo = slice.geometry(h);
+            let sigma = crate::model::azimuthal::beta_p(lobe.p(), self.models[0].params.beta_n);
+            let z = SQRT_2 * puruspe::inverf((2.0 * u[3] - 1.0).clamp(-1.0 + 1e-16, 1.0 - 1e-16));
+            (theta, wrap_angle(slice.center(lobe, &geo) + sigma * z))
+        };
+        let pdf = self.pdf_prepared(&pr, theta_o, theta, phi, h);
+        if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
+            return None;
+        }
+        let mut weight = self.eval_near(theta_o, theta, phi, h);
+        for l in weight.iter_mut() {
+            for c in l.iter_mut() {
+                *c /= pdf;
+            }
+        }
+        Some(BsdfSample {
+            theta,
+            phi,
+            h,
+            lobe,
+            weight,
+            pdf,
+        })
+    }
+}
+
+/// Local shading frame at a hit (module doc): `v` along the camera-side direction's
+/// normal-plane projection, `w = u x v`.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub u: V3,
+    pub v: V3,
+    pub w: V3,
+}
+
+impl Frame {
+    pub fn new(u: V3, wo: V3) -> Frame {
+        let mut v = wo - u * wo.dot(u);
+        if v.length() < 1e-9 {
+            // Looking along the fiber: any normal-plane direction.
+            let a = if u.x.abs() < 0.9 {
+                V3::new(1.0, 0.0, 0.0)
+            } else {
+                V3::new(0.0, 1.0, 0.0)
+            };
+            v = a - u * a.dot(u);
+        }
+        let v = v.normalized();
+        Frame {
+            u,
+            v,
+            w: u.cross(v),
+        }
+    }
+
+    /// `(theta, phi)` of a unit world direction.
+    pub fn to_local(&self, d: V3) -> (f64, f64) {
+        (
+            d.dot(self.u).clamp(-1.0, 1.0).asin(),
+            d.dot(self.w).atan2(d.dot(self.v)),
+        )
+    }
+
+    pub fn to_world(&self, theta: f64, phi: f64) -> V3 {
+        let (st, ct) = theta.sin_cos();
+        let (sp, cp) = phi.sin_cos();
+        self.v * (ct * cp) + self.w * (ct * sp) + self.u * st
+    }
+}

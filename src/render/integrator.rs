@@ -1,0 +1,244 @@
+//! Path tracing with multiple scattering between fibers: next-event estimation to the
+//! directional light (a delta light: no MIS) and to the environment (uniform sphere
+//! sampling, MIS with BCSDF sampling by the power heuristic), Russian roulette after the
+//! third vertex, per-lobe AOVs split at the first fiber vertex.
+//!
+//! Pixel footprint (seed Eq. 27): each ray carries a cone, width `w0 + t * spread`.
+//! Primary rays start with `w0 = 0` and `spread` = one pixel's angle, and the coverage is
+//! `C_fiber = (w_camera . w_lookat) * width / r_fiber` (the seed replaces `w_fiber` by the
+//! camera ray, as we do). After a fiber scattering the lobes are tens of degrees wide, so
+//! secondary rays get `spread = secondary_spread` (1 rad by default) and in practice see the
+//! far field. `footprint_scale` multiplies every coverage (0 = near field everywhere,
+//! huge = far field everywhere) for tests and studies.
+
+use super::bsdf::{lobe_sum, FiberBsdf, Frame, HRange, LobeRgb, Mode, MIN_COS};
+use super::bvh::Bvh;
+use super::math::{luminance, Rgb, V3};
+use super::scene::{Camera, DirectionalLight, Environment};
+use rand::Rng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+use std::f64::consts::PI;
+
+/// Everything a path needs, borrowed.
+pub struct Integrator<'a> {
+    pub bvh: &'a Bvh,
+    pub bsdf: &'a FiberBsdf,
+    pub camera: &'a Camera,
+    pub light: Option<DirectionalLight>,
+    pub env: Environment,
+    pub mode: Mode,
+    pub max_depth: usize,
+    pub footprint_scale: f64,
+    pub secondary_spread: f64,
+}
+
+/// Radiance of one camera path, split into beauty and per-lobe AOVs.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PathResult {
+    pub beauty: Rgb,
+    pub lobes: [Rgb; 5],
+    /// Rays traced (closest-hit and shadow).
+    pub rays: u64,
+}
+
+fn power_heuristic(a: f64, b: f64) -> f64 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 > 0.0 {
+        a2 / (a2 + b2)
+    } else {
+        0.0
+    }
+}
+
+/// Where the last BCSDF sample came from, to compute its MIS pdf lazily on an env hit.
+struct PrevSample {
+    theta_o: f64,
+    theta: f64,
+    phi: f64,
+    hr: HRange,
+}
+
+impl Integrator<'_> {
+    fn hrange(&self, h: f64, width: f64, radius: f64, cos_look: f64) -> HRange {
+        match self.mode {
+            Mode::Near => HRange::At(h),
+            Mode::Far => HRange::Span(-1.0, 1.0),
+            Mode::Multiscale => {
+                HRange::footprint(h, self.footprint_scale * cos_look * width / radius)
+            }
+        }
+    }
+
+    /// Trace one path through image position (`px`, `py`).
+    pub fn trace(&self, px: f64, py: f64, rng: &mut Xoshiro256PlusPlus) -> PathResult {
+        let mut res = PathResult::default();
+        let cam = self.camera;
+        let mut dir = cam.ray_dir(px, py);
+        let cos_look = dir.dot(cam.forward);
+        let mut origin = cam.eye;
+        let mut thr: Rgb = [1.0; 3];
+        let mut split: Option<[f64; 5]> = None;
+        let mut prev: Option<PrevSample> = None;
+        let mut skip = None;
+        let (mut w0, mut spread) = (0.0, cam.pixel_angle());
+        let env_on = !self.env.is_black();
+        let p_env = 1.0 / (4.0 * PI);
+
+        for depth in 0..self.max_depth {
+            res.rays += 1;
+            let hit = match self.bvh.intersect(origin, dir, 0.0, f64::INFINITY, skip) {
+                Some(h) => h,
+                None => {
+                    let le = self.env.radiance(dir);
+                    let w = match &prev {
+                        None => 1.0,
+                        Some(s) => {
+                            let cos = s.theta.cos().max(MIN_COS);
+                            let pb = self.bsdf.pdf_mis(s.theta_o, s.theta, s.phi, s.hr) / cos;
+                            power_heuristic(pb, p_env)
+                        }
+                    };
+                    let c = [0, 1, 2].map(|i| thr[i] * le[i] * w);
+                    self.add(&mut res, depth, split.as_ref(), c);
+                    break;
+                }
+            };
+            let wo = -dir;
+            let frame = Frame::new(hit.u, wo);
+            let theta_o = frame.to_local(wo).0;
+            let width = w0 + hit.t * spread;
+            let hr = self.hrange(
+                hit.h,
+                width,
+                hit.radius,
+                if depth == 0 { cos_look } else { 1.0 },
+            );
+            let skip_me = Some(hit.fiber);
+
+            // Next-event estimation: directional light.
+            if let Some(light) = &self.light {
+                res.rays += 1;
+                if !self
+                    .bvh
+                    .occluded(hit.p, light.dir, 0.0, f64::INFINITY, skip_me)
+                {
+                    let (tl, pl) = frame.to_local(light.dir);
+                    let mn = self.bsdf.eval(theta_o, tl, pl, hr);
+                    let k = 1.0 / tl.cos().max(MIN_COS);
+                    let e = [0, 1, 2].map(|c| light.irradiance[c] * thr[c] * k);
+                    self.add_lobes(&mut res, depth, split.as_ref(), &mn, e);
+                }
+            }
+            // Next-event estimation: environment, MIS with BCSDF sampling.
+            if env_on {
+                let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+                let z = 1.0 - 2.0 * u1;
+                let r = (1.0 - z * z).max(0.0).sqrt();
+                let a = 2.0 * PI * u2;
+                let ld = V3::new(r * a.cos(), z, r * a.sin());
+                res.rays += 1;
+                if !self.bvh.occluded(hit.p, ld, 0.0, f64::INFINITY, skip_me) {
+                    let (tl, pl) = frame.to_local(ld);
+                    let mn = self.bsdf.eval(theta_o, tl, pl, hr);
+                    if lobe_sum(&mn).iter().any(|v| *v > 0.0) {
+                        let cos = tl.cos().max(MIN_COS);
+                        let pb = self.bsdf.pdf_mis(theta_o, tl, pl, hr) / cos;
+                        let w = power_heuristic(p_env, pb);
+                        let le = self.env.radiance(ld);
+                        let e = [0, 1, 2].map(|c| le[c] * thr[c] * w / (cos * p_env));
+                        self.add_lobes(&mut res, depth, split.as_ref(), &mn, e);
+                    }
+                }
+            }
+
+            // Continue the path by sampling the BCSDF.
+            let u = [rng.random(), rng.random(), rng.random(), rng.random()];
+            let s = match self.bsdf.sample(theta_o, hr, u) {
+                Some(s) => s,
+                None => break,
+            };
+            let wsum = lobe_sum(&s.weight);
+            if depth == 0 {
+                let tot = luminance(wsum);
+                if tot > 0.0 {
+                    split = Some([0, 1, 2, 3, 4].map(|l| luminance(s.weight[l]) / tot));
+                }
+            }
+            for c in 0..3 {
+                thr[c] *= wsum[c];
+            }
+            let m = thr[0].max(thr[1]).max(thr[2]);
+            if m.is_nan() || m <= 0.0 || !m.is_finite() {
+                break;
+            }
+            if depth >= 2 {
+                let q = m.min(0.95);
+                if rng.random::<f64>() >= q {
+                    break;
+                }
+                for t in thr.iter_mut() {
+                    *t /= q;
+                }
+            }
+            dir = frame.to_world(s.theta, s.phi).normalized();
+            origin = hit.p;
+            skip = skip_me;
+            prev = Some(PrevSample {
+                theta_o,
+                theta: s.theta,
+                phi: s.phi,
+                hr,
+            });
+            w0 = width;
+            spread = self.secondary_spread;
+        }
+        res
+    }
+
+    /// Add a per-lobe contribution `mn[l] * scale`.
+    fn add_lobes(
+        &self,
+        res: &mut PathResult,
+        depth: usize,
+        split: Option<&[f64; 5]>,
+        mn: &LobeRgb,
+        scale: Rgb,
+    ) {
+        let mut tot = [0.0; 3];
+        for l in 0..5 {
+            for c in 0..3 {
+                let v = mn[l][c] * scale[c];
+                tot[c] += v;
+                if depth == 0 {
+                    res.lobes[l][c] += v;
+                }
+            }
+        }
+        for c in 0..3 {
+            res.beauty[c] += tot[c];
+        }
+        if depth > 0 {
+            self.split_add(res, split, tot);
+        }
+    }
+
+    /// Add radiance reaching the camera; `depth == 0` with no fiber is background.
+    fn add(&self, res: &mut PathResult, depth: usize, split: Option<&[f64; 5]>, c: Rgb) {
+        for i in 0..3 {
+            res.beauty[i] += c[i];
+        }
+        if depth > 0 {
+            self.split_add(res, split, c);
+        }
+    }
+
+    fn split_add(&self, res: &mut PathResult, split: Option<&[f64; 5]>, c: Rgb) {
+        if let Some(f) = split {
+            for l in 0..5 {
+                for i in 0..3 {
+                    res.lobes[l][i] += f[l] * c[i];
+                }
+            }
+        }
+    }
+}

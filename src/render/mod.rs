@@ -1,0 +1,305 @@
+//! `furfit render`: a small CPU path tracer that previews fitted fur on a built-in lock of
+//! curved fibers, with the near-field, far-field or multi-scale BCSDF of [`crate::model`].
+//!
+//! * [`scene`]: the procedural lock, camera, lights;
+//! * [`bvh`]: BVH over fiber segments, ray vs camera-facing ribbon, offset `h`;
+//! * [`bsdf`]: the renderer's BCSDF (units, frame, importance sampling, exact pdfs);
+//! * [`integrator`]: path tracing with NEE + MIS, Russian roulette, pixel footprint;
+//! * [`output`]: tone mapping, PNG/EXR/AOV writing, contact sheets;
+//! * [`study`]: convergence and culling studies.
+//!
+//! Determinism: every pixel has its own RNG seeded from (`seed`, pixel index), so an image
+//! depends on the seed only, not on the number of threads.
+
+// Per-channel / per-lobe loops over fixed [_; 3] and [_; 5] arrays index several arrays at
+// once, as the formulas do; iterator chains would obscure them.
+#![allow(clippy::needless_range_loop)]
+
+pub mod bsdf;
+pub mod bvh;
+pub mod integrator;
+pub mod math;
+pub mod output;
+pub mod scene;
+pub mod study;
+
+#[cfg(test)]
+mod bsdf_tests;
+
+use crate::model::LobeSet;
+use crate::params::FurParams;
+use bsdf::{FiberBsdf, Mode, Tint};
+use bvh::Bvh;
+use integrator::Integrator;
+use math::{Rgb, V3};
+use rand::SeedableRng;
+use rand_xoshiro::Xoshiro256PlusPlus;
+use rayon::prelude::*;
+use scene::{Camera, DirectionalLight, Environment, StrandSpec};
+use std::time::Instant;
+
+/// A linear RGB image, row-major, top row first.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image {
+    pub width: usize,
+    pub height: usize,
+    pub data: Vec<Rgb>,
+}
+
+impl Image {
+    pub fn new(width: usize, height: usize) -> Image {
+        Image {
+            width,
+            height,
+            data: vec![[0.0; 3]; width * height],
+        }
+    }
+
+    /// Root-mean-square difference over all pixels and channels.
+    pub fn rmse(&self, other: &Image) -> f64 {
+        let n = (self.data.len() * 3).max(1) as f64;
+        let s: f64 = self
+            .data
+            .iter()
+            .zip(&other.data)
+            .flat_map(|(a, b)| (0..3).map(move |c| (a[c] - b[c]).powi(2)))
+            .sum();
+        (s / n).sqrt()
+    }
+
+    pub fn max_value(&self) -> f64 {
+        self.data
+            .iter()
+            .flat_map(|p| p.iter().copied())
+            .fold(0.0, f64::max)
+    }
+}
+
+/// Camera placement (degrees for angles).
+#[derive(Clone, Debug)]
+pub struct CameraSpec {
+    pub dist: f64,
+    pub elev_deg: f64,
+    pub azim_deg: f64,
+    pub fov_deg: f64,
+}
+
+impl Default for CameraSpec {
+    fn default() -> Self {
+        CameraSpec {
+            dist: 3.0,
+            elev_deg: 10.0,
+            azim_deg: 0.0,
+            fov_deg: 26.0,
+        }
+    }
+}
+
+/// Everything that defines one render.
+#[derive(Clone, Debug)]
+pub struct RenderSettings {
+    pub width: usize,
+    pub height: usize,
+    pub spp: usize,
+    pub seed: u64,
+    /// Worker threads (0 = rayon's default).
+    pub threads: usize,
+    pub mode: Mode,
+    pub lobes: LobeSet,
+    pub max_depth: usize,
+    pub footprint_scale: f64,
+    pub secondary_spread: f64,
+    pub camera: CameraSpec,
+    pub light: Option<DirectionalLight>,
+    pub env: Environment,
+    pub strand: StrandSpec,
+    pub tint: Tint,
+    /// Render only this window `(x0, y0, w, h)` of the full frame.
+    pub region: Option<(usize, usize, usize, usize)>,
+    /// Cull far-field / multi-scale segments that cannot reach the queried azimuth
+    /// (`FarOptions::cull`).
+    pub far_cull: bool,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        RenderSettings {
+            width: 512,
+            height: 512,
+            spp: 64,
+            seed: 1,
+            threads: 0,
+            mode: Mode::Multiscale,
+            lobes: LobeSet::ALL,
+            max_depth: 16,
+            footprint_scale: 1.0,
+            secondary_spread: 1.0,
+            camera: CameraSpec::default(),
+            light: Some(DirectionalLight {
+                dir: V3::new(-0.5, 0.6, 0.62).normalized(),
+                irradiance: [2.5; 3],
+            }),
+            env: Environment {
+                top: [0.32, 0.34, 0.38],
+                bottom: [0.10, 0.10, 0.10],
+            },
+            strand: StrandSpec::default(),
+            tint: Tint::default(),
+            region: None,
+            far_cull: true,
+        }
+    }
+}
+
+/// A rendered frame: beauty, per-lobe AOVs (first fiber vertex) and statistics.
+#[derive(Clone, Debug)]
+pub struct RenderOutput {
+    pub beauty: Image,
+    /// Indexed by [`crate::model::Lobe::index`].
+    pub lobes: [Image; 5],
+    pub rays: u64,
+    pub seconds: f64,
+}
+
+impl RenderOutput {
+    pub fn rays_per_second(&self) -> f64 {
+        self.rays as f64 / self.seconds.max(1e-9)
+    }
+}
+
+/// Prepared scene (geometry is reused across renders of a study).
+pub struct Scene {
+    pub bvh: Bvh,
+}
+
+impl Scene {
+    pub fn build(strand: &StrandSpec) -> Scene {
+        Scene {
+            bvh: Bvh::build(scene::build_lock(strand)),
+        }
+    }
+}
+
+fn pixel_seed(seed: u64, index: u64) -> u64 {
+    // SplitMix64 finaliser of (seed, index).
+    let mut z = seed
+        .wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        .wrapping_add(index.wrapping_mul(0xBF58_476D_1CE4_E5B9))
+        .wrapping_add(0x94D0_49BB_1331_11EB);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
+}
+
+/// Render `params` with `settings` (builds the scene).
+pub fn render(params: &FurParams, settings: &RenderSettings) -> crate::Result<RenderOutput> {
+    let scene = Scene::build(&settings.strand);
+    render_scene(&scene, params, settings)
+}
+
+/// Render with a prepared scene.
+pub fn render_scene(
+    scene: &Scene,
+    params: &FurParams,
+    s: &RenderSettings,
+) -> crate::Result<RenderOutput> {
+    params.validate()?;
+    if s.width == 0 || s.height == 0 || s.spp == 0 {
+        return Err(crate::Error::Invalid(
+            "image size and spp must be positive".into(),
+        ));
+    }
+    let mut bsdf = FiberBsdf::new(params, s.tint, s.lobes);
+    bsdf.far_opts.cull = s.far_cull;
+    let camera = Camera::look_at(
+        V3::new(0.0, 0.0, 0.0),
+        s.camera.dist,
+        s.camera.elev_deg,
+        s.camera.azim_deg,
+        s.camera.fov_deg,
+        s.width,
+        s.height,
+    );
+    let integ = Integrator {
+        bvh: &scene.bvh,
+        bsdf: &bsdf,
+        camera: &camera,
+        light: s.light,
+        env: s.env,
+        mode: s.mode,
+        max_depth: s.max_depth,
+        footprint_scale: s.footprint_scale,
+        secondary_spread: s.secondary_spread,
+    };
+    let (x0, y0, w, h) = s.region.unwrap_or((0, 0, s.width, s.height));
+    if x0 + w > s.width || y0 + h > s.height || w == 0 || h == 0 {
+        return Err(crate::Error::Invalid(format!(
+            "region {x0},{y0} {w}x{h} is outside the {}x{} image",
+            s.width, s.height
+        )));
+    }
+    let start = Instant::now();
+    let work = || {
+        (0..h)
+            .into_par_iter()
+            .map(|j| {
+                let mut row = Vec::with_capacity(w);
+                let mut rays = 0u64;
+                for i in 0..w {
+                    let (px, py) = (x0 + i, y0 + j);
+                    let idx = (py * s.width + px) as u64;
+                    let mut rng = Xoshiro256PlusPlus::seed_from_u64(pixel_seed(s.seed, idx));
+                    let mut acc = integrator::PathResult::default();
+                    for _ in 0..s.spp {
+                        use rand::Rng;
+                        let (jx, jy): (f64, f64) = (rng.random(), rng.random());
+                        let r = integ.trace(px as f64 + jx, py as f64 + jy, &mut rng);
+                        for c in 0..3 {
+                            acc.beauty[c] += r.beauty[c];
+                            for l in 0..5 {
+                                acc.lobes[l][c] += r.lobes[l][c];
+                            }
+                        }
+                        rays += r.rays;
+                    }
+                    let k = 1.0 / s.spp as f64;
+                    acc.beauty = acc.beauty.map(|v| v * k);
+                    for l in acc.lobes.iter_mut() {
+                        *l = l.map(|v| v * k);
+                    }
+                    row.push(acc);
+                }
+                (row, rays)
+            })
+            .collect::<Vec<_>>()
+    };
+    let rows = if s.threads > 0 {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(s.threads)
+            .build()
+            .map_err(|e| crate::Error::Invalid(format!("thread pool: {e}")))?
+            .install(work)
+    } else {
+        work()
+    };
+    let seconds = start.elapsed().as_secs_f64();
+    let mut beauty = Image::new(w, h);
+    let mut lobes = std::array::from_fn(|_| Image::new(w, h));
+    let mut rays = 0;
+    for (j, (row, r)) in rows.into_iter().enumerate() {
+        rays += r;
+        for (i, p) in row.into_iter().enumerate() {
+            beauty.data[j * w + i] = p.beauty;
+            for l in 0..5 {
+                let img: &mut Image = &mut lobes[l];
+                img.data[j * w + i] = p.lobes[l];
+            }
+        }
+    }
+    Ok(RenderOutput {
+        beauty,
+        lobes,
+        rays,
+        seconds,
+    })
+}

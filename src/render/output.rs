@@ -1,0 +1,164 @@
+//! Tone mapping and image files: sRGB PNG (tone-mapped), linear OpenEXR, per-lobe AOV
+//! PNGs and labelled contact sheets.
+//!
+//! Tone map (documented choice): linear radiance `x` times `2^exposure_ev`, then the
+//! ACES filmic curve fit of Narkowicz 2015, `(x (2.51 x + 0.03)) / (x (2.43 x + 0.59) + 0.14)`
+//! clamped to [0, 1], then the sRGB transfer function, 8 bits. The EXR keeps linear values.
+
+use super::Image;
+use crate::io::write_atomic;
+use std::io::Cursor;
+use std::path::Path;
+
+/// The shipped font, registered with plotters under [`FONT`].
+pub const FONT: &str = "furfit-dejavu";
+static FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");
+
+/// Register the shipped font (no system fonts are used); idempotent.
+pub fn register_font() {
+    static ONCE: std::sync::Once = std::sync::Once::new();
+    ONCE.call_once(|| {
+        let _ =
+            plotters::style::register_font(FONT, plotters::style::FontStyle::Normal, FONT_BYTES);
+    });
+}
+
+/// ACES filmic fit (Narkowicz 2015).
+pub fn aces(x: f64) -> f64 {
+    let x = x.max(0.0);
+    ((x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14)).clamp(0.0, 1.0)
+}
+
+/// sRGB opto-electronic transfer function.
+pub fn srgb_encode(x: f64) -> f64 {
+    let x = x.clamp(0.0, 1.0);
+    if x <= 0.003_130_8 {
+        12.92 * x
+    } else {
+        1.055 * x.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+/// 8-bit sRGB bytes of a linear image under the documented tone map.
+pub fn tonemap(img: &Image, exposure_ev: f64) -> Vec<u8> {
+    let k = 2f64.powf(exposure_ev);
+    img.data
+        .iter()
+        .flat_map(|p| p.map(|v| (srgb_encode(aces(v * k)) * 255.0 + 0.5) as u8))
+        .collect()
+}
+
+fn encode(bytes: Vec<u8>, w: usize, h: usize, path: &Path) -> crate::Result<()> {
+    let img = image::RgbImage::from_raw(w as u32, h as u32, bytes)
+        .ok_or_else(|| crate::Error::file(path, "image buffer has the wrong size"))?;
+    let mut buf = Cursor::new(Vec::new());
+    img.write_to(&mut buf, image::ImageFormat::Png)
+        .map_err(|e| crate::Error::file(path, format!("PNG encoding failed: {e}")))?;
+    write_atomic(path, buf.get_ref())
+}
+
+/// Write the tone-mapped sRGB PNG.
+pub fn write_png(img: &Image, exposure_ev: f64, path: &Path) -> crate::Result<()> {
+    encode(tonemap(img, exposure_ev), img.width, img.height, path)
+}
+
+/// Write the linear image as 32-bit float OpenEXR.
+pub fn write_exr(img: &Image, path: &Path) -> crate::Result<()> {
+    let data: Vec<f32> = img.data.iter().flat_map(|p| p.map(|v| v as f32)).collect();
+    let buf = image::Rgb32FImage::from_raw(img.width as u32, img.height as u32, data)
+        .ok_or_else(|| crate::Error::file(path, "image buffer has the wrong size"))?;
+    let mut out = Cursor::new(Vec::new());
+    image::DynamicImage::ImageRgb32F(buf)
+        .write_to(&mut out, image::ImageFormat::OpenExr)
+        .map_err(|e| crate::Error::file(path, format!("EXR encoding failed: {e}")))?;
+    write_atomic(path, out.get_ref())
+}
+
+/// Read a linear EXR back (tests and comparisons).
+pub fn read_exr(path: &Path) -> crate::Result<Image> {
+    let img = image::open(path)
+        .map_err(|e| crate::Error::file(path, format!("cannot read image: {e}")))?
+        .to_rgb32f();
+    let (w, h) = (img.width() as usize, img.height() as usize);
+    let data = img
+        .pixels()
+        .map(|p| [p.0[0] as f64, p.0[1] as f64, p.0[2] as f64])
+        .collect();
+    Ok(Image {
+        width: w,
+        height: h,
+        data,
+    })
+}
+
+/// Tiles side by side (one row), each with its label drawn in the shipped font under it.
+pub fn write_contact_sheet(
+    tiles: &[(String, Image)],
+    exposure_ev: f64,
+    path: &Path,
+) -> crate::Result<()> {
+    use plotters::prelude::*;
+    register_font();
+    let th = tiles.iter().map(|t| t.1.height).max().unwrap_or(0);
+    let label_h = 28;
+    let total_w: usize = tiles.iter().map(|t| t.1.width).sum();
+    let (w, h) = (total_w.max(1), th + label_h);
+    let mut buf = vec![40u8; w * h * 3];
+    let mut x0 = 0;
+    for (_, img) in tiles {
+        let tm = tonemap(img, exposure_ev);
+        for j in 0..img.height {
+            for i in 0..img.width {
+                let s = (j * img.width + i) * 3;
+                let d = (j * w + x0 + i) * 3;
+                buf[d..d + 3].copy_from_slice(&tm[s..s + 3]);
+            }
+        }
+        x0 += img.width;
+    }
+    {
+        let root = BitMapBackend::with_buffer(&mut buf, (w as u32, h as u32)).into_drawing_area();
+        let mut x0 = 0;
+        for (label, img) in tiles {
+            let style = TextStyle::from((FONT, 18).into_font()).color(&WHITE);
+            root.draw(&Text::new(
+                label.clone(),
+                (x0 as i32 + 6, th as i32 + 5),
+                style,
+            ))
+            .map_err(|e| crate::Error::file(path, format!("drawing label failed: {e}")))?;
+            x0 += img.width;
+        }
+        root.present()
+            .map_err(|e| crate::Error::file(path, format!("drawing failed: {e}")))?;
+    }
+    encode(buf, w, h, path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tone_map_is_monotone_and_bounded() {
+        let mut last = -1.0;
+        for k in 0..200 {
+            let v = srgb_encode(aces(k as f64 * 0.05));
+            assert!(v >= last && (0.0..=1.0).contains(&v));
+            last = v;
+        }
+        assert_eq!(srgb_encode(aces(0.0)), 0.0);
+    }
+
+    #[test]
+    fn exr_round_trips_linear_values() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.exr");
+        let mut img = Image::new(3, 2);
+        img.data[4] = [0.25, 2.5, 17.0];
+        write_exr(&img, &p).unwrap();
+        let back = read_exr(&p).unwrap();
+        // f32 storage: relative error ~6e-8.
+        assert!(back.rmse(&img) < 1e-6);
+    }
+}

@@ -1,0 +1,260 @@
+//! Studies printed by `furfit render-convergence`: RMSE versus samples per pixel and time
+//! for each BCSDF scale against a high-spp reference of the same scale (seed Fig. 15), the
+//! equal-quality speedup of multi-scale over near field, and a culling study.
+
+use super::bsdf::Mode;
+use super::{render_scene, Image, RenderSettings, Scene};
+use crate::params::FurParams;
+
+/// One point of a convergence curve.
+#[derive(Clone, Debug)]
+pub struct ConvergencePoint {
+    pub mode: Mode,
+    pub spp: usize,
+    pub seconds: f64,
+    pub rmse: f64,
+}
+
+/// Result of [`convergence`].
+#[derive(Clone, Debug)]
+pub struct Convergence {
+    pub points: Vec<ConvergencePoint>,
+    /// Reference render time per mode.
+    pub reference_seconds: Vec<(Mode, f64)>,
+}
+
+impl Convergence {
+    /// Inefficiency `RMSE^2 * time` of a mode (Monte Carlo error falls as 1/sqrt(time), so
+    /// this is constant once in the asymptotic regime), the median over the points with at
+    /// least `min_spp` samples per pixel.
+    pub fn inefficiency(&self, mode: Mode, min_spp: usize) -> Option<f64> {
+        let mut v: Vec<f64> = self
+            .points
+            .iter()
+            .filter(|p| p.mode == mode && p.spp >= min_spp && p.rmse > 0.0)
+            .map(|p| p.rmse * p.rmse * p.seconds)
+            .collect();
+        if v.is_empty() {
+            return None;
+        }
+        v.sort_by(f64::total_cmp);
+        Some(v[v.len() / 2])
+    }
+
+    /// Equal-quality speedup of `fast` over `slow`: ratio of their inefficiencies (time
+    /// needed to reach the same RMSE).
+    pub fn speedup(&self, slow: Mode, fast: Mode, min_spp: usize) -> Option<f64> {
+        Some(self.inefficiency(slow, min_spp)? / self.inefficiency(fast, min_spp)?)
+    }
+
+    pub fn to_csv(&self) -> String {
+        let mut s = String::from("mode,spp,seconds,rmse\n");
+        for p in &self.points {
+            s += &format!(
+                "{},{},{:.6},{:.6e}\n",
+                p.mode.name(),
+                p.spp,
+                p.seconds,
+                p.rmse
+            );
+        }
+        s
+    }
+}
+
+/// Render each mode at spp 1, 2, 4, ... `max_spp` and a `ref_spp` reference with another
+/// seed; RMSE against the reference of the same mode. `progress` is called per render.
+pub fn convergence(
+    scene: &Scene,
+    params: &FurParams,
+    base: &RenderSettings,
+    modes: &[Mode],
+    max_spp: usize,
+    ref_spp: usize,
+    mut progress: impl FnMut(&str),
+) -> crate::Result<Convergence> {
+    let mut points = Vec::new();
+    let mut reference_seconds = Vec::new();
+    for &mode in modes {
+        let mut s = base.clone();
+        s.mode = mode;
+        s.spp = ref_spp;
+        s.seed = base.seed.wrapping_add(1_000_003);
+        let r = render_scene(scene, params, &s)?;
+        progress(&format!(
+            "{} reference {} spp: {:.2} s",
+            mode.name(),
+            ref_spp,
+            r.seconds
+        ));
+        reference_seconds.push((mode, r.seconds));
+        let reference: Image = r.beauty;
+        let mut spp = 1;
+        while spp <= max_spp {
+            let mut s = base.clone();
+            s.mode = mode;
+            s.spp = spp;
+            let r = render_scene(scene, params, &s)?;
+            let rmse = r.beauty.rmse(&reference);
+            progress(&format!(
+                "{} {spp} spp: {:.3} s, RMSE {rmse:.4e}",
+                mode.name(),
+                r.seconds
+            ));
+            points.push(ConvergencePoint {
+                mode,
+                spp,
+                seconds: r.seconds,
+                rmse,
+            });
+            spp *= 2;
+        }
+    }
+    Ok(Convergence {
+        points,
+        reference_seconds,
+    })
+}
+
+/// Plot RMSE versus time (log-log) per mode; `svg` chooses the backend.
+pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> crate::Result<()> {
+    use plotters::prelude::*;
+    super::output::register_font();
+    let err = |e: String| crate::Error::file(path, format!("plotting failed: {e}"));
+    let pts: Vec<&ConvergencePoint> = c.points.iter().filter(|p| p.rmse > 0.0).collect();
+    if pts.is_empty() {
+        return Err(crate::Error::file(path, "no convergence points to plot"));
+    }
+    let (tmin, tmax) = pts.iter().fold((f64::MAX, 0.0f64), |a, p| {
+        (a.0.min(p.seconds), a.1.max(p.seconds))
+    });
+    let (emin, emax) = pts.iter().fold((f64::MAX, 0.0f64), |a, p| {
+        (a.0.min(p.rmse), a.1.max(p.rmse))
+    });
+    #[allow(clippy::type_complexity)]
+    fn draw_chart<DB: DrawingBackend>(
+        root: DrawingArea<DB, plotters::coord::Shift>,
+        pts: &[&ConvergencePoint],
+        (tmin, tmax, emin, emax): (f64, f64, f64, f64),
+    ) -> Result<(), String> {
+        root.fill(&WHITE).map_err(|e| e.to_string())?;
+        let font = super::output::FONT;
+        let mut chart = ChartBuilder::on(&root)
+            .caption("RMSE vs render time (same-mode reference)", (font, 20))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(64)
+            .build_cartesian_2d(
+                (tmin * 0.8..tmax * 1.25).log_scale(),
+                (emin * 0.8..emax * 1.25).log_scale(),
+            )
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc("seconds")
+            .y_desc("RMSE")
+            .label_style((font, 13))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (mode, color) in [
+            (Mode::Near, RED),
+            (Mode::Far, BLUE),
+            (Mode::Multiscale, GREEN),
+        ] {
+            let series: Vec<(f64, f64)> = pts
+                .iter()
+                .filter(|p| p.mode == mode)
+                .map(|p| (p.seconds, p.rmse))
+                .collect();
+            if series.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(LineSeries::new(series.clone(), color.stroke_width(2)))
+                .map_err(|e| e.to_string())?
+                .label(mode.name())
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], color));
+            chart
+                .draw_series(series.iter().map(|&p| Circle::new(p, 3, color.filled())))
+                .map_err(|e| e.to_string())?;
+        }
+        chart
+            .configure_series_labels()
+            .label_font((font, 14))
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .draw()
+            .map_err(|e| e.to_string())?;
+        root.present().map_err(|e| e.to_string())
+    }
+    let bounds = (tmin, tmax, emin, emax);
+    if svg {
+        let mut s = String::new();
+        draw_chart(
+            SVGBackend::with_string(&mut s, (720, 480)).into_drawing_area(),
+            &pts,
+            bounds,
+        )
+        .map_err(err)?;
+        crate::io::write_atomic(path, s.as_bytes())
+    } else {
+        let mut buf = vec![0u8; 720 * 480 * 3];
+        draw_chart(
+            BitMapBackend::with_buffer(&mut buf, (720, 480)).into_drawing_area(),
+            &pts,
+            bounds,
+        )
+        .map_err(err)?;
+        let img = image::RgbImage::from_raw(720, 480, buf)
+            .ok_or_else(|| crate::Error::file(path, "bad plot buffer"))?;
+        let mut out = std::io::Cursor::new(Vec::new());
+        img.write_to(&mut out, image::ImageFormat::Png)
+            .map_err(|e| crate::Error::file(path, format!("PNG encoding failed: {e}")))?;
+        crate::io::write_atomic(path, out.get_ref())
+    }
+}
+
+/// One variant of the culling study.
+#[derive(Clone, Debug)]
+pub struct CullingRow {
+    pub name: String,
+    pub seconds: f64,
+    /// RMSE against the variant without any culling, same seed.
+    pub rmse_vs_full: f64,
+    /// RMSE between two seeds of the full variant: the noise floor.
+    pub noise_rmse: f64,
+}
+
+/// Time and image difference of the acceleration switches (multi-scale mode): far-field
+/// segment culling off / on. Same seed, so differences beyond the noise floor would be bias.
+pub fn culling_study(
+    scene: &Scene,
+    params: &FurParams,
+    base: &RenderSettings,
+) -> crate::Result<Vec<CullingRow>> {
+    let run = |cull: bool, seed: u64| -> crate::Result<(Image, f64)> {
+        let mut s = base.clone();
+        s.seed = seed;
+        s.far_cull = cull;
+        let r = render_scene(scene, params, &s)?;
+        Ok((r.beauty, r.seconds))
+    };
+    let (full, t_full) = run(false, base.seed)?;
+    let (full2, _) = run(false, base.seed + 17)?;
+    let noise = full.rmse(&full2);
+    let (cull, t_cull) = run(true, base.seed)?;
+    Ok(vec![
+        CullingRow {
+            name: "no culling".into(),
+            seconds: t_full,
+            rmse_vs_full: 0.0,
+            noise_rmse: noise,
+        },
+        CullingRow {
+            name: "far-field segment culling".into(),
+            seconds: t_cull,
+            rmse_vs_full: cull.rmse(&full),
+            noise_rmse: noise,
+        },
+    ])
+}

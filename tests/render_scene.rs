@@ -1,0 +1,167 @@
+//! Image-level checks of the renderer: white furnace, determinism, multi-scale limits, and
+//! an end-to-end run of `furfit render`.
+
+use furfit::params::FurParams;
+use furfit::render::bsdf::{Mode, Tint};
+use furfit::render::scene::{Environment, StrandSpec};
+use furfit::render::{render_scene, RenderSettings, Scene};
+
+fn small(mode: Mode) -> RenderSettings {
+    RenderSettings {
+        width: 32,
+        height: 32,
+        spp: 4,
+        seed: 11,
+        threads: 2,
+        mode,
+        // Framing zoomed onto the lock so that most pixels see fibers.
+        camera: furfit::render::CameraSpec {
+            dist: 1.2,
+            ..Default::default()
+        },
+        strand: StrandSpec {
+            fibers: 300,
+            ..Default::default()
+        },
+        ..RenderSettings::default()
+    }
+}
+
+fn fur() -> FurParams {
+    FurParams::preset("red-fox").unwrap()
+}
+
+#[test]
+fn white_furnace_scene_stays_at_or_below_one() {
+    // kappa = 0, no absorption, l = 1, constant white environment, no key light.
+    let p =
+        FurParams::from_file_units([1.55, 0.0, 2.0, 8.0, 20.0, 0.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+    let mut s = small(Mode::Near);
+    s.light = None;
+    s.env = Environment::constant(1.0);
+    s.tint = Tint::GREY;
+    s.spp = 16;
+    let scene = Scene::build(&s.strand);
+    let r = render_scene(&scene, &p, &s).unwrap();
+    let fiber: Vec<f64> = r
+        .beauty
+        .data
+        .iter()
+        .map(|c| c[1])
+        .filter(|v| (v - 1.0).abs() > 1e-12)
+        .collect();
+    // The scene must actually show fibers (else the test could not fail).
+    assert!(fiber.len() > 200, "{} fiber pixels", fiber.len());
+    let mean = fiber.iter().sum::<f64>() / fiber.len() as f64;
+    let var = fiber.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / fiber.len() as f64;
+    let se = (var / fiber.len() as f64).sqrt();
+    // Energy is lost (orders p > 2 are not in the model), never gained: the mean of the
+    // fiber pixels is <= 1 within 4 standard errors ...
+    assert!(mean <= 1.0 + 4.0 * se, "mean {mean} se {se}");
+    // ... and it is not trivially dark: most of the light survives.
+    assert!(mean > 0.5, "mean {mean}");
+    // Per pixel, 16 spp of weights <= ~2 bound the noise: no pixel far above one.
+    let max = fiber.iter().cloned().fold(0.0, f64::max);
+    assert!(max < 1.35, "max {max}");
+}
+
+#[test]
+fn same_seed_same_image_for_any_thread_count() {
+    let scene = Scene::build(&small(Mode::Multiscale).strand);
+    let mut s = small(Mode::Multiscale);
+    s.threads = 1;
+    let a = render_scene(&scene, &fur(), &s).unwrap();
+    s.threads = 2;
+    let b = render_scene(&scene, &fur(), &s).unwrap();
+    assert_eq!(a.beauty, b.beauty);
+    s.seed += 1;
+    let c = render_scene(&scene, &fur(), &s).unwrap();
+    assert_ne!(a.beauty, c.beauty);
+}
+
+#[test]
+fn multiscale_tends_to_near_and_far() {
+    let scene = Scene::build(&small(Mode::Near).strand);
+    let p = fur();
+    let near = render_scene(&scene, &p, &small(Mode::Near)).unwrap().beauty;
+    let far = render_scene(&scene, &p, &small(Mode::Far)).unwrap().beauty;
+    let mut s = small(Mode::Multiscale);
+    s.footprint_scale = 0.0;
+    let ms0 = render_scene(&scene, &p, &s).unwrap().beauty;
+    s.footprint_scale = 1e9;
+    let ms_inf = render_scene(&scene, &p, &s).unwrap().beauty;
+    // Footprint -> 0: the multi-scale query is the near field at the hit's h and consumes
+    // the same random numbers, so the images agree to rounding.
+    assert!(ms0.rmse(&near) < 1e-9, "ms0 vs near {}", ms0.rmse(&near));
+    // Full coverage: every query is the far field on [-1, 1].
+    assert!(
+        ms_inf.rmse(&far) < 1e-9,
+        "ms_inf vs far {}",
+        ms_inf.rmse(&far)
+    );
+    // And the two limits differ (so the comparison above means something).
+    assert!(near.rmse(&far) > 1e-4, "near vs far {}", near.rmse(&far));
+}
+
+#[test]
+fn lobe_aovs_add_up_to_the_beauty() {
+    // Black environment: every bit of radiance comes through a fiber vertex, so the five
+    // AOVs (split at the first vertex) must sum to the beauty image.
+    let scene = Scene::build(&small(Mode::Near).strand);
+    let mut s = small(Mode::Near);
+    s.env = Environment::constant(0.0);
+    let r = render_scene(&scene, &fur(), &s).unwrap();
+    let mut lit = 0;
+    for (i, b) in r.beauty.data.iter().enumerate() {
+        for (c, &bc) in b.iter().enumerate() {
+            let sum: f64 = (0..5).map(|l| r.lobes[l].data[i][c]).sum();
+            // Summation order differs: relative 1e-9.
+            assert!(
+                (sum - bc).abs() <= 1e-9 * bc.max(1e-3),
+                "pixel {i}: {sum} vs {bc}"
+            );
+        }
+        if b[1] > 0.0 {
+            lit += 1;
+        }
+    }
+    assert!(lit > 100, "{lit} lit pixels");
+    // Red fox has a medulla: the scattered lobes carry light.
+    let tts: f64 = r.lobes[3].data.iter().map(|c| c[1]).sum();
+    assert!(tts > 0.0);
+}
+
+#[test]
+fn cli_render_writes_png_exr_and_aovs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fox.png");
+    let st = std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
+        .args([
+            "render", "--params", "red-fox", "--size", "24x16", "--spp", "2",
+        ])
+        .args(["--fibers", "100", "--threads", "1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let text = String::from_utf8_lossy(&st.stdout);
+    assert!(text.contains("Mrays/s"), "{text}");
+    let png = image::open(&out).unwrap();
+    assert_eq!((png.width(), png.height()), (24, 16));
+    assert!(dir.path().join("fox.exr").exists());
+    for l in ["R", "TT", "TRT", "TTs", "TRTs"] {
+        assert!(dir.path().join(format!("fox_{l}.png")).exists(), "{l}");
+    }
+    // Bad input is an error naming the option, not a panic.
+    let st = std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
+        .args(["render", "--params", "red-fox", "--size", "0x5", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!st.status.success());
+    assert!(String::from_utf8_lossy(&st.stderr).contains("--size"));
+}
