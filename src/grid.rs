@@ -45,6 +45,32 @@ pub fn parse_grid(what: &str, text: &str) -> Result<Vec<f64>> {
     }
 }
 
+/// Parse a relative-azimuth grid (degrees) and keep one spelling per direction: values are
+/// wrapped to (-180, 180] (MODEL.md) and a value that repeats an earlier direction is
+/// dropped and the result is sorted, so `-180:180:4` yields 90 distinct directions ending at 180, not 91 with
+/// -180 and 180 both present (the same direction, which a profile may hold only once).
+pub fn parse_phi_grid(what: &str, text: &str) -> Result<Vec<f64>> {
+    let mut out: Vec<f64> = Vec::new();
+    for v in parse_grid(what, text)? {
+        let w = wrap_deg(v);
+        if !out.iter().any(|&o| (o - w).abs() < 1e-9) {
+            out.push(w);
+        }
+    }
+    out.sort_by(f64::total_cmp);
+    Ok(out)
+}
+
+/// Wrap degrees to (-180, 180].
+pub fn wrap_deg(v: f64) -> f64 {
+    let w = v - 360.0 * ((v + 180.0) / 360.0).floor();
+    if w <= -180.0 {
+        w + 360.0
+    } else {
+        w
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -61,5 +87,15 @@ mod tests {
             .to_string()
             .contains("'a'"));
         assert!(parse_grid("x", "").is_err());
+    }
+
+    #[test]
+    fn phi_grid_has_one_spelling_per_direction() {
+        let g = parse_phi_grid("--phi", "-180:180:4").unwrap();
+        assert_eq!(g.len(), 90);
+        assert_eq!(g[0], -176.0);
+        assert_eq!(*g.last().unwrap(), 180.0);
+        assert_eq!(parse_phi_grid("--phi", "0,360,90").unwrap(), vec![0.0, 90.0]);
+        assert_eq!(wrap_deg(-180.0), 180.0);
     }
 }

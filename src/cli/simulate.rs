@@ -1,7 +1,7 @@
 //! `furfit simulate`: the virtual goniometer (Monte Carlo ray tracing through a 3-D double
 //! cylinder fiber) writing a synthetic profile CSV and `metadata.json`.
 
-use crate::grid::parse_grid;
+use crate::grid::{parse_grid, parse_phi_grid};
 use crate::simulate::{self, measure, output, SimSettings};
 use crate::FurParams;
 use anyhow::{bail, Context};
@@ -140,7 +140,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         params,
         theta_i: parse_grid("--theta-i", &a.theta_i)?,
         theta_r: parse_grid("--theta-r", &a.theta_r)?,
-        phi: parse_grid("--phi", &a.phi)?,
+        phi: parse_phi_grid("--phi", &a.phi)?,
         paths: a.paths.unwrap_or(4_000_000),
         seed: a.seed,
         ellipse: a.ellipse,
@@ -304,7 +304,7 @@ fn bench() -> anyhow::Result<()> {
             params: p,
             theta_i: vec![30.0],
             theta_r: parse_grid("--theta-r", "-80:80:2")?,
-            phi: parse_grid("--phi", "-180:180:2")?,
+            phi: parse_phi_grid("--phi", "-180:180:2")?,
             paths: n,
             seed: 7,
             ellipse: None,

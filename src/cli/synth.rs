@@ -1,6 +1,6 @@
 //! `furfit synth`: synthesize a profile from parameters on an angle grid.
 
-use crate::grid::parse_grid;
+use crate::grid::{parse_grid, parse_phi_grid};
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::synth::{self, ModelKind};
@@ -47,7 +47,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (params, file_k) = FurParams::load(&a.params)?;
     let ti = parse_grid("--theta-i", &a.theta_i)?;
     let tr = parse_grid("--theta-r", &a.theta_r)?;
-    let phi = parse_grid("--phi", &a.phi)?;
+    let phi = parse_phi_grid("--phi", &a.phi)?;
     for (what, g, lim) in [
         ("--theta-i", &ti, 90.0),
         ("--theta-r", &tr, 90.0),
