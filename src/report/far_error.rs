@@ -7,6 +7,7 @@
 //! `(theta pair, phi)`: "single" builds the far-field slice for that call (what
 //! `eval_far` costs), "amortised" shares the slice across the 48 phi of a theta_d (what
 //! grid prediction costs). Gauss-Legendre has no per-theta_d precomputation.
+#![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use crate::model::far::FarOptions;
 use crate::model::{AzimuthalSlice, FurModel, LobeSet, LobeValues};

@@ -36,6 +36,7 @@
 //! * Tolerance mode: each fitted segment is checked at its quarter points against the exact
 //!   integrand and bisected while its error exceeds `tol` of the lobe's mean
 //!   over `phi` (a lower bound of its peak).
+#![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use super::closed_form::{poly_exp, poly_gauss, quadratic_through};
 use super::FarOptions;

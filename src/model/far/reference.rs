@@ -8,6 +8,7 @@
 //! smooth or is sharply peaked: `h = 0`, the medulla edge `|h| = kappa eta'`, the TRT caustic,
 //! and every root of `Phi_p(u) = phi + 2 pi k` (with a few lobe widths around it), so that a
 //! 0.1 degree lobe cannot be stepped over.
+#![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use crate::model::azimuthal::beta_p;
 use crate::model::quadrature::adaptive_gk;

@@ -1,6 +1,7 @@
 //! Far field and multi-scale against the reference integrator of the same model (seed
 //! Sec. 5). Scattered lobes are compared with the reference integral of whatever `C^N`
 //! the build has, never with fixed numbers.
+#![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use super::*;
 use crate::model::{FurModel, Lobe, LobeSet};
