@@ -95,7 +95,10 @@ mod tests {
         assert_eq!(g.len(), 90);
         assert_eq!(g[0], -176.0);
         assert_eq!(*g.last().unwrap(), 180.0);
-        assert_eq!(parse_phi_grid("--phi", "0,360,90").unwrap(), vec![0.0, 90.0]);
+        assert_eq!(
+            parse_phi_grid("--phi", "0,360,90").unwrap(),
+            vec![0.0, 90.0]
+        );
         assert_eq!(wrap_deg(-180.0), 180.0);
     }
 }

@@ -202,31 +202,10 @@ pub fn synthesize(
 /// Write a profile as DATA.md CSV (metadata comments, header `theta_i,theta_r,phi,value`),
 /// atomically. Stand-in until `crate::profile::save` lands; values use Rust's shortest
 /// round-trip formatting so a read back is bit-exact.
-fn write_profile(path: &Path, prof: &Profile) -> crate::Result<()> {
-    use std::io::Write;
-    crate::io::write_atomic_with(path, |f| {
-        let mut w = std::io::BufWriter::new(f);
-        for (k, v) in &prof.metadata {
-            writeln!(w, "# {k}: {}", v.replace('\n', " "))?;
-        }
-        writeln!(w, "theta_i,theta_r,phi,value")?;
-        for s in &prof.samples {
-            writeln!(w, "{},{},{},{}", s.theta_i, s.theta_r, s.phi, s.value)?;
-        }
-        w.flush()
-    })
-}
-
-/// Save a synthesized profile. Only `.csv` is written here for now (`.npz` arrives with the
-/// shared profile writers); any other extension is an error naming the file.
+/// Save a synthesized profile (`.csv` or `.npz`, atomically) with the shared profile
+/// writers.
 pub fn save(path: &Path, prof: &Profile) -> crate::Result<()> {
-    match path.extension().and_then(|e| e.to_str()) {
-        Some(e) if e.eq_ignore_ascii_case("csv") => write_profile(path, prof),
-        _ => Err(crate::Error::file(
-            path,
-            "unsupported output format (this build writes .csv; .npz arrives with the profile writers)",
-        )),
-    }
+    crate::profile::save(path, prof)
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    std::fs::create_dir_all(&a.out)?;
     crate::report::far_error::run(&a.out, &mut |line| println!("{line}"))?;
     Ok(())
 }

@@ -3,7 +3,11 @@
 //! `N_p(phi) = 1/2 integral_{-1}^{1} A_p(h) D_p(h, phi) dh` (Eq. 22) and the multi-scale
 //! `1/(h2 - h1) integral_{h1}^{h2} A_p D_p dh` (Eq. 26).
 
+pub mod closed_form;
+mod engine;
 mod reference;
+
+pub use engine::{FarSlice, SliceStats, CULL_SIGMAS};
 
 pub use reference::REFERENCE_REL_TOL;
 
@@ -55,11 +59,16 @@ impl FarOptions {
     }
 }
 
-impl AzimuthalSlice<'_> {
+impl<'a> AzimuthalSlice<'a> {
+    /// Precompute the far field at this `theta_d` for evaluation at many `phi`
+    /// ([`FarSlice::eval`]); [`AzimuthalSlice::far`] is `far_slice(..).eval(phi)`.
+    pub fn far_slice(&self, lobes: LobeSet, opts: &FarOptions) -> FarSlice<'a> {
+        FarSlice::far(self, lobes, opts)
+    }
+
     /// Far-field azimuthal scattering `N_p(phi)` (seed Eq. 22) for the lobes in `lobes`.
     pub fn far(&self, phi: f64, lobes: LobeSet, opts: &FarOptions) -> LobeValues {
-        let _ = opts;
-        self.far_gl(phi, 96, lobes)
+        FarSlice::far(self, lobes, opts).eval(phi)
     }
 
     /// Multi-scale azimuthal scattering over `[h1, h2]` (seed Eq. 26).
@@ -71,15 +80,13 @@ impl AzimuthalSlice<'_> {
         lobes: LobeSet,
         opts: &FarOptions,
     ) -> LobeValues {
-        let _ = opts;
-        let (h1, h2) = (
-            h1.clamp(-1.0, 1.0).min(h2.clamp(-1.0, 1.0)),
-            h1.clamp(-1.0, 1.0).max(h2.clamp(-1.0, 1.0)),
-        );
+        let (a, b) = (h1.clamp(-1.0, 1.0), h2.clamp(-1.0, 1.0));
+        let (h1, h2) = (a.min(b), a.max(b));
         if h2 - h1 < 1e-12 {
+            // The limit of Eq. 26 for a vanishing range is the near field (Sec. 5.2).
             return self.near(0.5 * (h1 + h2), phi, lobes);
         }
-        self.multiscale_reference(phi, h1, h2, lobes)
+        FarSlice::range(self, h1, h2, lobes, opts).eval(phi)
     }
 
     /// Plain Gauss-Legendre quadrature of the near field with `n` points in
@@ -137,3 +144,6 @@ impl FurModel {
         m.mul(&n)
     }
 }
+
+#[cfg(test)]
+mod tests;

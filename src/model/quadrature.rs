@@ -141,44 +141,68 @@ pub fn adaptive_gk(
     abs_tol: f64,
     max_intervals: usize,
 ) -> GkResult {
-    let mut ivs: Vec<(f64, f64, f64, f64)> = Vec::new();
+    use std::collections::BinaryHeap;
+    /// Interval ordered by its error estimate (max-heap).
+    struct Iv(f64, f64, f64, f64);
+    impl PartialEq for Iv {
+        fn eq(&self, o: &Self) -> bool {
+            self.3 == o.3
+        }
+    }
+    impl Eq for Iv {}
+    impl PartialOrd for Iv {
+        fn partial_cmp(&self, o: &Self) -> Option<std::cmp::Ordering> {
+            Some(self.cmp(o))
+        }
+    }
+    impl Ord for Iv {
+        fn cmp(&self, o: &Self) -> std::cmp::Ordering {
+            self.3.total_cmp(&o.3)
+        }
+    }
+    let mut heap = BinaryHeap::new();
     let mut evals = 0usize;
+    let (mut value, mut error) = (0.0, 0.0);
     for w in points.windows(2) {
         if w[1] > w[0] {
             let (v, e) = gk15(w[0], w[1], &mut f);
             evals += 15;
-            ivs.push((w[0], w[1], v, e));
+            value += v;
+            error += e;
+            heap.push(Iv(w[0], w[1], v, e));
         }
     }
-    loop {
-        let value: f64 = ivs.iter().map(|iv| iv.2).sum();
-        let error: f64 = ivs.iter().map(|iv| iv.3).sum();
-        if error <= abs_tol.max(rel_tol * value.abs()) || ivs.len() >= max_intervals {
-            return GkResult {
-                value,
-                error,
-                evaluations: evals,
-            };
-        }
-        // Bisect the worst interval.
-        let (k, _) =
-            ivs.iter().enumerate().fold(
-                (0, -1.0),
-                |acc, (i, iv)| if iv.3 > acc.1 { (i, iv.3) } else { acc },
-            );
-        let (a, b, _, _) = ivs.swap_remove(k);
+    let mut n = heap.len();
+    while error > abs_tol.max(rel_tol * value.abs()) && n < max_intervals {
+        let Some(Iv(a, b, v, e)) = heap.pop() else {
+            break;
+        };
         let m = 0.5 * (a + b);
-        if !(m > a && m < b) {
-            // Cannot bisect further in floating point: accept as is.
-            let (v, _) = gk15(a, b, &mut f);
-            ivs.push((a, b, v, 0.0));
+        if !(m > a && m < b) || e == 0.0 {
+            // Cannot improve this interval in floating point: freeze it.
+            error -= e;
+            heap.push(Iv(a, b, v, 0.0));
+            if e == 0.0 {
+                break;
+            }
             continue;
         }
         let (v1, e1) = gk15(a, m, &mut f);
         let (v2, e2) = gk15(m, b, &mut f);
         evals += 30;
-        ivs.push((a, m, v1, e1));
-        ivs.push((m, b, v2, e2));
+        value += v1 + v2 - v;
+        error += e1 + e2 - e;
+        heap.push(Iv(a, m, v1, e1));
+        heap.push(Iv(m, b, v2, e2));
+        n += 1;
+    }
+    // Re-sum to remove drift from the running updates.
+    let value = heap.iter().map(|iv| iv.2).sum();
+    let error = heap.iter().map(|iv| iv.3).sum();
+    GkResult {
+        value,
+        error,
+        evaluations: evals,
     }
 }
 

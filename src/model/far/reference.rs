@@ -8,6 +8,7 @@
 //! smooth or is sharply peaked: `h = 0`, the medulla edge `|h| = kappa eta'`, the TRT caustic,
 //! and every root of `Phi_p(u) = phi + 2 pi k` (with a few lobe widths around it), so that a
 //! 0.1 degree lobe cannot be stepped over.
+#![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use crate::model::azimuthal::beta_p;
 use crate::model::quadrature::adaptive_gk;
@@ -89,7 +90,14 @@ impl AzimuthalSlice<'_> {
             let h = u.sin();
             self.near(h, phi, set).get(lobe) * u.cos()
         };
-        adaptive_gk(f, &pts, REFERENCE_REL_TOL, 1e-300, 200_000).value
+        // Absolute floor: 1e-12 of the lobe's mean over phi, (integral A dh) / (2 pi), which
+        // is a lower bound of its peak; so tails far below the peak do not stall the
+        // refinement.
+        let mean = crate::model::quadrature::GaussLegendre::cached(128).integrate(u1, u2, |u| {
+            let geo = self.geometry(u.sin());
+            self.attenuation(&geo, set).get(lobe) * u.cos()
+        }) / TAU;
+        adaptive_gk(f, &pts, REFERENCE_REL_TOL, 1e-12 * mean, 100_000).value
     }
 
     /// Reference far field `N_l(phi) = 1/2 integral_{-1}^{1} A D dh` for the lobes in `lobes`.

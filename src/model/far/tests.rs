@@ -1,0 +1,311 @@
+//! Far field and multi-scale against the reference integrator of the same model (seed
+//! Sec. 5). Scattered lobes are compared with the reference integral of whatever `C^N`
+//! the build has, never with fixed numbers.
+#![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
+
+use super::*;
+use crate::model::{FurModel, Lobe, LobeSet};
+use crate::params::FurParams;
+use rand::{Rng, SeedableRng};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use std::f64::consts::PI;
+
+fn params(values: [f64; 10]) -> FurParams {
+    FurParams::from_file_units(values).unwrap()
+}
+
+/// Per lobe: max over phi of |far - ref| divided by the max over phi of ref (the error
+/// metric of the stability report), at one theta_d.
+pub(crate) fn max_rel_err(m: &FurModel, td: f64, opts: &FarOptions, nphi: usize) -> [f64; 5] {
+    let az = m.azimuthal(td);
+    let fs = az.far_slice(LobeSet::ALL, opts);
+    let mut peak = [0.0f64; 5];
+    let mut err = [0.0f64; 5];
+    for k in 0..nphi {
+        let phi = -PI + 2.0 * PI * (k as f64 + 0.37) / nphi as f64;
+        let f = fs.eval(phi);
+        let r = az.far_reference(phi, LobeSet::ALL);
+        for i in 0..5 {
+            assert!(f.0[i].is_finite(), "non-finite far value {f:?}");
+            peak[i] = peak[i].max(r.0[i]);
+            err[i] = err[i].max((f.0[i] - r.0[i]).abs());
+        }
+    }
+    let mut out = [0.0; 5];
+    for i in 0..5 {
+        out[i] = if peak[i] > 0.0 {
+            err[i] / peak[i]
+        } else {
+            err[i]
+        };
+    }
+    out
+}
+
+/// Default (tolerance 1e-4) far field within 1e-4 of the peak for every lobe, at the
+/// given parameters and theta_d values (degrees).
+fn assert_tol_mode(p: &FurParams, tds: &[f64], what: &str) {
+    let m = FurModel::new(p);
+    for &td in tds {
+        let e = max_rel_err(&m, td.to_radians(), &FarOptions::default(), 41);
+        for l in Lobe::ALL {
+            // The mode's contract: <= 1e-4 of the lobe peak (the reference is ~1e-10).
+            assert!(
+                e[l.index()] <= 1e-4,
+                "{what}, theta_d {td}: {l:?} error {:.2e} of peak (all {e:?})",
+                e[l.index()]
+            );
+        }
+    }
+}
+
+fn base() -> [f64; 10] {
+    // eta, kappa, alpha, beta_m, beta_n, sigma_c_a, sigma_m_s, sigma_m_a, g, l
+    [1.55, 0.6, 2.0, 8.0, 10.0, 0.3, 1.5, 0.1, 0.3, 1.0]
+}
+
+#[test]
+fn stiff_tiny_beta_n() {
+    let mut v = base();
+    v[4] = 0.1;
+    assert_tol_mode(&params(v), &[0.0, 40.0], "beta_n 0.1 deg");
+}
+
+#[test]
+fn stiff_huge_beta_n() {
+    let mut v = base();
+    v[4] = 90.0;
+    assert_tol_mode(&params(v), &[0.0, 60.0], "beta_n 90 deg");
+}
+
+#[test]
+fn stiff_trt_caustic() {
+    // eta' < 2 puts a TRT caustic (dPhi/dh = 0) inside (0, 1); narrow lobes make it sharp.
+    let mut v = base();
+    v[0] = 1.3;
+    v[4] = 1.0;
+    let p = params(v);
+    let az_eta = FurModel::new(&p).azimuthal(0.0).eta_prime;
+    assert!(az_eta < 2.0);
+    assert!(FurModel::new(&p).azimuthal(0.0).trt_caustic_u().is_some());
+    assert_tol_mode(&p, &[0.0, 25.0], "TRT caustic");
+}
+
+#[test]
+fn stiff_huge_absorption() {
+    // sigma = 1e3 per radius: exponents of -1e3 and more; exp(b^2/4a + c) would overflow.
+    let mut v = base();
+    v[5] = 1e3;
+    v[7] = 1e3;
+    assert_tol_mode(&params(v), &[0.0, 50.0], "absorption 1e3");
+}
+
+#[test]
+fn stiff_grazing_theta_d() {
+    assert_tol_mode(&params(base()), &[89.0, -89.0], "grazing theta_d");
+}
+
+#[test]
+fn stiff_kappa_limits() {
+    let mut v = base();
+    v[1] = 1e-6;
+    assert_tol_mode(&params(v), &[0.0, 45.0], "kappa 1e-6");
+    v[1] = 0.999;
+    assert_tol_mode(&params(v), &[0.0, 45.0], "kappa 0.999");
+}
+
+#[test]
+fn stiff_h_to_one_multiscale_edge() {
+    // The last sliver of offsets [0.999, 1] (sqrt endpoint of gamma_i = asin h), against
+    // the reference of the same range.
+    let m = FurModel::new(&params(base()));
+    let az = m.azimuthal(0.2);
+    let opts = FarOptions::default();
+    let (mut peak, mut err) = ([0.0f64; 5], [0.0f64; 5]);
+    for k in 0..41 {
+        let phi = -PI + 2.0 * PI * (k as f64 + 0.37) / 41.0;
+        let f = az.multiscale(phi, 0.999, 1.0, LobeSet::ALL, &opts);
+        let r = az.multiscale_reference(phi, 0.999, 1.0, LobeSet::ALL);
+        for i in 0..5 {
+            peak[i] = peak[i].max(r.0[i]);
+            err[i] = err[i].max((f.0[i] - r.0[i]).abs());
+        }
+    }
+    for i in 0..5 {
+        // Same 1e-4-of-peak contract as the far field.
+        assert!(
+            err[i] <= 1e-4 * peak[i] + 1e-300,
+            "lobe {i}: {} of {}",
+            err[i],
+            peak[i]
+        );
+    }
+}
+
+#[test]
+fn kappa_zero_gives_exactly_zero_scattered_and_presets_nonzero() {
+    let mut v = base();
+    v[1] = 0.0;
+    let m = FurModel::new(&params(v));
+    let fox = FurModel::new(&FurParams::preset("red-fox").unwrap());
+    for phi in [-3.0, -1.0, 0.0, 0.5, 2.9] {
+        let n = m
+            .azimuthal(0.3)
+            .far(phi, LobeSet::ALL, &FarOptions::default());
+        assert_eq!(n.get(Lobe::TTs), 0.0);
+        assert_eq!(n.get(Lobe::TRTs), 0.0);
+        assert!(n.get(Lobe::R) > 0.0);
+        let f = fox
+            .azimuthal(0.3)
+            .far(phi, LobeSet::ALL, &FarOptions::default());
+        assert!(f.get(Lobe::TTs) > 0.0 && f.get(Lobe::TRTs) > 0.0, "{f:?}");
+    }
+}
+
+#[test]
+fn culling_changes_nothing_beyond_1e_12_of_peak() {
+    for (name, opts) in [
+        ("red-fox", FarOptions::default()),
+        ("human", FarOptions::paper()),
+        ("cat", FarOptions::default()),
+    ] {
+        let m = FurModel::new(&FurParams::preset(name).unwrap());
+        for td in [0.0f64, 0.5, 1.2] {
+            let az = m.azimuthal(td);
+            let on = az.far_slice(LobeSet::ALL, &opts);
+            let off = az.far_slice(
+                LobeSet::ALL,
+                &FarOptions {
+                    cull: false,
+                    ..opts
+                },
+            );
+            let mut vals = Vec::new();
+            for k in 0..360 {
+                let phi = -PI + 2.0 * PI * (k as f64 + 0.5) / 360.0;
+                vals.push((on.eval(phi), off.eval(phi)));
+            }
+            for i in 0..5 {
+                let peak = vals.iter().map(|v| v.1 .0[i]).fold(0.0, f64::max);
+                let worst = vals
+                    .iter()
+                    .map(|v| (v.0 .0[i] - v.1 .0[i]).abs())
+                    .fold(0.0, f64::max);
+                assert!(
+                    worst <= 1e-12 * peak,
+                    "{name} td {td} lobe {i}: {worst} vs {peak}"
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn multiscale_limits_far_and_near() {
+    let m = FurModel::new(&FurParams::preset("dog").unwrap());
+    let opts = FarOptions::default();
+    let az = m.azimuthal(0.25);
+    for phi in [-2.5, -0.4, 0.0, 1.3, 3.1] {
+        // [-1, 1] is the far field (Eq. 26 -> Eq. 22): same segments, same result.
+        let a = az.multiscale(phi, -1.0, 1.0, LobeSet::ALL, &opts);
+        let b = az.far(phi, LobeSet::ALL, &opts);
+        for i in 0..5 {
+            assert!(
+                (a.0[i] - b.0[i]).abs() <= 1e-14 * b.0[i].abs() + 1e-300,
+                "lobe {i}: {} vs {}",
+                a.0[i],
+                b.0[i]
+            );
+        }
+        // A vanishing range tends to the near field: width 2e-4 around h; the near field
+        // changes on a scale of ~0.05 in h here, so the mean differs by ~1e-5 relative.
+        for h in [-0.7, 0.1, 0.55] {
+            let ms = az.multiscale(phi, h - 1e-4, h + 1e-4, LobeSet::ALL, &opts);
+            let nf = az.near(h, phi, LobeSet::ALL);
+            for i in 0..5 {
+                assert!(
+                    (ms.0[i] - nf.0[i]).abs() <= 1e-4 * nf.0[i].abs() + 1e-12,
+                    "h {h} phi {phi} lobe {i}: {} vs {}",
+                    ms.0[i],
+                    nf.0[i]
+                );
+            }
+        }
+        // A partial range straddling 0 against the reference of the same range.
+        let ms = az.multiscale(phi, -0.5, 0.3, LobeSet::ALL, &opts);
+        let r = az.multiscale_reference(phi, -0.5, 0.3, LobeSet::ALL);
+        for i in 0..5 {
+            assert!(
+                (ms.0[i] - r.0[i]).abs() <= 2e-4 * r.0[i].abs() + 1e-9,
+                "lobe {i}"
+            );
+        }
+    }
+}
+
+#[test]
+fn far_integrates_over_phi_to_mean_attenuation() {
+    // integral N_p dphi = 1/2 integral A_p dh (D_p and C^N's angular part integrate to 1
+    // and the scattered fraction respectively); checked for the unscattered lobes, whose D
+    // is normalised exactly.
+    for name in ["red-fox", "mouse", "human"] {
+        let m = FurModel::new(&FurParams::preset(name).unwrap());
+        for td in [0.0f64, 0.6] {
+            let az = m.azimuthal(td);
+            let fs = az.far_slice(LobeSet::UNSCATTERED, &FarOptions::default());
+            let n = 1440;
+            let mut e = [0.0f64; 3];
+            for k in 0..n {
+                let phi = -PI + 2.0 * PI * (k as f64 + 0.5) / n as f64;
+                let v = fs.eval(phi);
+                for i in 0..3 {
+                    e[i] += v.0[i] * 2.0 * PI / n as f64;
+                }
+            }
+            // integral A dh by adaptive GK with the medulla edge (a kink of A) as breakpoint.
+            let ue = (m.params.kappa * az.eta_prime).min(1.0).asin();
+            let pts = [-PI / 2.0, -ue, 0.0, ue, PI / 2.0];
+            for (i, l) in [Lobe::R, Lobe::TT, Lobe::TRT].into_iter().enumerate() {
+                let a = crate::model::quadrature::adaptive_gk(
+                    |u| {
+                        let geo = az.geometry(u.sin());
+                        0.5 * az.attenuation(&geo, LobeSet::only(l)).get(l) * u.cos()
+                    },
+                    &pts,
+                    1e-12,
+                    0.0,
+                    10_000,
+                )
+                .value;
+                // tol 1e-4 of the peak per phi bounds the integral's error by ~1e-4 of
+                // 2 pi * peak; relative to the mean this is a few 1e-4.
+                assert!(
+                    (e[i] - a).abs() <= 5e-4 * a,
+                    "{name} {l:?}: {} vs {a}",
+                    e[i]
+                );
+            }
+        }
+    }
+}
+
+#[test]
+fn tol_mode_meets_1e_4_on_random_parameters() {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(20170701);
+    for case in 0..8 {
+        let v = [
+            rng.random_range(1.1..2.5),
+            rng.random_range(0.0..0.95),
+            rng.random_range(-10.0..10.0),
+            rng.random_range(2.0..20.0),
+            rng.random_range(0.5..40.0),
+            rng.random_range(0.0..3.0),
+            rng.random_range(0.0..5.0),
+            rng.random_range(0.0..2.0),
+            rng.random_range(-0.8..0.8),
+            rng.random_range(0.3..5.0),
+        ];
+        let td = rng.random_range(-80.0..80.0);
+        assert_tol_mode(&params(v), &[td], &format!("random case {case} {v:?}"));
+    }
+}
