@@ -128,16 +128,19 @@ fn check_recovery(truth: FurParams, noise: f64, opts: &FitOptions) {
 }
 
 #[test]
+#[ignore = "minutes on 2 cores: run with `cargo test --release -- --ignored` (see tests/README)"]
 fn recovers_fur_params_with_noise() {
     check_recovery(fur_truth(), 0.02, &opts());
 }
 
 #[test]
+#[ignore = "minutes on 2 cores: run with `cargo test --release -- --ignored` (see tests/README)"]
 fn recovers_human_hair_kappa_zero_with_noise() {
     check_recovery(hair_truth(), 0.02, &opts());
 }
 
 #[test]
+#[ignore = "minutes on 2 cores: run with `cargo test --release -- --ignored` (see tests/README)"]
 fn noise_free_fit_is_exact() {
     check_recovery(fur_truth(), 0.0, &opts());
 }
