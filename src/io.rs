@@ -45,6 +45,17 @@ where
     })
 }
 
+/// Read and parse a JSON file; a syntax error names the file, line and column.
+pub fn read_json(path: &Path) -> Result<serde_json::Value> {
+    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_str(&text).map_err(|e| Error::Parse {
+        file: path.into(),
+        line: e.line(),
+        column: format!("column {}", e.column()),
+        msg: format!("invalid JSON: {e}"),
+    })
+}
+
 /// Content hash (SHA-256, lower-case hex) of a byte string; fits record the hash of the data
 /// they were made from.
 pub fn sha256_hex(bytes: &[u8]) -> String {

@@ -4,29 +4,10 @@ use super::*;
 use crate::params::{FurParams, ParamId};
 use std::f64::consts::TAU;
 
-/// Gauss-Legendre nodes/weights on [-1, 1] by Newton iteration (tests only).
+/// Gauss-Legendre nodes/weights on [-1, 1] (the project's quadrature module).
 fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {
-    let mut out = Vec::with_capacity(n);
-    for i in 0..n {
-        let mut x = (PI * (i as f64 + 0.75) / (n as f64 + 0.5)).cos();
-        let mut dp = 0.0;
-        for _ in 0..100 {
-            let (mut p0, mut p1) = (1.0, x);
-            for k in 2..=n {
-                let p2 = ((2 * k - 1) as f64 * x * p1 - (k - 1) as f64 * p0) / k as f64;
-                p0 = p1;
-                p1 = p2;
-            }
-            dp = n as f64 * (x * p1 - p0) / (x * x - 1.0);
-            let dx = p1 / dp;
-            x -= dx;
-            if dx.abs() < 1e-16 {
-                break;
-            }
-        }
-        out.push((x, 2.0 / ((1.0 - x * x) * dp * dp)));
-    }
-    out
+    let (x, w) = super::quadrature::gauss_legendre_rule(n);
+    x.into_iter().zip(w).collect()
 }
 
 fn params(values: [f64; 10]) -> FurParams {

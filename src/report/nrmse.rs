@@ -35,13 +35,7 @@ pub struct FitFile {
 impl FitFile {
     /// Read one fit file.
     pub fn read(path: &Path) -> Result<FitFile> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-        let v: Value = serde_json::from_str(&text).map_err(|e| Error::Parse {
-            file: path.into(),
-            line: e.line(),
-            column: format!("column {}", e.column()),
-            msg: format!("invalid JSON: {e}"),
-        })?;
+        let v: Value = crate::io::read_json(path)?;
         let (params, exposure) = FurParams::from_json_value(&v).map_err(|e| match e {
             Error::Param { key, msg } => Error::Param {
                 key,
