@@ -52,8 +52,9 @@ fn simulate_writes_labelled_csv_and_metadata() {
     let header = lines.iter().position(|l| !l.starts_with('#')).unwrap();
     assert_eq!(lines[header], "theta_i,theta_r,phi,value,sigma");
     let rows = &lines[header + 1..];
-    // 2 theta_i x 9 theta_r x 13 phi samples, each a full row.
-    assert_eq!(rows.len(), 2 * 9 * 13);
+    // 2 theta_i x 9 theta_r x 12 phi samples, each a full row (-180:180:30 names 12
+    // directions: -180 and 180 are one, kept once as 180).
+    assert_eq!(rows.len(), 2 * 9 * 12);
     let mut valid = 0;
     for r in rows {
         let f: Vec<&str> = r.split(',').collect();
