@@ -67,6 +67,19 @@ fn errors(set: &Set, vals: &[Vec<Vec<LobeValues>>]) -> (f64, f64) {
 
 /// Evaluate a method over the set; returns values and (single, amortised) microseconds
 /// per five-lobe evaluation (best of `reps` timing passes).
+/// [`measure`] for the far field with `opts`: single calls and one `far_slice` per theta_d.
+fn measure_far(set: &Set, reps: usize, opts: &FarOptions) -> (Vec<Vec<Vec<LobeValues>>>, f64, f64) {
+    measure(
+        set,
+        reps,
+        |az, phi| az.far(phi, LobeSet::ALL, opts),
+        |az, phis| {
+            let fs = az.far_slice(LobeSet::ALL, opts);
+            phis.iter().map(|&p| fs.eval(p)).collect()
+        },
+    )
+}
+
 fn measure<F, G>(
     set: &Set,
     reps: usize,
@@ -180,15 +193,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
             cull: true,
             tol: None,
         };
-        let r = measure(
-            &set,
-            reps,
-            |az, phi| az.far(phi, LobeSet::ALL, &opts),
-            |az, phis| {
-                let fs = az.far_slice(LobeSet::ALL, &opts);
-                phis.iter().map(|&p| fs.eval(p)).collect()
-            },
-        );
+        let r = measure_far(&set, reps, &opts);
         push(&mut rows, "far-fixed", format!("n={n}"), r, log);
     }
     for tol in TOLS {
@@ -196,15 +201,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
             tol: Some(tol),
             ..FarOptions::default()
         };
-        let r = measure(
-            &set,
-            reps,
-            |az, phi| az.far(phi, LobeSet::ALL, &opts),
-            |az, phis| {
-                let fs = az.far_slice(LobeSet::ALL, &opts);
-                phis.iter().map(|&p| fs.eval(p)).collect()
-            },
-        );
+        let r = measure_far(&set, reps, &opts);
         push(&mut rows, "far-tol", format!("tol={tol:.0e}"), r, log);
     }
     for n in GL_POINTS {
