@@ -17,6 +17,11 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::path::Path;
 
+/// Tabulate the medulla table per scattered node when a `theta_d` has at least this many
+/// `phi`: a node's profile (one rank dot product per psi bin) costs about as much as 60
+/// rank-sum queries, and each `phi` makes about five queries per node.
+const TABULATE_MIN_PHI: usize = 12;
+
 /// Which azimuthal integral a synthesized profile uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ModelKind {
@@ -66,67 +71,124 @@ pub fn predict_with(
     kind: ModelKind,
     opts: &FarOptions,
 ) -> Vec<LobeValues> {
-    let lobes = lobes.intersect(model.active_lobes());
-    if points.is_empty() || lobes.is_empty() {
-        return vec![LobeValues::default(); points.len()];
+    GridPlan::new(points).predict(model, lobes, kind, opts)
+}
+
+/// The grid structure of a list of goniometer points, found once and reused for every
+/// parameter set (the fitter evaluates the same points hundreds of times): the distinct
+/// `theta_d` values with their distinct `phi`, and the distinct `(theta_i, theta_r)` pairs.
+#[derive(Clone, Debug, Default)]
+pub struct GridPlan {
+    points: Vec<(f64, f64, f64)>,
+    /// Per distinct `theta_d`: the value and its distinct `phi` values.
+    groups: Vec<(f64, Vec<f64>)>,
+    /// Per point: (group, index of its `phi` in the group).
+    where_n: Vec<(usize, usize)>,
+    /// Distinct `(theta_i, theta_r)` pairs, and per point the index of its pair.
+    pairs: Vec<(f64, f64)>,
+    where_m: Vec<usize>,
+}
+
+impl GridPlan {
+    pub fn new(points: &[(f64, f64, f64)]) -> GridPlan {
+        let mut td_index: HashMap<u64, usize> = HashMap::new();
+        let mut phi_index: Vec<HashMap<u64, usize>> = Vec::new();
+        let mut pair_index: HashMap<(u64, u64), usize> = HashMap::new();
+        let mut plan = GridPlan {
+            points: points.to_vec(),
+            ..GridPlan::default()
+        };
+        for &(ti, tr, phi) in points {
+            let td = theta_d(ti, tr);
+            let g = *td_index.entry(td.to_bits()).or_insert_with(|| {
+                plan.groups.push((td, Vec::new()));
+                phi_index.push(HashMap::new());
+                plan.groups.len() - 1
+            });
+            let k = *phi_index[g].entry(phi.to_bits()).or_insert_with(|| {
+                plan.groups[g].1.push(phi);
+                plan.groups[g].1.len() - 1
+            });
+            plan.where_n.push((g, k));
+            let m = *pair_index
+                .entry((ti.to_bits(), tr.to_bits()))
+                .or_insert_with(|| {
+                    plan.pairs.push((ti, tr));
+                    plan.pairs.len() - 1
+                });
+            plan.where_m.push(m);
+        }
+        plan
     }
-    // Distinct theta_d values, and per theta_d the distinct phi values.
-    let mut td_index: HashMap<u64, usize> = HashMap::new();
-    let mut groups: Vec<(f64, Vec<f64>)> = Vec::new();
-    let mut where_n: Vec<(usize, usize)> = Vec::with_capacity(points.len());
-    let mut phi_index: Vec<HashMap<u64, usize>> = Vec::new();
-    for &(ti, tr, phi) in points {
-        let td = theta_d(ti, tr);
-        let g = *td_index.entry(td.to_bits()).or_insert_with(|| {
-            groups.push((td, Vec::new()));
-            phi_index.push(HashMap::new());
-            groups.len() - 1
-        });
-        let k = *phi_index[g].entry(phi.to_bits()).or_insert_with(|| {
-            groups[g].1.push(phi);
-            groups[g].1.len() - 1
-        });
-        where_n.push((g, k));
+
+    pub fn len(&self) -> usize {
+        self.points.len()
     }
-    // N_p per (theta_d, phi), parallel over theta_d (then over phi inside big groups).
-    let n_values: Vec<Vec<LobeValues>> = groups
-        .par_iter()
-        .map(|(td, phis)| {
-            let az = model.azimuthal(*td);
-            let eval = |&phi: &f64| match kind {
-                ModelKind::Far => az.far(phi, lobes, opts),
-                ModelKind::NearQuadrature => az.far_reference(phi, lobes),
-            };
-            if phis.len() > 64 {
-                phis.par_iter().with_min_len(16).map(eval).collect()
-            } else {
-                phis.iter().map(eval).collect()
-            }
-        })
-        .collect();
-    // M_p per (theta_i, theta_r) for the unscattered lobes; M_s per point (it depends on phi).
-    let unsc = lobes.intersect(LobeSet::UNSCATTERED);
-    let scat = lobes.intersect(LobeSet::SCATTERED);
-    let mut m_cache: HashMap<(u64, u64), LobeValues> = HashMap::new();
-    for &(ti, tr, _) in points {
-        m_cache
-            .entry((ti.to_bits(), tr.to_bits()))
-            .or_insert_with(|| model.longitudinal(ti, tr, 0.0, unsc));
+
+    pub fn is_empty(&self) -> bool {
+        self.points.is_empty()
     }
-    points
-        .par_iter()
-        .zip(where_n.par_iter())
-        .with_min_len(1024)
-        .map(|(&(ti, tr, phi), &(g, k))| {
-            let mut m = m_cache[&(ti.to_bits(), tr.to_bits())];
-            if !scat.is_empty() {
-                let ms = model.longitudinal(ti, tr, phi, scat);
-                m.set(Lobe::TTs, ms.get(Lobe::TTs));
-                m.set(Lobe::TRTs, ms.get(Lobe::TRTs));
-            }
-            m.mul(&n_values[g][k])
-        })
-        .collect()
+
+    /// Per-lobe `M_p N_p` (no exposure) at every point of the plan.
+    pub fn predict(
+        &self,
+        model: &FurModel,
+        lobes: LobeSet,
+        kind: ModelKind,
+        opts: &FarOptions,
+    ) -> Vec<LobeValues> {
+        let lobes = lobes.intersect(model.active_lobes());
+        if self.points.is_empty() || lobes.is_empty() {
+            return vec![LobeValues::default(); self.points.len()];
+        }
+        // N_p per (theta_d, phi), parallel over theta_d.
+        let n_values: Vec<Vec<LobeValues>> = self
+            .groups
+            .par_iter()
+            .map(|(td, phis)| {
+                let az = model.azimuthal(*td);
+                match kind {
+                    // The slice (segmentation and fits) depends only on theta_d: build it
+                    // once and evaluate the closed forms at every phi of the group.
+                    ModelKind::Far => {
+                        let mut slice = az.far_slice(lobes, opts);
+                        if phis.len() >= TABULATE_MIN_PHI {
+                            slice.tabulate_scattered();
+                        }
+                        phis.iter().map(|&phi| slice.eval(phi)).collect()
+                    }
+                    ModelKind::NearQuadrature => phis
+                        .par_iter()
+                        .with_min_len(4)
+                        .map(|&phi| az.far_reference(phi, lobes))
+                        .collect(),
+                }
+            })
+            .collect();
+        // M_p per (theta_i, theta_r) for the unscattered lobes; M_s per point (it depends
+        // on phi through the front/back lerp of Eq. 19).
+        let unsc = lobes.intersect(LobeSet::UNSCATTERED);
+        let scat = lobes.intersect(LobeSet::SCATTERED);
+        let m_pairs: Vec<LobeValues> = self
+            .pairs
+            .iter()
+            .map(|&(ti, tr)| model.longitudinal(ti, tr, 0.0, unsc))
+            .collect();
+        self.points
+            .par_iter()
+            .zip(self.where_n.par_iter().zip(self.where_m.par_iter()))
+            .with_min_len(1024)
+            .map(|(&(ti, tr, phi), (&(g, k), &mi))| {
+                let mut m = m_pairs[mi];
+                if !scat.is_empty() {
+                    let ms = model.longitudinal(ti, tr, phi, scat);
+                    m.set(Lobe::TTs, ms.get(Lobe::TTs));
+                    m.set(Lobe::TRTs, ms.get(Lobe::TRTs));
+                }
+                m.mul(&n_values[g][k])
+            })
+            .collect()
+    }
 }
 
 /// Synthesize a profile on the grid `theta_i x theta_r x phi` (degrees), value

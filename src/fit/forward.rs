@@ -8,6 +8,8 @@
 use crate::model::far::FarOptions;
 use crate::model::{FurModel, LobeSet, LobeValues};
 use crate::params::FurParams;
+use crate::synth::{GridPlan, ModelKind};
+use std::sync::{Arc, OnceLock};
 
 /// Parse `--segments N,M` (unscattered, scattered; or one `N` for both) into the paper's
 /// fixed-segmentation far field ([`FarOptions::paper`] with those counts). The fitter uses a
@@ -40,10 +42,19 @@ pub fn parse_segments(s: &str) -> crate::Result<FarOptions> {
     })
 }
 
-/// Goniometer points `(theta_i, theta_r, phi)` in radians.
-#[derive(Clone, Debug, Default, PartialEq)]
+/// Goniometer points `(theta_i, theta_r, phi)` in radians, with their grid structure
+/// ([`GridPlan`]) found on first use and kept, since a fit evaluates the same points
+/// hundreds of times.
+#[derive(Clone, Debug, Default)]
 pub struct Points {
     pub pts: Vec<(f64, f64, f64)>,
+    plan: OnceLock<Arc<GridPlan>>,
+}
+
+impl PartialEq for Points {
+    fn eq(&self, other: &Self) -> bool {
+        self.pts == other.pts
+    }
 }
 
 impl Points {
@@ -57,13 +68,20 @@ impl Points {
 
     pub fn push(&mut self, theta_i: f64, theta_r: f64, phi: f64) {
         self.pts.push((theta_i, theta_r, phi));
+        self.plan = OnceLock::new();
     }
 
     /// The points at the given indices.
     pub fn subset(&self, idx: &[usize]) -> Points {
         Points {
             pts: idx.iter().map(|&i| self.pts[i]).collect(),
+            plan: OnceLock::new(),
         }
+    }
+
+    /// The grid structure of the points (built on first use).
+    pub fn plan(&self) -> &GridPlan {
+        self.plan.get_or_init(|| Arc::new(GridPlan::new(&self.pts)))
     }
 }
 
@@ -79,7 +97,7 @@ pub fn predict_points(
 ) {
     debug_assert_eq!(out.len(), points.len());
     let model = FurModel::new(params);
-    let v = crate::synth::predict(&model, &points.pts, lobes, far);
+    let v = points.plan().predict(&model, lobes, ModelKind::Far, far);
     for (o, l) in out.iter_mut().zip(&v) {
         *o = l.sum();
     }
@@ -88,5 +106,7 @@ pub fn predict_points(
 /// Per-lobe model values (no exposure) at every point (for per-lobe plots).
 pub fn predict_lobes(params: &FurParams, points: &Points, far: &FarOptions) -> Vec<LobeValues> {
     let model = FurModel::new(params);
-    crate::synth::predict(&model, &points.pts, LobeSet::ALL, far)
+    points
+        .plan()
+        .predict(&model, LobeSet::ALL, ModelKind::Far, far)
 }

@@ -43,6 +43,9 @@ use std::sync::atomic::Ordering;
 use std::time::Instant;
 use uncertainty::Uncertainty;
 
+/// Relative cost change that ends an LM run on the subsample (see [`fit_data`]).
+const SUBSAMPLE_FTOL: f64 = 1e-4;
+
 /// Settings of one fit.
 #[derive(Clone, Debug)]
 pub struct FitOptions {
@@ -164,10 +167,15 @@ fn run_lm(
     shared: &LogResidualProblem,
     u0: DVector<f64>,
     max_iters: u64,
+    ftol: Option<f64>,
     clock: Instant,
 ) -> Result<RunResult> {
     let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far);
-    let res = Executor::new(&prob, LevenbergMarquardt::new(clock))
+    let mut lm = LevenbergMarquardt::new(clock);
+    if let Some(f) = ftol {
+        lm.ftol = f;
+    }
+    let res = Executor::new(&prob, lm)
         .configure(|s| s.param(u0).max_iters(max_iters))
         .run()
         .map_err(|e| Error::Invalid(format!("solver failed: {e}")))?;
@@ -246,7 +254,7 @@ pub fn fit_data(
     }
     // Direct multi-start on all samples when a subsample would not save much.
     let use_sub = data.len() > opts.n_sub * 3 / 2;
-    let sub_idx = starts::subsample(data.len(), opts.n_sub, opts.seed);
+    let sub_idx = starts::subsample_grouped(&data.points.pts, opts.n_sub, opts.seed);
     let sub_data = if use_sub {
         data.subset(&sub_idx)
     } else {
@@ -312,7 +320,12 @@ pub fn fit_data(
     ));
     let runs: Vec<Result<RunResult>> = chosen
         .par_iter()
-        .map(|&i| run_lm(&sub, scored[i].2.clone(), opts.max_iters, clock))
+        .map(|&i| {
+            // On a subsample the runs only choose the basin (the polish on all samples
+            // converges tightly), so they stop at a looser relative cost change.
+            let ftol = use_sub.then_some(SUBSAMPLE_FTOL);
+            run_lm(&sub, scored[i].2.clone(), opts.max_iters, ftol, clock)
+        })
         .collect();
     let mut runs: Vec<RunResult> = runs.into_iter().collect::<Result<_>>()?;
     sub.evals
@@ -331,7 +344,7 @@ pub fn fit_data(
     let mut iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
     let (u, termination) = if use_sub {
         say(&format!("polishing on all {} samples", data.len()));
-        let polish = run_lm(&full, best_run.u, opts.max_iters, clock)?;
+        let polish = run_lm(&full, best_run.u, opts.max_iters, None, clock)?;
         full.evals.fetch_add(polish.evals, Ordering::Relaxed);
         let offset = best_run.iters;
         let n = data.len() as f64;

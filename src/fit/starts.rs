@@ -100,9 +100,87 @@ pub fn subsample(total: usize, n: usize, seed: u64) -> Vec<usize> {
     out
 }
 
+/// Samples per `theta_d` the grouped subsample aims for: the far field's per-`theta_d`
+/// set-up (segmentation and fits) is shared by all samples of that `theta_d`, so a
+/// subsample spread thinly over every `theta_d` costs nearly as much as the full profile.
+const PER_THETA_D: usize = 24;
+
+/// A seeded subsample of about `n` of the `points` (sorted indices; all of them if
+/// `points.len() <= n`) that keeps the evaluation cheap: every k-th distinct `theta_d`
+/// (in order, random offset, so the whole `theta_d` range stays covered) with k chosen for
+/// about [`PER_THETA_D`] samples each, then `n` samples drawn uniformly from those groups.
+pub fn subsample_grouped(points: &[(f64, f64, f64)], n: usize, seed: u64) -> Vec<usize> {
+    let total = points.len();
+    if total <= n {
+        return (0..total).collect();
+    }
+    let td: Vec<f64> = points
+        .iter()
+        .map(|&(ti, tr, _)| crate::model::geometry::theta_d(ti, tr))
+        .collect();
+    let mut distinct: Vec<f64> = td.clone();
+    distinct.sort_by(f64::total_cmp);
+    distinct.dedup();
+    let want_groups = n.div_ceil(PER_THETA_D).max(1);
+    let k = (distinct.len() / want_groups).max(1);
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x7d_9e37_79b9);
+    let offset = rng.random_range(0..k);
+    let keep: std::collections::HashSet<u64> = distinct
+        .iter()
+        .skip(offset)
+        .step_by(k)
+        .map(|t| t.to_bits())
+        .collect();
+    let pool: Vec<usize> = (0..total)
+        .filter(|&i| keep.contains(&td[i].to_bits()))
+        .collect();
+    if pool.len() <= n {
+        return pool;
+    }
+    subsample(pool.len(), n, seed)
+        .into_iter()
+        .map(|j| pool[j])
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The grouped subsample has the requested size, is seeded, uses about
+    /// `n / PER_THETA_D` distinct theta_d spread over the whole range, and keeps all
+    /// points when there are few.
+    #[test]
+    fn grouped_subsample_thins_theta_d() {
+        let mut pts = Vec::new();
+        for ti in [0.0f64, 15.0, 30.0, 45.0] {
+            for k in 0..81 {
+                for j in 0..90 {
+                    let tr = -80.0 + 2.0 * k as f64;
+                    let phi = -176.0 + 4.0 * j as f64;
+                    pts.push((ti.to_radians(), tr.to_radians(), phi.to_radians()));
+                }
+            }
+        }
+        let a = subsample_grouped(&pts, 1500, 3);
+        assert_eq!(a.len(), 1500);
+        assert_eq!(a, subsample_grouped(&pts, 1500, 3));
+        assert_ne!(a, subsample_grouped(&pts, 1500, 4));
+        assert!(a.windows(2).all(|w| w[0] < w[1]));
+        let mut tds: Vec<f64> = a
+            .iter()
+            .map(|&i| crate::model::geometry::theta_d(pts[i].0, pts[i].1))
+            .collect();
+        tds.sort_by(f64::total_cmp);
+        tds.dedup();
+        // 192 distinct theta_d on this grid; 1500 / 24 -> 63 wanted -> every 3rd -> 64.
+        assert!((55..=70).contains(&tds.len()), "{} theta_d", tds.len());
+        assert!(tds[0] < (-55f64).to_radians() && tds[tds.len() - 1] > 30f64.to_radians());
+        assert_eq!(
+            subsample_grouped(&pts[..100], 1500, 3),
+            (0..100).collect::<Vec<_>>()
+        );
+    }
 
     #[test]
     fn halton_is_in_box_and_seeded() {

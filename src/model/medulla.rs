@@ -430,10 +430,17 @@ impl MedullaTables {
         let g = if g.is_nan() { 0.0 } else { g };
         let wn = self.cn.collapse01(tau, g);
         let wm = [self.cm[0].collapse01(tau, g), self.cm[1].collapse01(tau, g)];
+        let (_, d, n) = self.cn.last_axis();
+        let r = self.cn.rank;
+        let f3 = &self.cn.factors[3];
+        let wn_int = (0..r)
+            .map(|q| wn[q] * d * (0..n).map(|k| f3[k * r + q]).sum::<f64>())
+            .collect();
         MedullaSlice {
             tau,
             g,
             wn,
+            wn_int,
             wm,
             cn: self.cn.clone(),
             cm: self.cm.clone(),
@@ -448,6 +455,9 @@ pub struct MedullaSlice {
     pub tau: f64,
     pub g: f64,
     wn: Vec<f64>,
+    /// `wn[q] * bin width * sum_k f3[k][q]`: the psi integral of each rank's shape, so
+    /// [`Self::scattered_fraction`] costs one pass over the ranks.
+    wn_int: Vec<f64>,
     wm: [Vec<f64>; 2],
     cn: Arc<CpTable>,
     cm: [Arc<CpTable>; 2],
@@ -476,15 +486,58 @@ impl MedullaSlice {
     /// `C^N(x, psi)`: per radian of `psi`, compressed negatives clamped to 0.
     #[inline]
     pub fn cn(&self, x: f64, psi: f64) -> f64 {
-        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
-        if psi.is_nan() {
-            return 0.0;
-        }
-        let s = self.cn_shape(x, psi);
+        let s = self.cn_shape_clamped(x, psi);
         if s > 0.0 {
             s * scatter_probability(self.tau, x)
         } else {
             0.0
+        }
+    }
+
+    /// `C^N(x, psi) / P_s(tau, x)`: [`Self::cn`] without the analytic scattered fraction
+    /// (for callers that evaluate many `psi` at one `x` and hoist the fraction).
+    #[inline]
+    pub fn cn_shape_clamped(&self, x: f64, psi: f64) -> f64 {
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
+        if psi.is_nan() {
+            return 0.0;
+        }
+        self.cn_shape(x, psi).max(0.0)
+    }
+
+    /// The analytic probability `P_s(tau, x)` that a chord at offset `x` scatters.
+    #[inline]
+    pub fn scattered_probability(&self, x: f64) -> f64 {
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
+        scatter_probability(self.tau, x)
+    }
+
+    /// `C^N` at a fixed entry offset `x`, tabulated over the table's `psi` bins, for
+    /// evaluating many `psi` at one `x` (the far field at many `phi`): one pass over the
+    /// ranks per bin here, then a lerp per query instead of a rank sum.
+    /// [`CnProfile::cn`] equals [`Self::cn`] up to summation rounding.
+    pub fn cn_profile(&self, x: f64) -> CnProfile {
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
+        let t = &*self.cn;
+        let (i, fi) = locate(&t.axes[2], x.abs());
+        let (c0, d, n) = t.last_axis();
+        let r = t.rank;
+        let (f2, f3) = (&t.factors[2], &t.factors[3]);
+        // Collapse the offset mode once, then one dot product per psi bin.
+        let a: Vec<f64> = (0..r)
+            .map(|q| self.wn[q] * (f2[i * r + q] + fi * (f2[(i + 1) * r + q] - f2[i * r + q])))
+            .collect();
+        let shape = f3
+            .chunks_exact(r)
+            .take(n)
+            .map(|row| row.iter().zip(&a).map(|(b, a)| a * b).sum())
+            .collect();
+        CnProfile {
+            c0,
+            d,
+            shape,
+            prob: scatter_probability(self.tau, x),
+            x,
         }
     }
 
@@ -528,16 +581,13 @@ impl MedullaSlice {
         let t = &*self.cn;
         let r = t.rank;
         let (i, fi) = locate(&t.axes[2], x.abs());
-        let (_, d, n) = t.last_axis();
         let f2 = &t.factors[2];
-        let f3 = &t.factors[3];
         let mut s = 0.0;
         for q in 0..r {
             let a = f2[i * r + q] + fi * (f2[(i + 1) * r + q] - f2[i * r + q]);
-            let p: f64 = (0..n).map(|k| f3[k * r + q]).sum();
-            s += self.wn[q] * a * p;
+            s += self.wn_int[q] * a;
         }
-        (s * d).max(0.0) * scatter_probability(self.tau, x)
+        s.max(0.0) * scatter_probability(self.tau, x)
     }
 
     /// The importance sampler of this slice (built on first use, then cached).
@@ -555,6 +605,54 @@ impl MedullaSlice {
     /// Sample `theta_r`: see [`MedullaSampler::sample_cm`].
     pub fn sample_cm(&self, theta_i: f64, phi: f64, u: f64) -> (f64, f64) {
         self.sampler().sample_cm(theta_i, phi, u)
+    }
+}
+
+/// `C^N(x, .)` at one offset `x`: the unclamped shape at the `psi` bin centres and the
+/// analytic scattered fraction (see [`MedullaSlice::cn_profile`]).
+#[derive(Clone, Debug)]
+pub struct CnProfile {
+    c0: f64,
+    d: f64,
+    shape: Vec<f64>,
+    prob: f64,
+    /// The (clamped) offset: queries at `x < 0` use `-psi` (the table stores `x >= 0`).
+    x: f64,
+}
+
+impl CnProfile {
+    /// `C^N(x, psi)`, as [`MedullaSlice::cn`].
+    #[inline]
+    pub fn cn(&self, psi: f64) -> f64 {
+        self.shape_clamped(psi) * self.prob
+    }
+
+    /// `C^N(-x, psi)` (the mirrored offset), as [`MedullaSlice::cn`] at `-x`.
+    #[inline]
+    pub fn cn_mirror(&self, psi: f64) -> f64 {
+        self.shape_clamped_mirror(psi) * self.prob
+    }
+
+    /// [`Self::cn`] without the scattered fraction, as [`MedullaSlice::cn_shape_clamped`].
+    #[inline]
+    pub fn shape_clamped(&self, psi: f64) -> f64 {
+        self.at(if self.x < 0.0 { -psi } else { psi })
+    }
+
+    /// [`Self::cn_mirror`] without the scattered fraction.
+    #[inline]
+    pub fn shape_clamped_mirror(&self, psi: f64) -> f64 {
+        // Same rule as a query at `-x` (so `x = 0` is not flipped either way).
+        self.at(if -self.x < 0.0 { -psi } else { psi })
+    }
+
+    #[inline]
+    fn at(&self, psi: f64) -> f64 {
+        if psi.is_nan() {
+            return 0.0;
+        }
+        let (k0, k1, f) = locate_periodic(self.c0, self.d, self.shape.len(), psi);
+        (self.shape[k0] + f * (self.shape[k1] - self.shape[k0])).max(0.0)
     }
 }
 
@@ -796,6 +894,28 @@ mod tests {
         build_tables(&tiny_options(seed), &|| {}, &mut |_| {})
             .0
             .to_bytes()
+    }
+
+    /// The tabulated profile is the same function as the rank-sum query: only the order of
+    /// the rank sum differs, so agreement to 1e-12 of the profile's peak (rounding of ~32
+    /// terms of size ~1 is ~1e-15) is a real check, including the `x < 0` flip and mirror.
+    #[test]
+    fn cn_profile_matches_cn() {
+        let s = MedullaTables::builtin().slice(3.0, 0.4);
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
+        for _ in 0..40 {
+            let x: f64 = rng.random_range(-1.0..1.0);
+            let prof = s.cn_profile(x);
+            let peak = (0..720)
+                .map(|k| s.cn(x, -PI + k as f64 * PI / 360.0))
+                .fold(0.0f64, f64::max)
+                .max(1e-300);
+            for _ in 0..50 {
+                let psi: f64 = rng.random_range(-4.0..4.0);
+                assert!((prof.cn(psi) - s.cn(x, psi)).abs() <= 1e-12 * peak);
+                assert!((prof.cn_mirror(psi) - s.cn(-x, psi)).abs() <= 1e-12 * peak);
+            }
+        }
     }
 
     /// Trapezoid over 8 points per psi bin: exact for the piecewise-linear `cn` at fixed

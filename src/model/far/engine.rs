@@ -41,9 +41,12 @@
 use super::closed_form::{poly_exp, poly_gauss, quadratic_through};
 use super::FarOptions;
 use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian};
+use crate::model::medulla::CnProfile;
 use crate::model::quadrature::GaussLegendre;
 use crate::model::{AzimuthalSlice, Lobe, LobeSet, LobeValues};
+use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
+use std::sync::Arc;
 
 /// Culling window half-width in lobe standard deviations (see module doc).
 pub const CULL_SIGMAS: f64 = 8.5;
@@ -95,12 +98,15 @@ enum Piece {
 /// A fitted scattered segment over `u` in `[u0, u0 + len]`, nodes at 0, len/2, len.
 #[derive(Clone, Debug)]
 struct ScatSeg {
-    len: f64,
-    pre: [f64; 3],
-    l0: f64,
-    l: f64,
     x_med: [f64; 3],
+    /// Weights `w_j` with `integral = sum_j w_j C^N_shape(x_j, psi_j)`: the Appendix's
+    /// `C exp(L)` integral of the quadratic through the node values is linear in those
+    /// values, so the prefactor, the scattered fraction `P_s(tau, x_j)` and the
+    /// exponential part are folded in once per segment instead of once per `phi`.
+    w: [f64; 3],
     phis: [f64; 3],
+    /// `C^N` at the three nodes tabulated over `psi` ([`FarSlice::tabulate_scattered`]).
+    prof: Option<[Arc<CnProfile>; 3]>,
 }
 
 /// One contiguous range of `h >= 0` with which mirror images it contributes.
@@ -508,14 +514,52 @@ impl<'a> FarSlice<'a> {
                 }
             }
         }
+        let prob = |n: &Node| {
+            self.az
+                .model
+                .medulla()
+                .map_or(0.0, |m| m.scattered_probability(n.x_med))
+        };
+        let pre_p = [
+            n0.pre[i] * prob(&n0),
+            nm.pre[i] * prob(&nm),
+            n1.pre[i] * prob(&n1),
+        ];
+        let mut w = [0.0; 3];
+        for j in 0..3 {
+            let mut e = [0.0; 3];
+            e[j] = 1.0;
+            let c = quadratic_through([0.0, 0.5 * len, len], e);
+            w[j] = pre_p[j] * poly_exp(&c, l0, lin, len);
+        }
         out.push(ScatSeg {
-            len,
-            pre: [n0.pre[i], nm.pre[i], n1.pre[i]],
-            l0,
-            l: lin,
+            w,
             x_med: [n0.x_med, nm.x_med, n1.x_med],
             phis: [n0.phis[k], nm.phis[k], n1.phis[k]],
+            prof: None,
         });
+    }
+
+    /// Tabulate `C^N` over `psi` at every scattered node (shared between the two scattered
+    /// lobes and between neighbouring segments), so each later [`Self::eval`] costs a lerp
+    /// per node instead of a sum over the table's ranks. Worth it when the slice is
+    /// evaluated at more than a handful of `phi`; values change only by rounding.
+    pub fn tabulate_scattered(&mut self) {
+        let Some(med) = self.az.model.medulla() else {
+            return;
+        };
+        let mut cache: HashMap<u64, Arc<CnProfile>> = HashMap::new();
+        for part in &mut self.parts {
+            for seg in part.scat.iter_mut().flatten() {
+                let mut get = |x: f64| {
+                    cache
+                        .entry(x.to_bits())
+                        .or_insert_with(|| Arc::new(med.cn_profile(x)))
+                        .clone()
+                };
+                seg.prof = Some([get(seg.x_med[0]), get(seg.x_med[1]), get(seg.x_med[2])]);
+            }
+        }
     }
 
     /// Work counters.
@@ -594,8 +638,21 @@ impl<'a> FarSlice<'a> {
                                 }
                             }
                             Piece::Gl { nodes, .. } => {
-                                for &(ph, wt) in nodes {
-                                    s += wt * wrapped_gaussian(ph - mu, beta);
+                                if self.cull {
+                                    // Only the images inside the window (as for Phi pieces).
+                                    let norm = 1.0 / (beta * TAU.sqrt());
+                                    let inv2b2 = 0.5 / (beta * beta);
+                                    for k in kmin..=kmax {
+                                        let m = mu + TAU * k as f64;
+                                        for &(ph, wt) in nodes {
+                                            let y = ph - m;
+                                            s += wt * norm * (-y * y * inv2b2).exp();
+                                        }
+                                    }
+                                } else {
+                                    for &(ph, wt) in nodes {
+                                        s += wt * wrapped_gaussian(ph - mu, beta);
+                                    }
                                 }
                             }
                         }
@@ -609,19 +666,31 @@ impl<'a> FarSlice<'a> {
                 for k in 0..2 {
                     let mut s = 0.0;
                     for seg in &part.scat[k] {
-                        let mut ys = [0.0; 3];
                         for j in 0..3 {
-                            let mut dj = 0.0;
-                            if part.direct {
-                                dj += med.cn(seg.x_med[j], wrap_angle(phi - seg.phis[j]));
+                            let (d, m) =
+                                (wrap_angle(phi - seg.phis[j]), wrap_angle(phi + seg.phis[j]));
+                            // P_s is even in x and folded into `w`.
+                            let mut sh = 0.0;
+                            match &seg.prof {
+                                Some(pr) => {
+                                    if part.direct {
+                                        sh += pr[j].shape_clamped(d);
+                                    }
+                                    if part.mirror {
+                                        sh += pr[j].shape_clamped_mirror(m);
+                                    }
+                                }
+                                None => {
+                                    if part.direct {
+                                        sh += med.cn_shape_clamped(seg.x_med[j], d);
+                                    }
+                                    if part.mirror {
+                                        sh += med.cn_shape_clamped(-seg.x_med[j], m);
+                                    }
+                                }
                             }
-                            if part.mirror {
-                                dj += med.cn(-seg.x_med[j], wrap_angle(phi + seg.phis[j]));
-                            }
-                            ys[j] = seg.pre[j] * dj;
+                            s += seg.w[j] * sh;
                         }
-                        let c = quadratic_through([0.0, 0.5 * seg.len, seg.len], ys);
-                        s += poly_exp(&c, seg.l0, seg.l, seg.len);
                     }
                     out.0[3 + k] += self.weight * s;
                 }
