@@ -66,6 +66,9 @@ pub struct FitOptions {
     pub layout: ParamLayout,
     /// Weight residuals by the relative standard error `sigma/value` when present.
     pub weighted: bool,
+    /// Relative cost change that ends the final LM run (default 1e-6, Ceres'
+    /// `function_tolerance`).
+    pub ftol: f64,
 }
 
 impl Default for FitOptions {
@@ -80,6 +83,7 @@ impl Default for FitOptions {
             init: None,
             layout: ParamLayout::all_free(),
             weighted: false,
+            ftol: 1e-6,
         }
     }
 }
@@ -167,14 +171,12 @@ fn run_lm(
     shared: &LogResidualProblem,
     u0: DVector<f64>,
     max_iters: u64,
-    ftol: Option<f64>,
+    ftol: f64,
     clock: Instant,
 ) -> Result<RunResult> {
     let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far);
     let mut lm = LevenbergMarquardt::new(clock);
-    if let Some(f) = ftol {
-        lm.ftol = f;
-    }
+    lm.ftol = ftol;
     let res = Executor::new(&prob, lm)
         .configure(|s| s.param(u0).max_iters(max_iters))
         .run()
@@ -323,7 +325,7 @@ pub fn fit_data(
         .map(|&i| {
             // On a subsample the runs only choose the basin (the polish on all samples
             // converges tightly), so they stop at a looser relative cost change.
-            let ftol = use_sub.then_some(SUBSAMPLE_FTOL);
+            let ftol = if use_sub { SUBSAMPLE_FTOL } else { opts.ftol };
             run_lm(&sub, scored[i].2.clone(), opts.max_iters, ftol, clock)
         })
         .collect();
@@ -344,7 +346,7 @@ pub fn fit_data(
     let mut iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
     let (u, termination) = if use_sub {
         say(&format!("polishing on all {} samples", data.len()));
-        let polish = run_lm(&full, best_run.u, opts.max_iters, None, clock)?;
+        let polish = run_lm(&full, best_run.u, opts.max_iters, opts.ftol, clock)?;
         full.evals.fetch_add(polish.evals, Ordering::Relaxed);
         let offset = best_run.iters;
         let n = data.len() as f64;
