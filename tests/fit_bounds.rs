@@ -42,7 +42,6 @@ fn assert_inside(p: &FurParams) {
 }
 
 #[test]
-#[ignore = "minutes on 2 cores: run with `cargo test --release -- --ignored` (see tests/README)"]
 fn data_at_the_bounds_gives_in_bound_fits() {
     // eta = 3 (closed upper bound), beta_n = 90 (closed upper bound), l = 10: the optimum
     // sits on the bounds, so the solver is pushed against them.
@@ -59,7 +58,6 @@ fn data_at_the_bounds_gives_in_bound_fits() {
 }
 
 #[test]
-#[ignore = "minutes on 2 cores: run with `cargo test --release -- --ignored` (see tests/README)"]
 fn featureless_data_gives_in_bound_fits() {
     // A constant profile no parameter set reproduces: roughness is pushed to its maximum,
     // absorption toward 0 or infinity.

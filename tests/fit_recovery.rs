@@ -151,7 +151,6 @@ fn assert_within_3se(z: &[(String, f64)], seed: u64) {
 }
 
 #[test]
-#[ignore = "minutes on 2 cores: run with `cargo test --release -- --ignored` (see tests/README)"]
 fn recovers_fur_params_with_noise() {
     // With ten parameters a per-parameter 3-SE check fails by chance in ~3 % of noise
     // draws (seed 42 puts beta_m at 3.2 SE, fully converged, while seeds 43-46 stay
@@ -179,7 +178,6 @@ fn recovers_fur_params_with_noise() {
 }
 
 #[test]
-#[ignore = "minutes on 2 cores: run with `cargo test --release -- --ignored` (see tests/README)"]
 fn recovers_human_hair_kappa_zero_with_noise() {
     let z = recovery_z(hair_truth(), 0.02, 42, &opts());
     eprintln!("{z:.2?}");
@@ -187,7 +185,6 @@ fn recovers_human_hair_kappa_zero_with_noise() {
 }
 
 #[test]
-#[ignore = "minutes on 2 cores: run with `cargo test --release -- --ignored` (see tests/README)"]
 fn noise_free_fit_is_exact() {
     recovery_z(fur_truth(), 0.0, 42, &opts());
 }
