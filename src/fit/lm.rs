@@ -21,6 +21,23 @@ use std::time::Instant;
 
 type LmState = IterState<DVector<f64>, DVector<f64>, DMatrix<f64>, (), DVector<f64>, f64>;
 
+/// The state at a point: parameters, residuals, Jacobian, gradient and cost together.
+fn with_point(
+    state: LmState,
+    u: DVector<f64>,
+    r: DVector<f64>,
+    jac: DMatrix<f64>,
+    grad: DVector<f64>,
+    cost: f64,
+) -> LmState {
+    state
+        .param(u)
+        .residuals(r)
+        .jacobian(jac)
+        .gradient(grad)
+        .cost(cost)
+}
+
 /// One point of the convergence trace of a run.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TracePoint {
@@ -119,15 +136,7 @@ where
             time_s: self.clock.elapsed().as_secs_f64(),
             cost,
         });
-        Ok((
-            state
-                .param(u)
-                .residuals(r)
-                .jacobian(jac)
-                .gradient(grad)
-                .cost(cost),
-            None,
-        ))
+        Ok((with_point(state, u, r, jac, grad, cost), None))
     }
 
     fn next_iter(
@@ -143,15 +152,7 @@ where
 
         if grad.amax() <= self.gtol {
             self.converged = Some("gradient below tolerance");
-            return Ok((
-                state
-                    .param(u)
-                    .residuals(r)
-                    .jacobian(jac)
-                    .gradient(grad)
-                    .cost(cost),
-                None,
-            ));
+            return Ok((with_point(state, u, r, jac, grad, cost), None));
         }
         let jtj = jac.transpose() * &jac;
         let d = self.update_scale(&jtj);
@@ -164,15 +165,7 @@ where
             self.mu *= self.nu;
             self.nu *= 2.0;
             self.rejected += 1;
-            return Ok((
-                state
-                    .param(u)
-                    .residuals(r)
-                    .jacobian(jac)
-                    .gradient(grad)
-                    .cost(cost),
-                None,
-            ));
+            return Ok((with_point(state, u, r, jac, grad, cost), None));
         };
         let u_new = &u + &delta;
         let r_new = problem.apply(&u_new)?;
@@ -202,12 +195,7 @@ where
             });
             let kv = argmin::kv!("mu" => self.mu; "rho" => rho;);
             Ok((
-                state
-                    .param(u_new)
-                    .residuals(r_new)
-                    .jacobian(jac_new)
-                    .gradient(grad_new)
-                    .cost(cost_new),
+                with_point(state, u_new, r_new, jac_new, grad_new, cost_new),
                 Some(kv),
             ))
         } else {
@@ -217,15 +205,7 @@ where
             if self.mu > 1e16 {
                 self.converged = Some("damping exhausted (no descent direction left)");
             }
-            Ok((
-                state
-                    .param(u)
-                    .residuals(r)
-                    .jacobian(jac)
-                    .gradient(grad)
-                    .cost(cost),
-                None,
-            ))
+            Ok((with_point(state, u, r, jac, grad, cost), None))
         }
     }
 

@@ -38,7 +38,7 @@
 //! as `nan`, a missing sigma/phi_i as an empty cell. Metadata keys may not contain `:` or
 //! line breaks and values may not contain line breaks (an error, not a silent edit).
 
-use super::{canonical_phi, check_angle, dedupe, Profile, Sample};
+use super::{canonical_phi, check_angle, dedupe_notes, Profile, Sample};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -235,19 +235,13 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     }
     let names = header.unwrap_or_default();
     let value_label = format!("column {} ({})", cols.value + 1, names[cols.value]);
-    let collapsed = dedupe(&mut samples, |i, j, what| {
+    let notes = dedupe_notes(&mut samples, |i, j, what| {
         perr(
             lines[j],
             value_label.clone(),
             format!("{what}; first on line {}", lines[i]),
         )
     })?;
-    let mut notes = Vec::new();
-    if collapsed > 0 {
-        notes.push(format!(
-            "{collapsed} identical duplicate row(s) collapsed into their first occurrence"
-        ));
-    }
     Ok((
         Profile {
             samples,

@@ -422,6 +422,21 @@ pub fn same_sample(a: &Sample, b: &Sample) -> bool {
         && same_opt(a.phi_i, b.phi_i)
 }
 
+/// [`dedupe`], returning the loader notes it warrants (one line when rows were collapsed).
+pub(crate) fn dedupe_notes<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<Vec<String>>
+where
+    F: Fn(usize, usize, String) -> Error,
+{
+    let collapsed = dedupe(samples, conflict)?;
+    Ok(if collapsed > 0 {
+        vec![format!(
+            "{collapsed} identical duplicate row(s) collapsed into their first occurrence"
+        )]
+    } else {
+        Vec::new()
+    })
+}
+
 /// Remove identical duplicate samples (same `theta_i, theta_r, phi, channel` and the same
 /// value, sigma and phi_i), keeping the first; returns how many were removed. A repeat
 /// with any different field is an error built by `conflict(first_index, repeat_index,

@@ -28,7 +28,7 @@
 //! repeats are collapsed with a note), a bad `# theta_i:` line; each names the file, the
 //! 1-based line and the column (`column 2 (theta)`). A file without data rows is an error.
 
-use super::{check_angle, dedupe, wrap_phi, LoadOptions, Profile, Sample};
+use super::{check_angle, dedupe_notes, wrap_phi, LoadOptions, Profile, Sample};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -166,19 +166,13 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     for s in &mut samples {
         s.theta_i = theta_i;
     }
-    let collapsed = dedupe(&mut samples, |i, j, what| {
+    let notes = dedupe_notes(&mut samples, |i, j, what| {
         perr(
             lines[j],
             label(2),
             format!("{what}; first on line {}", lines[i]),
         )
     })?;
-    let mut notes = Vec::new();
-    if collapsed > 0 {
-        notes.push(format!(
-            "{collapsed} identical duplicate row(s) collapsed into their first occurrence"
-        ));
-    }
     Ok((
         Profile {
             samples,
