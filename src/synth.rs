@@ -10,6 +10,7 @@
 
 use crate::model::far::FarOptions;
 use crate::model::geometry::theta_d;
+use crate::model::medulla::front_back_lerp;
 use crate::model::{FurModel, Lobe, LobeSet, LobeValues};
 use crate::params::FurParams;
 use crate::profile::{Profile, Sample};
@@ -169,21 +170,28 @@ impl GridPlan {
         // on phi through the front/back lerp of Eq. 19).
         let unsc = lobes.intersect(LobeSet::UNSCATTERED);
         let scat = lobes.intersect(LobeSet::SCATTERED);
-        let m_pairs: Vec<LobeValues> = self
+        let m_pairs: Vec<(LobeValues, Option<(f64, f64)>)> = self
             .pairs
             .iter()
-            .map(|&(ti, tr)| model.longitudinal(ti, tr, 0.0, unsc))
+            .map(|&(ti, tr)| {
+                let sides = if scat.is_empty() {
+                    None
+                } else {
+                    model.scattered_longitudinal_sides(ti, tr)
+                };
+                (model.longitudinal(ti, tr, 0.0, unsc), sides)
+            })
             .collect();
         self.points
             .par_iter()
             .zip(self.where_n.par_iter().zip(self.where_m.par_iter()))
             .with_min_len(1024)
-            .map(|(&(ti, tr, phi), (&(g, k), &mi))| {
-                let mut m = m_pairs[mi];
-                if !scat.is_empty() {
-                    let ms = model.longitudinal(ti, tr, phi, scat);
-                    m.set(Lobe::TTs, ms.get(Lobe::TTs));
-                    m.set(Lobe::TRTs, ms.get(Lobe::TRTs));
+            .map(|(&(_, _, phi), (&(g, k), &mi))| {
+                let (mut m, sides) = m_pairs[mi];
+                if let Some((front, back)) = sides {
+                    let ms = front_back_lerp(front, back, phi);
+                    m.set(Lobe::TTs, ms);
+                    m.set(Lobe::TRTs, ms);
                 }
                 m.mul(&n_values[g][k])
             })

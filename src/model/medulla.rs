@@ -464,6 +464,13 @@ pub struct MedullaSlice {
     sampler: OnceLock<Arc<MedullaSampler>>,
 }
 
+/// Seed Eq. 19's blend of the front and back `C^M` values: `lerp(front, back, |phi| / pi)`.
+#[inline]
+pub fn front_back_lerp(front: f64, back: f64, phi: f64) -> f64 {
+    let t = wrap_pi(phi).abs() / PI;
+    front + t * (back - front)
+}
+
 /// Analytic probability that a chord at offset `x` scatters at least once.
 #[inline]
 pub fn scatter_probability(tau: f64, x: f64) -> f64 {
@@ -566,10 +573,9 @@ impl MedullaSlice {
     /// Seed Eq. 19: `M_s = lerp(C^M_front, C^M_back, |phi| / pi)`.
     #[inline]
     pub fn cm_lerp(&self, theta_i: f64, theta_r: f64, phi: f64) -> f64 {
-        let t = wrap_pi(phi).abs() / PI;
         let f = self.cm(theta_i, theta_r, Side::Front);
         let b = self.cm(theta_i, theta_r, Side::Back);
-        f + t * (b - f)
+        front_back_lerp(f, b, phi)
     }
 
     /// Integral of the (unclamped) compressed `C^N` over `psi`:

@@ -242,6 +242,18 @@ impl FurModel {
         m
     }
 
+    /// The front and back `C^M` values of seed Eq. 19 at `(theta_i, theta_r)` (`None`
+    /// without a medulla): [`medulla::front_back_lerp`] of them at `phi` is the scattered
+    /// lobes' `M_s`, so a grid can query the tables once per theta pair.
+    pub fn scattered_longitudinal_sides(&self, theta_i: f64, theta_r: f64) -> Option<(f64, f64)> {
+        self.medulla.as_ref().map(|m| {
+            (
+                m.cm(theta_i, theta_r, medulla::Side::Front),
+                m.cm(theta_i, theta_r, medulla::Side::Back),
+            )
+        })
+    }
+
     /// The azimuthal model at one `theta_d` (everything that depends on `theta_d` only).
     pub fn azimuthal(&self, theta_d: f64) -> AzimuthalSlice<'_> {
         let p = &self.params;
