@@ -270,7 +270,7 @@ fn build_rec(
                 continue;
             }
             let cost = n as f64 * acc.area() + right_cnt[k] as f64 * right_area[k];
-            if best.is_none_or(|b| cost < b.0) {
+            if best.map_or(true, |b| cost < b.0) {
                 best = Some((cost, axis, lo + k as f64 / scale));
             }
         }
