@@ -57,7 +57,9 @@
 //! MIS weights against environment sampling only need to sum to one per direction, so
 //! they use [`FiberBsdf::pdf_mis`], a deterministic 4-point midpoint average of the
 //! conditional pdf over `[h1, h2]`; the light and environment estimators evaluate the
-//! analytic far/multi-scale BCSDF (the point of the far field: no noise from `h`).
+//! analytic far/multi-scale BCSDF (the point of the far field: no noise from `h`), read
+//! from the per-render table of [`super::ntable`] when one is set (`far_table`), else from
+//! the model's engine per query.
 
 use super::math::{Rgb, V3};
 use super::ntable::FarTable;
