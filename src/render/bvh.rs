@@ -81,7 +81,7 @@ const LEAF: usize = 4;
 /// Binned SAH: bins per axis.
 const BINS: usize = 12;
 /// A segment is bounded by pieces at most this many radii long (see [`Bvh::build`]).
-const PIECE_RADII: f64 = 4.0;
+const PIECE_RADII: f64 = 10.0;
 const MAX_PIECES: usize = 32;
 
 impl Aabb {
