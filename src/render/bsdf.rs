@@ -57,14 +57,18 @@
 //! MIS weights against environment sampling only need to sum to one per direction, so
 //! they use [`FiberBsdf::pdf_mis`], a deterministic 4-point midpoint average of the
 //! conditional pdf over `[h1, h2]`; the light and environment estimators evaluate the
-//! analytic far/multi-scale BCSDF (the point of the far field: no noise from `h`).
+//! analytic far/multi-scale BCSDF (the point of the far field: no noise from `h`), read
+//! from the per-render table of [`super::ntable`] when one is set (`far_table`), else from
+//! the model's engine per query.
 
 use super::math::{Rgb, V3};
+use super::ntable::FarTable;
 use crate::model::azimuthal::{medulla_offset, wrap_angle, wrapped_gaussian};
 use crate::model::far::FarOptions;
 use crate::model::{geometry, longitudinal, FurModel, Lobe, LobeSet};
 use crate::params::FurParams;
 use std::f64::consts::{FRAC_PI_2, PI, SQRT_2};
+use std::sync::Arc;
 
 /// Floor for `cos theta` of a light direction.
 pub const MIN_COS: f64 = 1e-3;
@@ -184,6 +188,9 @@ pub struct FiberBsdf {
     lobes: LobeSet,
     /// Options of the far field / multi-scale integration (culling, tolerance).
     pub far_opts: FarOptions,
+    /// Tabulated far field / multi-scale term ([`super::ntable`]); `None` evaluates the
+    /// model's analytic engine per query (exact, ~1 ms each).
+    pub far_table: Option<Arc<FarTable>>,
 }
 
 /// Mass of the normal (`mu`, `s`) inside [-pi/2, pi/2]. The problem is reflected so the
@@ -218,7 +225,18 @@ impl FiberBsdf {
             models,
             lobes,
             far_opts: FarOptions::default(),
+            far_table: None,
         }
+    }
+
+    /// Tabulate the far field / multi-scale term for fast [`Self::eval_span`] (run inside
+    /// the render's thread pool; uses the current `far_opts`).
+    pub fn build_far_table(&mut self) {
+        self.far_table = Some(Arc::new(FarTable::build(
+            &self.models,
+            self.lobes,
+            &self.far_opts,
+        )));
     }
 
     /// The lobes this BCSDF evaluates (requested ∩ active: scattered lobes are left out
@@ -272,6 +290,15 @@ impl FiberBsdf {
         let td = geometry::theta_d(theta_o, theta);
         let full = h1 <= -1.0 && h2 >= 1.0;
         let mut out = [[0.0; 3]; 5];
+        if let Some(t) = self.far_table.as_deref().filter(|t| t.serves(h1, h2)) {
+            for c in 0..3 {
+                let n = t.eval(c, td, phi, h1, h2);
+                for l in self.lobes.iter() {
+                    out[l.index()][c] = m.get(l) * n.get(l);
+                }
+            }
+            return out;
+        }
         for c in 0..3 {
             let slice = self.models[c].azimuthal(td);
             let n = if full {

@@ -23,14 +23,6 @@ impl Aabb {
             hi: V3::new(f64::NEG_INFINITY, f64::NEG_INFINITY, f64::NEG_INFINITY),
         }
     }
-    fn of(s: &Segment) -> Aabb {
-        let r = s.ra.max(s.rb);
-        let e = V3::new(r, r, r);
-        Aabb {
-            lo: s.a.min(s.b) - e,
-            hi: s.a.max(s.b) + e,
-        }
-    }
     fn union(self, o: Aabb) -> Aabb {
         Aabb {
             lo: self.lo.min(o.lo),
@@ -38,29 +30,16 @@ impl Aabb {
         }
     }
     /// Slab test; returns the entry distance if the box is hit within (tmin, tmax).
-    #[inline]
+    /// Slab test; `inv` = 1 / direction (infinite components work: the slab products
+    /// are +-inf and min/max pick the other bound).
+    #[inline(always)]
     fn hit(&self, o: V3, inv: V3, tmin: f64, tmax: f64) -> Option<f64> {
-        let mut t0 = tmin;
-        let mut t1 = tmax;
-        for a in 0..3 {
-            let (oa, ia) = (o.axis(a), inv.axis(a));
-            let mut ta = (self.lo.axis(a) - oa) * ia;
-            let mut tb = (self.hi.axis(a) - oa) * ia;
-            if ta > tb {
-                std::mem::swap(&mut ta, &mut tb);
-            }
-            // NaN (0 * inf) compares false and leaves the bound unchanged.
-            if ta > t0 {
-                t0 = ta;
-            }
-            if tb < t1 {
-                t1 = tb;
-            }
-            if t0 > t1 {
-                return None;
-            }
-        }
-        Some(t0)
+        let (x0, x1) = ((self.lo.x - o.x) * inv.x, (self.hi.x - o.x) * inv.x);
+        let (y0, y1) = ((self.lo.y - o.y) * inv.y, (self.hi.y - o.y) * inv.y);
+        let (z0, z1) = ((self.lo.z - o.z) * inv.z, (self.hi.z - o.z) * inv.z);
+        let t0 = tmin.max(x0.min(x1)).max(y0.min(y1)).max(z0.min(z1));
+        let t1 = tmax.min(x0.max(x1)).min(y0.max(y1)).min(z0.max(z1));
+        (t0 <= t1).then_some(t0)
     }
 }
 
@@ -93,34 +72,73 @@ pub struct Hit {
 pub struct Bvh {
     nodes: Vec<Node>,
     segs: Vec<Segment>,
+    /// Leaf primitives in node order: index of the segment whose piece it bounds.
+    prims: Vec<u32>,
 }
 
+/// Leaves hold at most this many pieces.
 const LEAF: usize = 4;
+/// Binned SAH: bins per axis.
+const BINS: usize = 12;
+/// A segment is bounded by pieces at most this many radii long (see [`Bvh::build`]).
+const PIECE_RADII: f64 = 10.0;
+const MAX_PIECES: usize = 32;
+
+impl Aabb {
+    fn area(&self) -> f64 {
+        let e = self.hi - self.lo;
+        if e.x < 0.0 {
+            return 0.0;
+        }
+        2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+}
 
 impl Bvh {
+    /// Build over `segs`. A fiber segment is long and thin (~40 radii) and diagonal, so its
+    /// box is mostly empty; each segment is therefore bounded by several boxes, one per
+    /// piece of at most [`PIECE_RADII`] radii, all pointing at the same segment. A ray
+    /// entering any of them tests the WHOLE segment, so hits are exactly those of a brute
+    /// force loop (every hit lies within `r` of the axis point at its parameter, inside
+    /// that piece's box). The tree is split by the binned surface-area heuristic.
     pub fn build(segs: Vec<Segment>) -> Bvh {
-        let mut order: Vec<usize> = (0..segs.len()).collect();
-        let boxes: Vec<Aabb> = segs.iter().map(Aabb::of).collect();
+        let mut boxes = Vec::new();
+        let mut owner = Vec::new();
+        for (i, s) in segs.iter().enumerate() {
+            let r = s.ra.max(s.rb);
+            let len = (s.b - s.a).length();
+            let n = ((len / (PIECE_RADII * r.max(1e-12))).ceil() as usize).clamp(1, MAX_PIECES);
+            let e = V3::new(r, r, r);
+            for k in 0..n {
+                let p0 = s.a + (s.b - s.a) * (k as f64 / n as f64);
+                let p1 = s.a + (s.b - s.a) * ((k + 1) as f64 / n as f64);
+                boxes.push(Aabb {
+                    lo: p0.min(p1) - e,
+                    hi: p0.max(p1) + e,
+                });
+                owner.push(i as u32);
+            }
+        }
+        let mut order: Vec<usize> = (0..boxes.len()).collect();
         let centers: Vec<V3> = boxes.iter().map(|b| (b.lo + b.hi) * 0.5).collect();
-        let mut nodes = Vec::with_capacity(2 * segs.len() / LEAF + 1);
-        if !segs.is_empty() {
+        let mut nodes = Vec::with_capacity(2 * boxes.len() / LEAF + 1);
+        if !boxes.is_empty() {
             build_rec(&mut nodes, &mut order, 0, &boxes, &centers);
         }
-        let segs = order.iter().map(|&i| segs[i]).collect();
-        Bvh { nodes, segs }
+        let prims = order.iter().map(|&i| owner[i]).collect();
+        Bvh { nodes, segs, prims }
     }
 
     pub fn segments(&self) -> &[Segment] {
         &self.segs
     }
 
-    /// Closest hit in (tmin, tmax), ignoring fiber `skip` (the fiber the ray leaves: a
-    /// fiber's BCSDF already contains its internal paths, so it cannot shadow itself).
+    /// Closest hit in `(tmin, tmax)`, ignoring fiber `skip` (the fiber a path leaves).
     pub fn intersect(&self, o: V3, d: V3, tmin: f64, tmax: f64, skip: Option<u32>) -> Option<Hit> {
         self.traverse(o, d, tmin, tmax, skip, false)
     }
 
-    /// Is anything hit in (tmin, tmax)? (Shadow rays.)
+    /// Any hit in `(tmin, tmax)` (shadow rays).
     pub fn occluded(&self, o: V3, d: V3, tmin: f64, tmax: f64, skip: Option<u32>) -> bool {
         self.traverse(o, d, tmin, tmax, skip, true).is_some()
     }
@@ -138,9 +156,11 @@ impl Bvh {
             return None;
         }
         let inv = V3::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
-        let mut stack = [0u32; 64];
+        let mut stack = [0u32; 128];
         let mut sp = 1;
         let mut best: Option<Hit> = None;
+        // The last segment tested (neighbouring pieces of one segment share leaves).
+        let mut last = u32::MAX;
         while sp > 0 {
             sp -= 1;
             let node = &self.nodes[stack[sp] as usize];
@@ -149,15 +169,17 @@ impl Bvh {
             }
             if node.count > 0 {
                 let first = node.index as usize;
-                for (k, s) in self.segs[first..first + node.count as usize]
-                    .iter()
-                    .enumerate()
-                {
+                for &si in &self.prims[first..first + node.count as usize] {
+                    if si == last {
+                        continue;
+                    }
+                    last = si;
+                    let s = &self.segs[si as usize];
                     if Some(s.fiber) == skip {
                         continue;
                     }
                     if let Some(mut hit) = intersect_segment(s, o, d, tmin, tmax) {
-                        hit.segment = (first + k) as u32;
+                        hit.segment = si;
                         tmax = hit.t;
                         best = Some(hit);
                         if any {
@@ -168,7 +190,6 @@ impl Bvh {
             } else {
                 let me = stack[sp] as usize;
                 let (l, r) = (me as u32 + 1, node.index);
-                // Visit the nearer child first.
                 let tl = self.nodes[l as usize].bounds.hit(o, inv, tmin, tmax);
                 let tr = self.nodes[r as usize].bounds.hit(o, inv, tmin, tmax);
                 match (tl, tr) {
@@ -215,18 +236,76 @@ fn build_rec(
         lo: b.lo.min(centers[i]),
         hi: b.hi.max(centers[i]),
     });
-    let ext = cb.hi - cb.lo;
-    let axis = if ext.x >= ext.y && ext.x >= ext.z {
-        0
-    } else if ext.y >= ext.z {
-        1
-    } else {
-        2
+    // Binned SAH over the three axes: cost of a split = sum over sides of count * area.
+    let mut best: Option<(f64, usize, f64)> = None; // (cost, axis, split coordinate)
+    for axis in 0..3 {
+        let (lo, hi) = (cb.lo.axis(axis), cb.hi.axis(axis));
+        if hi - lo <= 0.0 {
+            continue;
+        }
+        let scale = BINS as f64 / (hi - lo);
+        let bin = |i: usize| (((centers[i].axis(axis) - lo) * scale) as usize).min(BINS - 1);
+        let mut cnt = [0usize; BINS];
+        let mut bb = [Aabb::empty(); BINS];
+        for &i in order.iter() {
+            let b = bin(i);
+            cnt[b] += 1;
+            bb[b] = bb[b].union(boxes[i]);
+        }
+        // Sweep from the right, then from the left.
+        let mut right_area = [0.0; BINS];
+        let mut right_cnt = [0usize; BINS];
+        let (mut acc, mut n) = (Aabb::empty(), 0);
+        for k in (1..BINS).rev() {
+            acc = acc.union(bb[k]);
+            n += cnt[k];
+            right_area[k] = acc.area();
+            right_cnt[k] = n;
+        }
+        let (mut acc, mut n) = (Aabb::empty(), 0);
+        for k in 1..BINS {
+            acc = acc.union(bb[k - 1]);
+            n += cnt[k - 1];
+            if n == 0 || right_cnt[k] == 0 {
+                continue;
+            }
+            let cost = n as f64 * acc.area() + right_cnt[k] as f64 * right_area[k];
+            if best.map_or(true, |b| cost < b.0) {
+                best = Some((cost, axis, lo + k as f64 / scale));
+            }
+        }
+    }
+    let mid = match best {
+        Some((_, axis, split)) => {
+            let mut m = 0;
+            for k in 0..order.len() {
+                if centers[order[k]].axis(axis) < split {
+                    order.swap(k, m);
+                    m += 1;
+                }
+            }
+            m
+        }
+        None => 0,
     };
-    let mid = order.len() / 2;
-    order.select_nth_unstable_by(mid, |&a, &b| {
-        centers[a].axis(axis).total_cmp(&centers[b].axis(axis))
-    });
+    // Degenerate split (all centres in one bin or coincident): median on the widest axis.
+    let mid = if mid == 0 || mid == order.len() {
+        let ext = cb.hi - cb.lo;
+        let axis = if ext.x >= ext.y && ext.x >= ext.z {
+            0
+        } else if ext.y >= ext.z {
+            1
+        } else {
+            2
+        };
+        let mid = order.len() / 2;
+        order.select_nth_unstable_by(mid, |&a, &b| {
+            centers[a].axis(axis).total_cmp(&centers[b].axis(axis))
+        });
+        mid
+    } else {
+        mid
+    };
     let (left, right) = order.split_at_mut(mid);
     build_rec(nodes, left, first, boxes, centers);
     let r = build_rec(nodes, right, first + mid, boxes, centers);
@@ -235,7 +314,6 @@ fn build_rec(
     me
 }
 
-/// Ray vs camera-facing ribbon around segment `s` (see module doc).
 #[inline]
 pub fn intersect_segment(s: &Segment, o: V3, d: V3, tmin: f64, tmax: f64) -> Option<Hit> {
     let e = s.b - s.a;

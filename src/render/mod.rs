@@ -19,6 +19,7 @@ pub mod bsdf;
 pub mod bvh;
 pub mod integrator;
 pub mod math;
+pub mod ntable;
 pub mod output;
 pub mod scene;
 pub mod study;
@@ -119,6 +120,9 @@ pub struct RenderSettings {
     /// Cull far-field / multi-scale segments that cannot reach the queried azimuth
     /// (`FarOptions::cull`).
     pub far_cull: bool,
+    /// Serve far-field / multi-scale queries from a per-render table
+    /// ([`ntable`]); `false` runs the analytic engine per query (exact, much slower).
+    pub far_table: bool,
 }
 
 impl Default for RenderSettings {
@@ -147,6 +151,7 @@ impl Default for RenderSettings {
             tint: Tint::default(),
             region: None,
             far_cull: true,
+            far_table: true,
         }
     }
 }
@@ -158,7 +163,10 @@ pub struct RenderOutput {
     /// Indexed by [`crate::model::Lobe::index`].
     pub lobes: [Image; 5],
     pub rays: u64,
+    /// Seconds tracing paths (excludes `setup_seconds`).
     pub seconds: f64,
+    /// Seconds building the far-field table (0 when none is built).
+    pub setup_seconds: f64,
 }
 
 impl RenderOutput {
@@ -167,16 +175,54 @@ impl RenderOutput {
     }
 }
 
-/// Prepared scene (geometry is reused across renders of a study).
+/// What a far-field table depends on: parameters, tint, lobes and the culling flag.
+type TableKey = ([u64; 10], [u64; 3], LobeSet, bool);
+
+/// Prepared scene (geometry is reused across renders of a study), with the far-field
+/// tables of the parameter sets rendered so far (a study renders one set many times).
 pub struct Scene {
     pub bvh: Bvh,
+    tables: std::sync::Mutex<Vec<(TableKey, std::sync::Arc<ntable::FarTable>)>>,
 }
 
 impl Scene {
     pub fn build(strand: &StrandSpec) -> Scene {
         Scene {
             bvh: Bvh::build(scene::build_lock(strand)),
+            tables: Default::default(),
         }
+    }
+
+    /// The far-field table of `bsdf`, built on first use (returns whether it was built).
+    fn far_table(&self, bsdf: &mut FiberBsdf, params: &FurParams, s: &RenderSettings) -> bool {
+        let key: TableKey = (
+            [
+                params.eta,
+                params.kappa,
+                params.alpha,
+                params.beta_m,
+                params.beta_n,
+                params.sigma_c_a,
+                params.sigma_m_s,
+                params.sigma_m_a,
+                params.g,
+                params.l,
+            ]
+            .map(f64::to_bits),
+            s.tint.0.map(f64::to_bits),
+            bsdf.lobes(),
+            s.far_cull,
+        );
+        let mut cache = self.tables.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, t)) = cache.iter().find(|(k, _)| *k == key) {
+            bsdf.far_table = Some(t.clone());
+            return false;
+        }
+        bsdf.build_far_table();
+        if let Some(t) = &bsdf.far_table {
+            cache.push((key, t.clone()));
+        }
+        true
     }
 }
 
@@ -209,8 +255,27 @@ pub fn render_scene(
             "image size and spp must be positive".into(),
         ));
     }
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(s.threads)
+        .build()
+        .map_err(|e| crate::Error::Invalid(format!("thread pool: {e}")))?;
+    pool.install(|| render_in_pool(scene, params, s))
+}
+
+fn render_in_pool(
+    scene: &Scene,
+    params: &FurParams,
+    s: &RenderSettings,
+) -> crate::Result<RenderOutput> {
     let mut bsdf = FiberBsdf::new(params, s.tint, s.lobes);
     bsdf.far_opts.cull = s.far_cull;
+    let setup = Instant::now();
+    // Multi-scale with footprint 0 only ever queries the near field.
+    let spans = s.mode == Mode::Far || (s.mode == Mode::Multiscale && s.footprint_scale > 0.0);
+    if s.far_table && spans {
+        scene.far_table(&mut bsdf, params, s);
+    }
+    let setup_seconds = setup.elapsed().as_secs_f64();
     let camera = Camera::look_at(
         V3::new(0.0, 0.0, 0.0),
         s.camera.dist,
@@ -273,15 +338,7 @@ pub fn render_scene(
             })
             .collect::<Vec<_>>()
     };
-    let rows = if s.threads > 0 {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(s.threads)
-            .build()
-            .map_err(|e| crate::Error::Invalid(format!("thread pool: {e}")))?
-            .install(work)
-    } else {
-        work()
-    };
+    let rows = work();
     let seconds = start.elapsed().as_secs_f64();
     let mut beauty = Image::new(w, h);
     let mut lobes = std::array::from_fn(|_| Image::new(w, h));
@@ -301,5 +358,6 @@ pub fn render_scene(
         lobes,
         rays,
         seconds,
+        setup_seconds,
     })
 }
