@@ -254,6 +254,9 @@ impl<'a> FarSlice<'a> {
                 hs.push(edge);
             }
             let mut us = to_u(&hs, ha, hb);
+            if opts.tol.is_some() {
+                us.extend(fresnel_layer_u(az.eta_prime));
+            }
             sort_dedup(&mut us, ha.asin(), hb.asin());
             let mut us_trt = us.clone();
             if let Some(uc) = caustic {
@@ -891,6 +894,24 @@ impl<'a> FarSlice<'a> {
         }
         out
     }
+}
+
+/// Breakpoints resolving the grazing Fresnel layer (tolerance mode only). For `eta' -> 1`
+/// the cuticle reflectance `F` stays near 0 except where `cos u` is within a few
+/// `w = sqrt(1 - 1/eta'^2)` (`cos gamma_t` at `h = 1`) of zero, where it climbs to 1: at
+/// `eta = 1 + 1e-9` that layer is `4.5e-5` wide in `u` and holds all of R's mass, and the
+/// initial segments' nodes (and so the mass estimate and the fit checks) never see it.
+/// A geometric mesh `u = pi/2 - w 2^k / 4` up to `pi/2 - 0.05` resolves it; for ordinary
+/// `eta'` (`w > 0.2`) it adds nothing.
+fn fresnel_layer_u(eta_prime: f64) -> Vec<f64> {
+    let w = (1.0 - 1.0 / (eta_prime * eta_prime)).max(0.0).sqrt();
+    let mut out = Vec::new();
+    let mut d = (0.25 * w).max(1e-9);
+    while d < 0.05 {
+        out.push(FRAC_PI_2 - d);
+        d *= 2.0;
+    }
+    out
 }
 
 fn to_u(hs: &[f64], ha: f64, hb: f64) -> Vec<f64> {
