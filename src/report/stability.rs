@@ -3,7 +3,8 @@
 //! and `-> 1`, `eta -> 1` and `eta = 3`, cuticle layers at their bounds) is crossed with
 //! other parameters at or near their hard bounds, evaluated over a `theta_d x phi` grid in
 //! the default (tolerance) mode and the paper's fixed 8/5 mode, and checked for NaN, Inf
-//! and negative values. On a subset the result is compared with the reference integrator:
+//! and negative values; the multi-scale model (Eq. 26) is swept the same way over a few
+//! `[h1, h2]` ranges. On a subset the result is compared with the reference integrator:
 //! the error of a sample is `|far - ref| / (peak over phi of ref)` for that `theta_d` and
 //! lobe. Writes `stability.md` and `stability.csv`.
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
@@ -152,6 +153,15 @@ fn ref_variations(base: [f64; 10]) -> Vec<[f64; 10]> {
 /// (0 = unscattered R/TT/TRT, 1 = scattered TTs/TRTs).
 type Errs = [[Vec<f64>; 2]; 2];
 
+/// Worst tolerance-mode sample per lobe family: (error, where).
+type Worst = [(f64, String); 2];
+
+fn keep_worst(w: &mut Worst, fam: usize, err: f64, label: impl FnOnce() -> String) {
+    if err > w[fam].0 {
+        w[fam] = (err, label());
+    }
+}
+
 #[derive(Default, Clone)]
 struct CaseResult {
     evals: usize,
@@ -164,6 +174,8 @@ struct CaseResult {
     slices: usize,
     far: Errs,
     ms: Errs,
+    /// Worst tolerance-mode far-field / multi-scale sample per family.
+    worst: [Worst; 2],
     seconds: f64,
 }
 
@@ -261,10 +273,11 @@ const PEAK_GRID: usize = 1441;
 /// "peak" over them would be a Gaussian tail. So per lobe the reference is also evaluated
 /// at the phi where the tolerance-mode far field peaks on a dense grid, and that sample
 /// joins both the peak and the error samples.
-fn ref_errors(v: &[f64; 10], td: f64) -> (Errs, Errs) {
+fn ref_errors(v: &[f64; 10], td: f64) -> (Errs, Errs, [Worst; 2]) {
     let (mut far, mut ms) = (Errs::default(), Errs::default());
+    let mut worst: [Worst; 2] = Default::default();
     let Ok(p) = FurParams::from_file_units(*v) else {
-        return (far, ms);
+        return (far, ms, worst);
     };
     let m = FurModel::new(&p);
     let az = m.azimuthal(td.to_radians());
@@ -315,12 +328,26 @@ fn ref_errors(v: &[f64; 10], td: f64) -> (Errs, Errs) {
             let fam = usize::from(l.is_scattered());
             for (k, fs) in slices.iter().enumerate() {
                 for (&phi, r) in phis.iter().zip(&refs) {
-                    out[k][fam].push((fs.eval(phi).get(l) - r).abs() / peak);
+                    let e = (fs.eval(phi).get(l) - r).abs() / peak;
+                    out[k][fam].push(e);
+                    if k == 0 {
+                        keep_worst(&mut worst[which], fam, e, || {
+                            format!(
+                                "{:?} at eta {}, kappa {}, beta_n {} deg, theta_d {td} deg, \
+                                 phi {:.1} deg (peak {peak:.2e})",
+                                l,
+                                v[0],
+                                v[1],
+                                v[4],
+                                phi.to_degrees()
+                            )
+                        });
+                    }
                 }
             }
         }
     }
-    (far, ms)
+    (far, ms, worst)
 }
 
 fn run_case(case: &Case) -> CaseResult {
@@ -344,11 +371,17 @@ fn run_case(case: &Case) -> CaseResult {
         .into_iter()
         .flat_map(|v| REF_THETA_D.iter().map(move |&td| (v, td)))
         .collect();
-    let errs: Vec<(Errs, Errs)> = subset
+    let errs: Vec<(Errs, Errs, [Worst; 2])> = subset
         .par_iter()
         .map(|(v, td)| ref_errors(v, *td))
         .collect();
-    for (far, ms) in errs {
+    for (far, ms, worst) in errs {
+        for w in 0..2 {
+            for f in 0..2 {
+                let (e, label) = &worst[w][f];
+                keep_worst(&mut res.worst[w], f, *e, || label.clone());
+            }
+        }
         for k in 0..2 {
             for f in 0..2 {
                 res.far[k][f].extend_from_slice(&far[k][f]);
@@ -427,17 +460,16 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
             case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.worst_dip, r.capped, r.slices,
             refs, mtu, mts, mpu, mps, r.seconds
         );
-        if tu > 1e-4 || mtu > 1e-4 {
-            over.push(format!(
-                "{} (unscattered: far {tu:.1e}, multi-scale {mtu:.1e})",
-                case.name
-            ));
-        }
-        if ts > 1e-4 || mts > 1e-4 {
-            over.push(format!(
-                "{} (scattered: far {ts:.1e}, multi-scale {mts:.1e})",
-                case.name
-            ));
+        for (fam, what) in [(0, "unscattered"), (1, "scattered")] {
+            for (w, model) in [(0, "far field"), (1, "multi-scale")] {
+                let (e, label) = &r.worst[w][fam];
+                if *e > 1e-4 {
+                    over.push(format!(
+                        "{} — {what}, {model}: {e:.1e}, worst sample {label}",
+                        case.name
+                    ));
+                }
+            }
         }
         sum.n_evaluations += r.evals;
         sum.n_nonfinite += r.nonfinite;
@@ -535,18 +567,25 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
          for sharp lobes (tiny beta_n, the caustic) and misses thin features such as the \
          grazing Fresnel layer at eta -> 1 altogether; that is the expected behaviour of \
          the paper's segmentation, not a failure.\n\
-         * **Tolerance mode** aims at 1e-4 of each lobe's peak. Samples above 1e-4 in this \
-         run: {}.\n\
+         * **Tolerance mode** aims at 1e-4 of each lobe's peak. Cases with samples above \
+         1e-4 in this run (worst sample located):\n\n{}\n\n\
          * Why the scattered lobes exceed 1e-4: the shipped `C^N` medulla table is \
          piecewise linear in psi (2 deg bins) and in the entry offset. The reference \
          integrator resolves those kinks adaptively; the far field's per-segment smooth \
          (quadratic) fits of the queried table do not, so its scattered error floor is a \
-         few 1e-3 of the peak (the tests hold it to 5e-3) — far below the tables' own \
-         5-7 % error against fresh Monte Carlo (`furfit tables info`).\n",
+         few 1e-3 of the peak (the unit tests hold it to 5e-3 at their parameters; single \
+         samples of this adversarial sweep go higher, listed above) — compare the tables' \
+         own 5-7 % error against fresh Monte Carlo (`furfit tables info`).\n\
+         * Paper-mode errors above 1 occur where a lobe is vanishingly small (e.g. TRTs at \
+         eta -> 1 and grazing theta_d, peak ~1e-40): 5 fixed segments misfit its steep \
+         attenuation by a large factor of a negligible value.\n",
         if over.is_empty() {
-            "none".to_string()
+            "  none".to_string()
         } else {
-            over.join("; ")
+            over.iter()
+                .map(|o| format!("  * {o}"))
+                .collect::<Vec<_>>()
+                .join("\n")
         }
     );
     std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
