@@ -83,7 +83,7 @@ impl Lobe {
 }
 
 /// A subset of the five lobes (bit i = [`Lobe::ALL`]\[i\]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct LobeSet(pub u8);
 
 impl LobeSet {

@@ -3,13 +3,14 @@
 //! and `-> 1`, `eta -> 1` and `eta = 3`, cuticle layers at their bounds) is crossed with
 //! other parameters at or near their hard bounds, evaluated over a `theta_d x phi` grid in
 //! the default (tolerance) mode and the paper's fixed 8/5 mode, and checked for NaN, Inf
-//! and negative values. On a subset the result is compared with the reference integrator:
+//! and negative values; the multi-scale model (Eq. 26) is swept the same way over a few
+//! `[h1, h2]` ranges. On a subset the result is compared with the reference integrator:
 //! the error of a sample is `|far - ref| / (peak over phi of ref)` for that `theta_d` and
 //! lobe. Writes `stability.md` and `stability.csv`.
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
-use crate::model::far::FarOptions;
-use crate::model::{FurModel, LobeSet};
+use crate::model::far::{FarOptions, FarSlice};
+use crate::model::{AzimuthalSlice, FurModel, Lobe, LobeSet, LobeValues};
 use crate::params::FurParams;
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -125,10 +126,41 @@ fn variations(base: [f64; 10]) -> Vec<[f64; 10]> {
 /// theta_d values (degrees) of the sweep, including grazing.
 const THETA_D: [f64; 5] = [-89.0, 0.0, 20.0, 60.0, 89.0];
 const N_PHI: usize = 73;
-/// Reference subset: first variations per case, theta_d values, phi per pair.
-const REF_VARIATIONS: usize = 1;
+/// Multi-scale ranges `[h1, h2]` (Eq. 26) swept beside the far field: the `h -> 1` edge
+/// sliver, an asymmetric range across `h = 0`, and a narrow range about `h = 0`.
+const MS_RANGES: [(f64, f64); 3] = [(0.999, 1.0), (-0.3, 0.6), (-1e-3, 1e-3)];
+/// Reference subset per case: the variations of [`ref_variations`], these theta_d and
+/// `REF_PHI` phi per pair (the reference integrator costs up to ~1 s per phi at eta -> 1,
+/// so it sees far fewer points than the sweep).
 const REF_THETA_D: [f64; 2] = [0.0, 89.0];
-const REF_PHI: usize = 16;
+const REF_PHI: usize = 12;
+/// The multi-scale range compared with the reference (the stiffest: `h -> 1`).
+const REF_MS: (f64, f64) = (0.999, 1.0);
+
+/// Variations checked against the reference: the case itself, then with eta -> 1 and
+/// beta_n = 0.1 deg (duplicates of the case removed). beta_n = 90 deg has its own case.
+fn ref_variations(base: [f64; 10]) -> Vec<[f64; 10]> {
+    let mut out = vec![base];
+    for v in [with(base, &[(0, 1.0 + 1e-9)]), with(base, &[(4, 0.1)])] {
+        if !out.contains(&v) {
+            out.push(v);
+        }
+    }
+    out
+}
+
+/// Relative errors of one mode (0 = tolerance, 1 = paper) and lobe family
+/// (0 = unscattered R/TT/TRT, 1 = scattered TTs/TRTs).
+type Errs = [[Vec<f64>; 2]; 2];
+
+/// Worst tolerance-mode sample per lobe family: (error, where).
+type Worst = [(f64, String); 2];
+
+fn keep_worst(w: &mut Worst, fam: usize, err: f64, label: impl FnOnce() -> String) {
+    if err > w[fam].0 {
+        w[fam] = (err, label());
+    }
+}
 
 #[derive(Default, Clone)]
 struct CaseResult {
@@ -137,8 +169,13 @@ struct CaseResult {
     neg_raw: usize,
     neg: usize,
     worst_dip: f64,
-    errs_tol: Vec<f64>,
-    errs_paper: Vec<f64>,
+    /// Slices whose tolerance refinement hit its depth or split cap.
+    capped: usize,
+    slices: usize,
+    far: Errs,
+    ms: Errs,
+    /// Worst tolerance-mode far-field / multi-scale sample per family.
+    worst: [Worst; 2],
     seconds: f64,
 }
 
@@ -150,63 +187,176 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
-fn run_case(case: &Case) -> CaseResult {
-    let t0 = std::time::Instant::now();
-    let vars = variations(case.base);
-    let modes = [FarOptions::default(), FarOptions::paper()];
-    let phis: Vec<f64> = (0..N_PHI)
-        .map(|k| -PI + 2.0 * PI * k as f64 / (N_PHI - 1) as f64)
-        .collect();
-    // NaN / Inf / negative sweep over all variations x theta_d x phi x both modes.
-    let parts: Vec<CaseResult> = vars
-        .par_iter()
-        .map(|v| {
-            let mut r = CaseResult::default();
-            let p = match FurParams::from_file_units(*v) {
-                Ok(p) => p,
-                Err(_) => return r,
-            };
-            let m = FurModel::new(&p);
-            for td in THETA_D {
-                let az = m.azimuthal(td.to_radians());
-                for opts in &modes {
-                    let fs = az.far_slice(LobeSet::ALL, opts);
-                    let mut peak = [0.0f64; 5];
-                    let mut dips = [0.0f64; 5];
-                    for &phi in &phis {
-                        let raw = fs.eval_raw(phi);
-                        let val = fs.eval(phi);
-                        for i in 0..5 {
-                            r.evals += 1;
-                            if !raw.0[i].is_finite() || !val.0[i].is_finite() {
-                                r.nonfinite += 1;
-                                continue;
-                            }
-                            if raw.0[i] < 0.0 {
-                                r.neg_raw += 1;
-                                dips[i] = dips[i].max(-raw.0[i]);
-                            }
-                            if val.0[i] < 0.0 {
-                                r.neg += 1;
-                            }
-                            peak[i] = peak[i].max(val.0[i]);
-                        }
+fn max_of(v: &[f64]) -> f64 {
+    if v.is_empty() {
+        f64::NAN
+    } else {
+        v.iter().cloned().fold(0.0, f64::max)
+    }
+}
+
+fn modes() -> [FarOptions; 2] {
+    [FarOptions::default(), FarOptions::paper()]
+}
+
+/// The slices of one theta_d: the far field, then each multi-scale range, in both modes.
+fn slices<'a>(az: &AzimuthalSlice<'a>) -> Vec<FarSlice<'a>> {
+    let mut out = Vec::new();
+    for opts in &modes() {
+        let mut fs = az.far_slice(LobeSet::ALL, opts);
+        fs.tabulate_scattered();
+        out.push(fs);
+        for &(h1, h2) in &MS_RANGES {
+            let mut fs = FarSlice::range(az, h1, h2, LobeSet::ALL, opts);
+            fs.tabulate_scattered();
+            out.push(fs);
+        }
+    }
+    out
+}
+
+/// NaN / Inf / negative sweep of one parameter vector over theta_d x phi x slices.
+fn sweep(v: &[f64; 10], phis: &[f64]) -> CaseResult {
+    let mut r = CaseResult::default();
+    let Ok(p) = FurParams::from_file_units(*v) else {
+        return r;
+    };
+    let m = FurModel::new(&p);
+    for td in THETA_D {
+        let az = m.azimuthal(td.to_radians());
+        for fs in slices(&az) {
+            r.slices += 1;
+            if !fs.stats().capped.is_empty() {
+                r.capped += 1;
+            }
+            let mut peak = [0.0f64; 5];
+            let mut dips = [0.0f64; 5];
+            for &phi in phis {
+                // `eval` is `eval_raw` with negatives set to 0.
+                let raw = fs.eval_raw(phi);
+                for i in 0..5 {
+                    r.evals += 1;
+                    if !raw.0[i].is_finite() {
+                        r.nonfinite += 1;
+                        continue;
                     }
-                    for i in 0..5 {
-                        if dips[i] > 0.0 {
-                            let rel = if peak[i] > 0.0 {
-                                dips[i] / peak[i]
-                            } else {
-                                1.0
-                            };
-                            r.worst_dip = r.worst_dip.max(rel);
+                    if raw.0[i] < 0.0 {
+                        r.neg_raw += 1;
+                        dips[i] = dips[i].max(-raw.0[i]);
+                    }
+                    peak[i] = peak[i].max(raw.0[i]);
+                }
+                r.neg += fs.eval(phi).0.iter().filter(|x| **x < 0.0).count();
+            }
+            for i in 0..5 {
+                if dips[i] > 0.0 {
+                    let rel = if peak[i] > 0.0 {
+                        dips[i] / peak[i]
+                    } else {
+                        1.0
+                    };
+                    r.worst_dip = r.worst_dip.max(rel);
+                }
+            }
+        }
+    }
+    r
+}
+
+/// Dense phi grid on which the far field's own maximum is located per lobe.
+const PEAK_GRID: usize = 1441;
+
+/// Errors against the reference at one parameter vector and theta_d:
+/// `|far - ref| / (peak over phi of ref)` per lobe, for the far field and [`REF_MS`].
+///
+/// `REF_PHI` evenly spread phi can all miss a narrow lobe (beta_n = 0.1 deg), and the
+/// "peak" over them would be a Gaussian tail. So per lobe the reference is also evaluated
+/// at the phi where the tolerance-mode far field peaks on a dense grid, and that sample
+/// joins both the peak and the error samples.
+fn ref_errors(v: &[f64; 10], td: f64) -> (Errs, Errs, [Worst; 2]) {
+    let (mut far, mut ms) = (Errs::default(), Errs::default());
+    let mut worst: [Worst; 2] = Default::default();
+    let Ok(p) = FurParams::from_file_units(*v) else {
+        return (far, ms, worst);
+    };
+    let m = FurModel::new(&p);
+    let az = m.azimuthal(td.to_radians());
+    let (h1, h2) = REF_MS;
+    let even: Vec<f64> = (0..REF_PHI)
+        .map(|j| -PI + 2.0 * PI * (j as f64 + 0.37) / REF_PHI as f64)
+        .collect();
+    let dense: Vec<f64> = (0..PEAK_GRID)
+        .map(|j| -PI + 2.0 * PI * j as f64 / (PEAK_GRID - 1) as f64)
+        .collect();
+    for (which, out) in [(0, &mut far), (1, &mut ms)] {
+        let build = |opts: &FarOptions| {
+            if which == 0 {
+                az.far_slice(LobeSet::ALL, opts)
+            } else {
+                FarSlice::range(&az, h1, h2, LobeSet::ALL, opts)
+            }
+        };
+        let reference = |phi: f64, l: Lobe| {
+            if which == 0 {
+                0.5 * az.reference_integral(phi, -1.0, 1.0, l)
+            } else {
+                az.reference_integral(phi, h1, h2, l) / (h2 - h1)
+            }
+        };
+        let slices: Vec<FarSlice> = modes().iter().map(build).collect();
+        let dense_vals: Vec<LobeValues> = dense.iter().map(|&phi| slices[0].eval(phi)).collect();
+        for l in LobeSet::ALL.intersect(m.active_lobes()).iter() {
+            let i = l.index();
+            let (k_max, _) =
+                dense_vals
+                    .iter()
+                    .enumerate()
+                    .fold((0, f64::NEG_INFINITY), |a, (k, x)| {
+                        if x.0[i] > a.1 {
+                            (k, x.0[i])
+                        } else {
+                            a
                         }
+                    });
+            let mut phis = even.clone();
+            phis.push(dense[k_max]);
+            let refs: Vec<f64> = phis.iter().map(|&phi| reference(phi, l)).collect();
+            let peak = refs.iter().cloned().fold(0.0, f64::max);
+            if peak <= 0.0 {
+                continue;
+            }
+            let fam = usize::from(l.is_scattered());
+            for (k, fs) in slices.iter().enumerate() {
+                for (&phi, r) in phis.iter().zip(&refs) {
+                    let e = (fs.eval(phi).get(l) - r).abs() / peak;
+                    out[k][fam].push(e);
+                    if k == 0 {
+                        keep_worst(&mut worst[which], fam, e, || {
+                            format!(
+                                "{:?} at eta {}, kappa {}, beta_n {} deg, theta_d {td} deg, \
+                                 phi {:.1} deg (peak {peak:.2e})",
+                                l,
+                                v[0],
+                                v[1],
+                                v[4],
+                                phi.to_degrees()
+                            )
+                        });
                     }
                 }
             }
-            r
-        })
+        }
+    }
+    (far, ms, worst)
+}
+
+fn run_case(case: &Case) -> CaseResult {
+    let t0 = std::time::Instant::now();
+    let vars = variations(case.base);
+    let phis: Vec<f64> = (0..N_PHI)
+        .map(|k| -PI + 2.0 * PI * k as f64 / (N_PHI - 1) as f64)
         .collect();
+    let parts: Vec<CaseResult> = vars.par_iter().map(|v| sweep(v, &phis)).collect();
     let mut res = CaseResult::default();
     for p in parts {
         res.evals += p.evals;
@@ -214,54 +364,56 @@ fn run_case(case: &Case) -> CaseResult {
         res.neg_raw += p.neg_raw;
         res.neg += p.neg;
         res.worst_dip = res.worst_dip.max(p.worst_dip);
+        res.capped += p.capped;
+        res.slices += p.slices;
     }
-    // Accuracy against the reference on a subset.
-    let subset: Vec<(usize, f64)> = vars
-        .iter()
-        .take(REF_VARIATIONS)
-        .enumerate()
-        .flat_map(|(k, _)| REF_THETA_D.iter().map(move |&td| (k, td)))
+    let subset: Vec<([f64; 10], f64)> = ref_variations(case.base)
+        .into_iter()
+        .flat_map(|v| REF_THETA_D.iter().map(move |&td| (v, td)))
         .collect();
-    let errs: Vec<(Vec<f64>, Vec<f64>)> = subset
+    let errs: Vec<(Errs, Errs, [Worst; 2])> = subset
         .par_iter()
-        .map(|&(k, td)| {
-            let (mut et, mut ep) = (Vec::new(), Vec::new());
-            let p = match FurParams::from_file_units(vars[k]) {
-                Ok(p) => p,
-                Err(_) => return (et, ep),
-            };
-            let m = FurModel::new(&p);
-            let az = m.azimuthal(td.to_radians());
-            let fs_t = az.far_slice(LobeSet::ALL, &modes[0]);
-            let fs_p = az.far_slice(LobeSet::ALL, &modes[1]);
-            let mut rows = Vec::new();
-            for j in 0..REF_PHI {
-                let phi = -PI + 2.0 * PI * (j as f64 + 0.37) / REF_PHI as f64;
-                rows.push((
-                    az.far_reference(phi, LobeSet::ALL),
-                    fs_t.eval(phi),
-                    fs_p.eval(phi),
-                ));
-            }
-            for i in 0..5 {
-                let peak = rows.iter().map(|r| r.0 .0[i]).fold(0.0, f64::max);
-                if peak <= 0.0 {
-                    continue;
-                }
-                for r in &rows {
-                    et.push((r.1 .0[i] - r.0 .0[i]).abs() / peak);
-                    ep.push((r.2 .0[i] - r.0 .0[i]).abs() / peak);
-                }
-            }
-            (et, ep)
-        })
+        .map(|(v, td)| ref_errors(v, *td))
         .collect();
-    for (a, b) in errs {
-        res.errs_tol.extend(a);
-        res.errs_paper.extend(b);
+    for (far, ms, worst) in errs {
+        for w in 0..2 {
+            for f in 0..2 {
+                let (e, label) = &worst[w][f];
+                keep_worst(&mut res.worst[w], f, *e, || label.clone());
+            }
+        }
+        for k in 0..2 {
+            for f in 0..2 {
+                res.far[k][f].extend_from_slice(&far[k][f]);
+                res.ms[k][f].extend_from_slice(&ms[k][f]);
+            }
+        }
     }
     res.seconds = t0.elapsed().as_secs_f64();
     res
+}
+
+/// Formatted `max / median` of a list of errors (`-` when empty: no lobe of that family
+/// has a non-zero reference, e.g. scattered lobes at `kappa = 0`).
+fn max_med(v: &mut [f64]) -> (f64, f64, String) {
+    if v.is_empty() {
+        return (f64::NAN, f64::NAN, "-".into());
+    }
+    let (mx, md) = (max_of(v), median(v));
+    (mx, md, format!("{mx:.1e} / {md:.1e}"))
+}
+
+/// The CPU model from `/proc/cpuinfo` (best effort, for the report header).
+fn cpu_model() -> String {
+    std::fs::read_to_string("/proc/cpuinfo")
+        .ok()
+        .and_then(|t| {
+            t.lines()
+                .find(|l| l.starts_with("model name"))
+                .and_then(|l| l.split(':').nth(1))
+                .map(|s| s.trim().to_string())
+        })
+        .unwrap_or_else(|| "unknown CPU".into())
 }
 
 /// Run the adversarial sweep and write `stability.md` / `stability.csv` into `out`.
@@ -269,111 +421,184 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
     let t0 = std::time::Instant::now();
     let mut csv = String::from(
         "case,evaluations,nan_inf,negative,negative_before_clamp,worst_dip_rel_peak,\
-         ref_samples,tol_max_err,tol_median_err,paper_max_err,paper_median_err,seconds\n",
+         slices,capped_slices,ref_samples,\
+         tol_unsc_max,tol_unsc_median,tol_scat_max,tol_scat_median,\
+         paper_unsc_max,paper_unsc_median,paper_scat_max,paper_scat_median,\
+         tol_ms_unsc_max,tol_ms_scat_max,paper_ms_unsc_max,paper_ms_scat_max,seconds\n",
     );
     let mut md = String::new();
     let mut sum = StabilitySummary::default();
-    let mut rows = Vec::new();
+    let mut table = String::new();
+    let mut over = Vec::new();
+    let (mut n_slices, mut n_capped, mut n_ref) = (0, 0, 0);
     for case in cases() {
         let mut r = run_case(&case);
-        let n_ref = r.errs_tol.len();
-        let tmax = r.errs_tol.iter().cloned().fold(0.0, f64::max);
-        let tmed = median(&mut r.errs_tol);
-        let pmax = r.errs_paper.iter().cloned().fold(0.0, f64::max);
-        let pmed = median(&mut r.errs_paper);
+        let refs = r.far[0][0].len() + r.far[0][1].len();
+        let (tu, tum, tus) = max_med(&mut r.far[0][0]);
+        let (ts, tsm, tss) = max_med(&mut r.far[0][1]);
+        let (pu, pum, pus) = max_med(&mut r.far[1][0]);
+        let (ps, psm, pss) = max_med(&mut r.far[1][1]);
+        let (mtu, mts, mpu, mps) = (
+            max_of(&r.ms[0][0]),
+            max_of(&r.ms[0][1]),
+            max_of(&r.ms[1][0]),
+            max_of(&r.ms[1][1]),
+        );
         log(&format!(
-            "{:<48} evals {:>8}  NaN/Inf {}  neg {} (raw {})  tol max {:.2e} med {:.2e}  paper max {:.2e} med {:.2e}  ({:.1} s)",
-            case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, tmax, tmed, pmax, pmed, r.seconds
+            "{:<50} evals {:>7}  NaN/Inf {}  neg {} (raw {})  capped {}/{}  tol unsc {tus} scat {tss}  paper unsc {pus} scat {pss}  ms(tol) {mtu:.1e}/{mts:.1e}  ({:.1} s)",
+            case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.capped, r.slices, r.seconds
         ));
         let _ = writeln!(
             csv,
-            "\"{}\",{},{},{},{},{:.3e},{},{:.3e},{:.3e},{:.3e},{:.3e},{:.2}",
-            case.name,
-            r.evals,
-            r.nonfinite,
-            r.neg,
-            r.neg_raw,
-            r.worst_dip,
-            n_ref,
-            tmax,
-            tmed,
-            pmax,
-            pmed,
-            r.seconds
+            "\"{}\",{},{},{},{},{:.3e},{},{},{},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.2}",
+            case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.worst_dip, r.slices, r.capped,
+            refs, tu, tum, ts, tsm, pu, pum, ps, psm, mtu, mts, mpu, mps, r.seconds
         );
+        let _ = writeln!(
+            table,
+            "| {} | {} | {} | {} ({}) | {:.1e} | {}/{} | {} | {tus} | {tss} | {:.1e} / {:.1e} | {pus} | {pss} | {:.1e} / {:.1e} | {:.0} |",
+            case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.worst_dip, r.capped, r.slices,
+            refs, mtu, mts, mpu, mps, r.seconds
+        );
+        for (fam, what) in [(0, "unscattered"), (1, "scattered")] {
+            for (w, model) in [(0, "far field"), (1, "multi-scale")] {
+                let (e, label) = &r.worst[w][fam];
+                if *e > 1e-4 {
+                    over.push(format!(
+                        "{} — {what}, {model}: {e:.1e}, worst sample {label}",
+                        case.name
+                    ));
+                }
+            }
+        }
         sum.n_evaluations += r.evals;
         sum.n_nonfinite += r.nonfinite;
         sum.n_negative += r.neg;
         sum.n_negative_raw += r.neg_raw;
-        rows.push((case.name, r, n_ref, tmax, tmed, pmax, pmed));
+        n_slices += r.slices;
+        n_capped += r.capped;
+        n_ref += refs;
     }
     let secs = t0.elapsed().as_secs_f64();
+    let n_cases = cases().len();
     let _ = writeln!(md, "# Far-field stability report\n");
     let _ = writeln!(
         md,
-        "Generated by `furfit stability --out {}` (furfit {}) in {:.0} s on {} threads.\n",
+        "Generated by `furfit stability --out {}` (furfit {}) in {:.0} s wall time on {} rayon \
+         threads ({}).\n",
         out.display(),
         env!("CARGO_PKG_VERSION"),
         secs,
-        rayon::current_num_threads()
+        rayon::current_num_threads(),
+        cpu_model()
     );
+    let _ = writeln!(md, "## What ran\n");
     let _ = writeln!(
         md,
-        "Each stiff case is crossed with {} variations of the other parameters at or near \
-         their hard bounds (beta_n in {{case, 0.1, 90}} deg, eta in {{case, 1 + 1e-9, 3}}, \
-         sigma_c_a in {{case, 1e3}}; alpha and beta_m do not enter N_p), \
-         theta_d in {:?} deg and {} phi in [-180, 180] deg, in both the default mode \
-         (tol 1e-4, initial 8/5 segments) and the paper's fixed 8/5 mode; every lobe value \
-         counts as one evaluation.\n",
+        "* **Sweep (NaN / Inf / negative):** {n_cases} stiff cases, each crossed with {} \
+         variations of the other parameters at or near their hard bounds (beta_n in \
+         {{case, 0.1, 90}} deg, eta in {{case, 1 + 1e-9, 3}}, sigma_c_a in {{case, 1e3}}; \
+         alpha and beta_m only enter M_p, not N_p), theta_d in {:?} deg, and {} phi in \
+         [-180, 180] deg. At every (parameters, theta_d) the far field (Eq. 22) and the \
+         multi-scale model (Eq. 26) over [h1, h2] in {:?} are built as slices in **both \
+         modes** — the default tolerance mode (`tol` 1e-4, initial 8/5 segments, refined) \
+         and the paper's fixed 8/5 segments — and evaluated at every phi; each lobe value \
+         counts as one evaluation: **{} evaluations** from {} slices.",
         variations(MID).len(),
         THETA_D,
-        N_PHI
+        N_PHI,
+        MS_RANGES,
+        sum.n_evaluations,
+        n_slices
     );
     let _ = writeln!(
         md,
-        "Accuracy is measured against the adaptive Gauss-Kronrod reference (~1e-10) on the \
-         first {} variations x theta_d {:?} x {} phi per case; the error of a sample is \
-         |far - ref| / (peak over phi of ref) for that theta_d and lobe.\n",
-        REF_VARIATIONS, REF_THETA_D, REF_PHI
+        "* **Accuracy:** against the adaptive Gauss-Kronrod reference integrator \
+         (~{:.0e} relative) on a subset, because the reference is slow (up to ~1 s per phi \
+         at eta -> 1): per case the case's own parameters and the case with eta = 1 + 1e-9 \
+         and with beta_n = 0.1 deg, at theta_d {:?} deg, for the far field and the \
+         multi-scale range {:?}; per lobe {} evenly spread phi plus the phi where the \
+         tolerance-mode result peaks on a {}-point phi grid (so the peak of a 0.1 deg lobe \
+         is not missed): **{} reference samples** (lobe values) of the far field in total, \
+         the same number for the multi-scale range, each compared in both modes. The \
+         error of a sample is |far - ref| / (peak over the sampled phi of ref) for that \
+         theta_d and lobe.",
+        crate::model::far::REFERENCE_REL_TOL,
+        REF_THETA_D,
+        REF_MS,
+        REF_PHI,
+        PEAK_GRID,
+        n_ref
     );
     let _ = writeln!(
         md,
-        "**Totals: {} evaluations, {} NaN/Inf, {} negative returned values** \
-         ({} negative before clamping rounding-level dips of the quadratic fits to 0; \
-         the worst such dip per case is listed relative to the lobe's peak).\n",
+        "* **Refinement caps:** {n_capped} of {n_slices} slices had a lobe whose tolerance \
+         refinement stopped at its depth (30) or split (4096 per lobe) cap while its error \
+         check still asked for more.\n"
+    );
+    let _ = writeln!(
+        md,
+        "**Totals: {} evaluations, {} NaN/Inf, {} negative returned values** ({} negative \
+         before clamping rounding-level dips of the quadratic fits to 0; the worst such dip \
+         per case is listed relative to the lobe's peak).\n",
         sum.n_evaluations, sum.n_nonfinite, sum.n_negative, sum.n_negative_raw
     );
+    let _ = writeln!(md, "## Per case\n");
     let _ = writeln!(
         md,
-        "| case | evaluations | NaN/Inf | negative (raw) | worst dip / peak | ref samples | tol max err | tol median | paper 8/5 max err | paper median |"
+        "Errors are `max / median` over the reference samples; unscattered = R, TT, TRT; \
+         scattered = TTs, TRTs. Multi-scale columns give the max error (unscattered / \
+         scattered) over [{}, {}].\n",
+        REF_MS.0, REF_MS.1
     );
-    let _ = writeln!(md, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
-    for (name, r, n_ref, tmax, tmed, pmax, pmed) in &rows {
-        let _ = writeln!(
-            md,
-            "| {} | {} | {} | {} ({}) | {:.1e} | {} | {:.2e} | {:.2e} | {:.2e} | {:.2e} |",
-            name,
-            r.evals,
-            r.nonfinite,
-            r.neg,
-            r.neg_raw,
-            r.worst_dip,
-            n_ref,
-            tmax,
-            tmed,
-            pmax,
-            pmed
-        );
-    }
+    let _ = writeln!(
+        md,
+        "| case | evaluations | NaN/Inf | negative (raw) | worst dip / peak | capped slices | ref samples | tol: unscattered | tol: scattered | tol: multi-scale max | paper 8/5: unscattered | paper 8/5: scattered | paper: multi-scale max | seconds |"
+    );
+    let _ = writeln!(
+        md,
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
+    md.push_str(&table);
+    let _ = writeln!(md, "\n## Reading the errors\n");
+    let _ = writeln!(
+        md,
+        "* **Paper mode** (fixed 8 / 5 segments) is an approximation: it is far from 1e-4 \
+         for sharp lobes (tiny beta_n, the caustic) and misses thin features such as the \
+         grazing Fresnel layer at eta -> 1 altogether; that is the expected behaviour of \
+         the paper's segmentation, not a failure.\n\
+         * **Tolerance mode** aims at 1e-4 of each lobe's peak. Cases with samples above \
+         1e-4 in this run (worst sample located):\n\n{}\n\n\
+         * Why the scattered lobes exceed 1e-4: the shipped `C^N` medulla table is \
+         piecewise linear in psi (2 deg bins) and in the entry offset. The reference \
+         integrator resolves those kinks adaptively; the far field's per-segment smooth \
+         (quadratic) fits of the queried table do not, so its scattered error floor is a \
+         few 1e-3 of the peak (the unit tests hold it to 5e-3 at their parameters; single \
+         samples of this adversarial sweep go higher, listed above) — compare the tables' \
+         own 5-7 % error against fresh Monte Carlo (`furfit tables info`).\n\
+         * Paper-mode errors above 1 occur where a lobe is vanishingly small (e.g. TRTs at \
+         eta -> 1 and grazing theta_d, peak ~1e-40): 5 fixed segments misfit its steep \
+         attenuation by a large factor of a negligible value.\n",
+        if over.is_empty() {
+            "  none".to_string()
+        } else {
+            over.iter()
+                .map(|o| format!("  * {o}"))
+                .collect::<Vec<_>>()
+                .join("\n")
+        }
+    );
     std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
     crate::io::write_atomic(&out.join("stability.csv"), csv.as_bytes())?;
     crate::io::write_atomic(&out.join("stability.md"), md.as_bytes())?;
     log(&format!(
-        "total: {} evaluations, {} NaN/Inf, {} negative ({} before clamp) in {:.1} s; wrote {}",
+        "total: {} evaluations, {} NaN/Inf, {} negative ({} before clamp), {} of {} slices capped, in {:.1} s; wrote {}",
         sum.n_evaluations,
         sum.n_nonfinite,
         sum.n_negative,
         sum.n_negative_raw,
+        n_capped,
+        n_slices,
         secs,
         out.join("stability.md").display()
     ));

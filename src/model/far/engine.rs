@@ -51,7 +51,17 @@ use std::sync::Arc;
 /// Culling window half-width in lobe standard deviations (see module doc).
 pub const CULL_SIGMAS: f64 = 8.5;
 /// Maximum bisection depth of a segment.
-const MAX_DEPTH: u32 = 20;
+const MAX_DEPTH: u32 = 30;
+/// Most bisections the tolerance mode may spend on one lobe of one part. Legitimate stiff
+/// cases need a few hundred (beta_n = 0.1 deg: ~330 per lobe); the cap only stops a
+/// runaway (a fit error at the rounding floor of its inputs), and a slice that hit it
+/// says so in [`SliceStats::capped`].
+const MAX_SPLITS: usize = 4096;
+/// Relative accuracy of the lobe masses that scale the tolerance budget.
+const MASS_REL: f64 = 1e-2;
+const MASS_MAX_DEPTH: u32 = 30;
+/// See [`Refine::small`].
+const SMALL_SEGMENTS: f64 = 1024.0;
 /// A segment is integrated in the `Phi` variable when `min |Phi'| >= RATIO_MIN max |Phi'|`.
 const RATIO_MIN: f64 = 0.5;
 /// A segment spanning at most this many `beta_p` in `Phi` may be integrated by GL.
@@ -131,6 +141,8 @@ pub struct FarSlice<'a> {
     weight: f64,
     parts: Vec<Part>,
     betas: [f64; 3],
+    /// Lobes whose refinement hit a limit (see [`SliceStats::capped`]).
+    capped: LobeSet,
 }
 
 /// Work counters (for reports).
@@ -139,6 +151,39 @@ pub struct SliceStats {
     pub unscattered_segments: usize,
     pub gl_segments: usize,
     pub scattered_segments: usize,
+    /// Lobes whose refinement stopped at [`MAX_SPLITS`] or the maximum depth while its
+    /// error check still asked for more (their accuracy is not guaranteed by `tol`).
+    pub capped: LobeSet,
+}
+
+/// Refinement state of one lobe of one part.
+struct Refine {
+    /// Error budget (`None`: the paper's fixed segmentation).
+    budget: Option<f64>,
+    /// Scattered lobes: a segment whose integrated error `e len` is below this (a
+    /// [`SMALL_SEGMENTS`]-th of the lobe's whole budget) is accepted even if its pointwise
+    /// error is not. This ends the bisection at the medulla edge, where the chord
+    /// `s_m ~ sqrt(kappa^2 - sin^2 gamma_t)` makes the prefactor and the log-attenuation
+    /// non-analytic: the pointwise fit error there shrinks only like `sqrt(len)` while its
+    /// integral shrinks like `len^1.5`.
+    small: f64,
+    splits_left: usize,
+    /// A wanted split was refused ([`MAX_SPLITS`] or [`MAX_DEPTH`]).
+    capped: bool,
+}
+
+impl Refine {
+    /// Take one bisection: the children's depth, or `None` (and mark the lobe capped)
+    /// when the depth or split limit is reached.
+    fn split(&mut self, depth: u32) -> Option<u32> {
+        if depth >= MAX_DEPTH || self.splits_left == 0 {
+            self.capped = true;
+            None
+        } else {
+            self.splits_left -= 1;
+            Some(depth + 1)
+        }
+    }
 }
 
 impl<'a> FarSlice<'a> {
@@ -186,6 +231,7 @@ impl<'a> FarSlice<'a> {
             weight,
             parts: Vec::new(),
             betas: [beta_p(0, bn), beta_p(1, bn), beta_p(2, bn)],
+            capped: LobeSet::NONE,
         };
         // Initial boundaries per part and lobe family.
         let nu = opts.n_unscattered.max(1);
@@ -208,6 +254,9 @@ impl<'a> FarSlice<'a> {
                 hs.push(edge);
             }
             let mut us = to_u(&hs, ha, hb);
+            if opts.tol.is_some() {
+                us.extend(fresnel_layer_u(az.eta_prime));
+            }
             sort_dedup(&mut us, ha.asin(), hb.asin());
             let mut us_trt = us.clone();
             if let Some(uc) = caustic {
@@ -229,7 +278,7 @@ impl<'a> FarSlice<'a> {
             plans.push((direct, mirror, mult, us, us_trt, us_s));
         }
         // Lobe scales for the tolerance budget: sum over parts of mult * integral A dh
-        // (Simpson in u on the initial segments).
+        // (adaptive Simpson in u from the initial segments, see [`FarSlice::mass`]).
         let mut node_cache: Vec<(Vec<Node>, Vec<Node>, Vec<Node>)> = Vec::new();
         let mut mass = [0.0f64; 5];
         for (_, _, mult, us, us_trt, us_s) in &plans {
@@ -245,28 +294,18 @@ impl<'a> FarSlice<'a> {
                 out
             };
             let (a, b, c) = (mk(us), mk(us_trt), mk(us_s));
-            for l in lobes.iter() {
-                let nodes = if l == Lobe::TRT {
-                    &b
-                } else if l.is_scattered() {
-                    &c
-                } else {
-                    &a
-                };
-                let mut s = 0.0;
-                for k in (0..nodes.len().saturating_sub(2)).step_by(2) {
-                    let f = |n: &Node| {
-                        let base = n.pre[l.index()] * n.lam[l.index()].exp();
-                        if l.is_scattered() {
-                            base * n.frac
-                        } else {
-                            base
-                        }
-                    };
-                    let w = nodes[k + 2].u - nodes[k].u;
-                    s += w / 6.0 * (f(&nodes[k]) + 4.0 * f(&nodes[k + 1]) + f(&nodes[k + 2]));
+            if opts.tol.is_some() {
+                let fam = [
+                    (&a, lobes.intersect(LobeSet::only(Lobe::R).with(Lobe::TT))),
+                    (&b, lobes.intersect(LobeSet::only(Lobe::TRT))),
+                    (&c, lobes.intersect(LobeSet::SCATTERED)),
+                ];
+                for (nodes, set) in fam {
+                    let m = fs.mass(nodes, set);
+                    for l in set.iter() {
+                        mass[l.index()] += mult * m[l.index()];
+                    }
                 }
-                mass[l.index()] += mult * s;
             }
             node_cache.push((a, b, c));
         }
@@ -305,13 +344,22 @@ impl<'a> FarSlice<'a> {
                         b[l.index()] / (mult * TAU)
                     }
                 });
+                let mut rf = Refine {
+                    budget: bud,
+                    small: budget.map_or(0.0, |b| b[l.index()] / (mult * SMALL_SEGMENTS)),
+                    splits_left: MAX_SPLITS,
+                    capped: false,
+                };
                 for seg in (0..nodes.len().saturating_sub(2)).step_by(2) {
                     let (n0, nm, n1) = (nodes[seg], nodes[seg + 1], nodes[seg + 2]);
                     if l.is_scattered() {
-                        fs.build_scat(l, n0, nm, n1, 0, bud, &mut part.scat[l.p() - 1]);
+                        fs.build_scat(l, n0, nm, n1, 0, &mut rf, &mut part.scat[l.p() - 1]);
                     } else {
-                        fs.build_unsc(l.p(), n0, nm, n1, 0, bud, &mut part.unsc[l.p()]);
+                        fs.build_unsc(l.p(), n0, nm, n1, 0, &mut rf, &mut part.unsc[l.p()]);
                     }
+                }
+                if rf.capped {
+                    fs.capped = fs.capped.with(l);
                 }
             }
             fs.parts.push(part);
@@ -382,6 +430,68 @@ impl<'a> FarSlice<'a> {
         n.pre[p] * n.lam[p].exp() / n.dphi[p].abs()
     }
 
+    /// The integrand of a lobe's mass `integral A dh = integral A cos u du` at a node
+    /// (scattered lobes: times the scattered fraction).
+    fn density(n: &Node, l: Lobe) -> f64 {
+        let base = n.pre[l.index()] * n.lam[l.index()].exp();
+        if l.is_scattered() {
+            base * n.frac
+        } else {
+            base
+        }
+    }
+
+    /// `integral A cos u du` per lobe of `set` over the node list (triples
+    /// `u_k, mid, u_k+1`): adaptive Simpson, bisecting a triple while its two-half estimate
+    /// differs from the whole by more than [`MASS_REL`] of the coarse total or of itself.
+    /// A plain Simpson sum on the initial segments can miss by orders of magnitude when
+    /// the mass sits in a thin layer (Fresnel at `h -> 1` for `eta -> 1`, steep absorption
+    /// at grazing `theta_d`); the tolerance budget built from it then becomes absurdly
+    /// tight and the refinement runs away. This only sets the budget's scale: 1 % is ample.
+    fn mass(&self, nodes: &[Node], set: LobeSet) -> [f64; 5] {
+        let mut coarse = [0.0f64; 5];
+        let simpson = |a: &Node, m: &Node, b: &Node, l: Lobe| {
+            (b.u - a.u) / 6.0
+                * (Self::density(a, l) + 4.0 * Self::density(m, l) + Self::density(b, l))
+        };
+        for k in (0..nodes.len().saturating_sub(2)).step_by(2) {
+            for l in set.iter() {
+                coarse[l.index()] += simpson(&nodes[k], &nodes[k + 1], &nodes[k + 2], l);
+            }
+        }
+        let mut out = [0.0f64; 5];
+        let mut stack: Vec<(Node, Node, Node, u32)> = (0..nodes.len().saturating_sub(2))
+            .step_by(2)
+            .map(|k| (nodes[k], nodes[k + 1], nodes[k + 2], 0))
+            .collect();
+        while let Some((a, m, b, depth)) = stack.pop() {
+            let (q1, q3) = (self.node(0.5 * (a.u + m.u)), self.node(0.5 * (m.u + b.u)));
+            let mut done = true;
+            for l in set.iter() {
+                let whole = simpson(&a, &m, &b, l);
+                let halves = simpson(&a, &q1, &m, l) + simpson(&m, &q3, &b, l);
+                // Relative to the larger of the coarse total and this triple's own estimate,
+                // so a coarse total that missed the mass (even 0) cannot demand more than
+                // 1 % of the triple itself.
+                let scale = coarse[l.index()].abs().max(halves.abs());
+                if (halves - whole).abs() > MASS_REL * scale {
+                    done = false;
+                }
+            }
+            if done || depth >= MASS_MAX_DEPTH {
+                for l in set.iter() {
+                    out[l.index()] += simpson(&a, &q1, &m, l) + simpson(&m, &q3, &b, l);
+                }
+            } else {
+                stack.push((a, q1, m, depth + 1));
+                stack.push((m, q3, b, depth + 1));
+            }
+        }
+        out
+    }
+
+    /// Fit one unscattered segment `[n0, n1]` (midpoint `nm`) of lobe `p`, bisecting as the
+    /// tolerance budget in `rf` demands (see the module doc).
     #[allow(clippy::too_many_arguments)]
     fn build_unsc(
         &self,
@@ -390,7 +500,7 @@ impl<'a> FarSlice<'a> {
         nm: Node,
         n1: Node,
         depth: u32,
-        budget: Option<f64>,
+        rf: &mut Refine,
         out: &mut Vec<Piece>,
     ) {
         let beta = self.betas[p];
@@ -404,6 +514,7 @@ impl<'a> FarSlice<'a> {
         let ph = [n0.phi[p], nm.phi[p], n1.phi[p]];
         let lo = ph.iter().cloned().fold(f64::INFINITY, f64::min);
         let hi = ph.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        let narrow = hi - lo <= GL_SPAN_SIGMAS * beta;
         let quarter = |s: &Self| (s.node(0.5 * (n0.u + nm.u)), s.node(0.5 * (nm.u + n1.u)));
         if same_sign && dmin >= RATIO_MIN * dmax && hi > lo {
             // Phi-space fit, oriented so that x = Phi - lo increases.
@@ -425,47 +536,121 @@ impl<'a> FarSlice<'a> {
             let (l0, l2) = (nodes[0].lam[p], nodes[2].lam[p]);
             let l = (l2 - l0) / len;
             let c = quadratic_through(xs, gs);
-            if let Some(b) = budget {
-                if depth < MAX_DEPTH {
-                    let (q1, q3) = quarter(self);
-                    let mut e = 0.0f64;
-                    for q in [q1, q3] {
-                        let x = q.phi[p] - lo;
-                        let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + l * x).exp();
-                        e = e.max((fit - Self::g_exact(&q, p)).abs());
-                    }
-                    if e > b {
-                        self.build_unsc(p, n0, q1, nm, depth + 1, budget, out);
-                        self.build_unsc(p, nm, q3, n1, depth + 1, budget, out);
-                        return;
-                    }
-                }
+            let piece = Piece::Phi { lo, len, c, l0, l };
+            let Some(b) = rf.budget else {
+                out.push(piece);
+                return;
+            };
+            let (q1, q3) = quarter(self);
+            let mut e = 0.0f64;
+            for q in [q1, q3] {
+                let x = q.phi[p] - lo;
+                let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + l * x).exp();
+                e = e.max((fit - Self::g_exact(&q, p)).abs());
             }
-            out.push(Piece::Phi { lo, len, c, l0, l });
+            if e <= b {
+                out.push(piece);
+            } else if narrow {
+                // The Gaussian is resolved across the whole segment: refine in u for GL
+                // instead (the fit in Phi is limited by the rounding of Phi differences
+                // when Phi' -> 0, e.g. TT at eta -> 1, and would never converge).
+                self.build_narrow(p, n0, nm, n1, q1, q3, depth, rf, out);
+            } else if let Some(depth) = rf.split(depth) {
+                self.build_unsc(p, n0, q1, nm, depth, rf, out);
+                self.build_unsc(p, nm, q3, n1, depth, rf, out);
+            } else {
+                out.push(piece);
+            }
             return;
         }
-        if hi - lo <= GL_SPAN_SIGMAS * beta || depth >= MAX_DEPTH {
-            let gl = GaussLegendre::cached(GL_NODES);
-            let (c, r) = (0.5 * (n0.u + n1.u), 0.5 * (n1.u - n0.u));
-            let mut nodes = Vec::with_capacity(GL_NODES);
-            let (mut plo, mut phi_hi) = (f64::INFINITY, f64::NEG_INFINITY);
-            for (x, w) in gl.nodes.iter().zip(&gl.weights) {
-                let n = self.node(c + r * x);
-                let ph = n.phi[p];
-                plo = plo.min(ph);
-                phi_hi = phi_hi.max(ph);
-                nodes.push((ph, w * r * n.pre[p] * n.lam[p].exp()));
+        if narrow {
+            if rf.budget.is_some() {
+                let (q1, q3) = quarter(self);
+                self.build_narrow(p, n0, nm, n1, q1, q3, depth, rf, out);
+            } else {
+                out.push(self.gl_piece(p, n0, n1, lo, hi));
             }
-            out.push(Piece::Gl {
-                lo: plo.min(lo),
-                hi: phi_hi.max(hi),
-                nodes,
-            });
             return;
         }
-        let (q1, q3) = quarter(self);
-        self.build_unsc(p, n0, q1, nm, depth + 1, budget, out);
-        self.build_unsc(p, nm, q3, n1, depth + 1, budget, out);
+        match rf.split(depth) {
+            Some(depth) => {
+                let (q1, q3) = quarter(self);
+                self.build_unsc(p, n0, q1, nm, depth, rf, out);
+                self.build_unsc(p, nm, q3, n1, depth, rf, out);
+            }
+            None => out.push(self.gl_piece(p, n0, n1, lo, hi)),
+        }
+    }
+
+    /// A segment narrow in `Phi` (at most [`GL_SPAN_SIGMAS`] `beta_p`): Gauss-Legendre in
+    /// `u` of the exact integrand, once the attenuation `A cos u` itself is resolved — its
+    /// quadratic-times-exp-linear fit in `u` is within budget when weighted by the
+    /// Gaussian's height `1 / (beta sqrt(2 pi))` and the segment's length (a bound on the
+    /// change of `integral A G du`); the 16-point rule is then far more accurate than that.
+    #[allow(clippy::too_many_arguments)]
+    fn build_narrow(
+        &self,
+        p: usize,
+        n0: Node,
+        nm: Node,
+        n1: Node,
+        q1: Node,
+        q3: Node,
+        depth: u32,
+        rf: &mut Refine,
+        out: &mut Vec<Piece>,
+    ) {
+        let len = n1.u - n0.u;
+        let b = rf.budget.unwrap_or(f64::INFINITY);
+        let norm = 1.0 / (self.betas[p] * TAU.sqrt());
+        let (l0, l1) = (n0.lam[p], n1.lam[p]);
+        let lin = (l1 - l0) / len.max(1e-300);
+        let c = quadratic_through([0.0, 0.5 * len, len], [n0.pre[p], nm.pre[p], n1.pre[p]]);
+        let mut e = 0.0f64;
+        for q in [q1, q3] {
+            let x = q.u - n0.u;
+            let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + lin * x).exp();
+            e = e.max((fit - q.pre[p] * q.lam[p].exp()).abs());
+        }
+        if e * len * norm > b {
+            if let Some(depth) = rf.split(depth) {
+                let (a1, a3) = (
+                    self.node(0.5 * (n0.u + q1.u)),
+                    self.node(0.5 * (q1.u + nm.u)),
+                );
+                self.build_narrow(p, n0, q1, nm, a1, a3, depth, rf, out);
+                let (b1, b3) = (
+                    self.node(0.5 * (nm.u + q3.u)),
+                    self.node(0.5 * (q3.u + n1.u)),
+                );
+                self.build_narrow(p, nm, q3, n1, b1, b3, depth, rf, out);
+                return;
+            }
+        }
+        let ph = [n0.phi[p], nm.phi[p], n1.phi[p]];
+        let lo = ph.iter().cloned().fold(f64::INFINITY, f64::min);
+        let hi = ph.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        out.push(self.gl_piece(p, n0, n1, lo, hi));
+    }
+
+    /// [`GL_NODES`]-point Gauss-Legendre piece of lobe `p` over `[n0.u, n1.u]`.
+    fn gl_piece(&self, p: usize, n0: Node, n1: Node, lo: f64, hi: f64) -> Piece {
+        let gl = GaussLegendre::cached(GL_NODES);
+        let (c, r) = (0.5 * (n0.u + n1.u), 0.5 * (n1.u - n0.u));
+        let mut nodes = Vec::with_capacity(GL_NODES);
+        let (mut plo, mut phi_hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        for (x, w) in gl.nodes.iter().zip(&gl.weights) {
+            let n = self.node(c + r * x);
+            let ph = n.phi[p];
+            plo = plo.min(ph);
+            phi_hi = phi_hi.max(ph);
+            nodes.push((ph, w * r * n.pre[p] * n.lam[p].exp()));
+        }
+        Piece::Gl {
+            lo: plo.min(lo),
+            hi: phi_hi.max(hi),
+            nodes,
+        }
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -476,7 +661,7 @@ impl<'a> FarSlice<'a> {
         nm: Node,
         n1: Node,
         depth: u32,
-        budget: Option<f64>,
+        rf: &mut Refine,
         out: &mut Vec<ScatSeg>,
     ) {
         let i = l.index();
@@ -487,8 +672,8 @@ impl<'a> FarSlice<'a> {
         }
         let (l0, l1) = (n0.lam[i], n1.lam[i]);
         let lin = (l1 - l0) / len;
-        if let Some(b) = budget {
-            if depth < MAX_DEPTH {
+        if let Some(b) = rf.budget {
+            {
                 let q1 = self.node(0.5 * (n0.u + nm.u));
                 let q3 = self.node(0.5 * (nm.u + n1.u));
                 let ys = [
@@ -507,10 +692,13 @@ impl<'a> FarSlice<'a> {
                 // small enough for a quadratic to follow a table's structure.
                 let dps = (n1.phis[k] - n0.phis[k]).abs();
                 let max_dps = 0.15 * (self.tol.unwrap_or(1e-4) / 1e-4).cbrt().min(4.0);
-                if e > b || dps > max_dps {
-                    self.build_scat(l, n0, q1, nm, depth + 1, budget, out);
-                    self.build_scat(l, nm, q3, n1, depth + 1, budget, out);
-                    return;
+                let fit_poor = e > b && e * len > rf.small;
+                if fit_poor || dps > max_dps {
+                    if let Some(depth) = rf.split(depth) {
+                        self.build_scat(l, n0, q1, nm, depth, rf, out);
+                        self.build_scat(l, nm, q3, n1, depth, rf, out);
+                        return;
+                    }
                 }
             }
         }
@@ -564,7 +752,10 @@ impl<'a> FarSlice<'a> {
 
     /// Work counters.
     pub fn stats(&self) -> SliceStats {
-        let mut s = SliceStats::default();
+        let mut s = SliceStats {
+            capped: self.capped,
+            ..Default::default()
+        };
         for part in &self.parts {
             for v in &part.unsc {
                 for pc in v {
@@ -703,6 +894,24 @@ impl<'a> FarSlice<'a> {
         }
         out
     }
+}
+
+/// Breakpoints resolving the grazing Fresnel layer (tolerance mode only). For `eta' -> 1`
+/// the cuticle reflectance `F` stays near 0 except where `cos u` is within a few
+/// `w = sqrt(1 - 1/eta'^2)` (`cos gamma_t` at `h = 1`) of zero, where it climbs to 1: at
+/// `eta = 1 + 1e-9` that layer is `4.5e-5` wide in `u` and holds all of R's mass, and the
+/// initial segments' nodes (and so the mass estimate and the fit checks) never see it.
+/// A geometric mesh `u = pi/2 - w 2^k / 4` up to `pi/2 - 0.05` resolves it; for ordinary
+/// `eta'` (`w > 0.2`) it adds nothing.
+fn fresnel_layer_u(eta_prime: f64) -> Vec<f64> {
+    let w = (1.0 - 1.0 / (eta_prime * eta_prime)).max(0.0).sqrt();
+    let mut out = Vec::new();
+    let mut d = (0.25 * w).max(1e-9);
+    while d < 0.05 {
+        out.push(FRAC_PI_2 - d);
+        d *= 2.0;
+    }
+    out
 }
 
 fn to_u(hs: &[f64], ha: f64, hb: f64) -> Vec<f64> {

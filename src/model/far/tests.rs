@@ -365,3 +365,54 @@ fn tabulated_scattered_matches_rank_sum() {
         }
     }
 }
+
+#[test]
+fn stiff_eta_to_one_grazing_fresnel_layer() {
+    // eta = 1 + 1e-9: the cuticle reflectance is ~1e-19 except in a layer of width
+    // ~sqrt(2e-9) in cos u at h -> 1, which holds all of R's mass (peak ~3e-10). The paper's
+    // segments miss it entirely; the tolerance mode must resolve it to 1e-4 of R's peak.
+    let mut v = base();
+    v[0] = 1.0 + 1e-9;
+    let m = FurModel::new(&params(v));
+    let r = LobeSet::only(Lobe::R);
+    for td in [0.0f64, 70.0] {
+        let az = m.azimuthal(td.to_radians());
+        let fs = az.far_slice(r, &FarOptions::default());
+        let (mut peak, mut err) = (0.0f64, 0.0f64);
+        for k in 0..12 {
+            let phi = -PI + 2.0 * PI * (k as f64 + 0.37) / 12.0;
+            let rv = az.far_reference(phi, r).get(Lobe::R);
+            peak = peak.max(rv);
+            err = err.max((fs.eval(phi).get(Lobe::R) - rv).abs());
+        }
+        assert!(peak > 0.0);
+        // The tolerance mode's contract for unscattered lobes: 1e-4 of the peak.
+        assert!(
+            err <= 1e-4 * peak,
+            "theta_d {td}: {err:.3e} of peak {peak:.3e}"
+        );
+    }
+}
+
+#[test]
+fn tol_mode_refinement_stays_bounded_at_eta_one_tiny_beta() {
+    // eta -> 1 with beta_n = 0.1 deg: TT's Phi is constant to ~1e-9 (every segment is a
+    // caustic) and R's mass sits in the grazing Fresnel layer. The refinement once ran to
+    // millions of segments here (`furfit stability` never finished); it must end well
+    // inside the split cap without hitting it.
+    let mut v = base();
+    v[0] = 1.0 + 1e-9;
+    v[4] = 0.1;
+    let m = FurModel::new(&params(v));
+    for td in [0.0f64, 20.0, -89.0] {
+        let fs = m
+            .azimuthal(td.to_radians())
+            .far_slice(LobeSet::ALL, &FarOptions::default());
+        let s = fs.stats();
+        let total = s.unscattered_segments + s.gl_segments + s.scattered_segments;
+        assert!(s.capped.is_empty(), "theta_d {td}: capped {:?}", s.capped);
+        // 5 lobes x 4096 splits would be ~20k; a few thousand is what resolving needs.
+        assert!(total < 5000, "theta_d {td}: {s:?}");
+        assert!(fs.eval(PI).0.iter().all(|x| x.is_finite()));
+    }
+}
