@@ -7,9 +7,16 @@ pub struct Args {
     /// Output directory for far_field_error_vs_time.{csv,png,svg}.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
+    /// Only print the grid-synthesis throughput (4 x 61 x 181 samples), no error sweep.
+    #[arg(long)]
+    pub synth_only: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    if a.synth_only {
+        crate::report::far_error::synth_throughput(&mut |line| println!("{line}"));
+        return Ok(());
+    }
     std::fs::create_dir_all(&a.out)?;
     crate::report::far_error::run(&a.out, &mut |line| println!("{line}"))?;
     Ok(())

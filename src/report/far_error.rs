@@ -246,6 +246,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
             }
         }
     }
+    synth_throughput(log);
     // Files.
     let mut csv = String::from(
         "method,setting,max_rel_err,median_rel_err,us_per_eval_single,us_per_eval_amortised\n",
@@ -308,4 +309,44 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
         out.display()
     ));
     Ok(rows)
+}
+
+/// Print the throughput of grid synthesis (what `furfit synth` and the fitter do) on the
+/// issue's 4 x 61 x 181 grid, for the paper's fixed segments and the tolerance mode, on
+/// the current rayon pool. Best of three runs after one warm-up (machines are noisy).
+pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
+    let mut pts = Vec::new();
+    for ti in [0.0f64, 15.0, 30.0, 45.0] {
+        for k in 0..61 {
+            let tr = -60.0 + 2.0 * k as f64;
+            for j in 0..181 {
+                let ph = -180.0 + 2.0 * j as f64;
+                pts.push((ti.to_radians(), tr.to_radians(), ph.to_radians()));
+            }
+        }
+    }
+    let plan = crate::synth::GridPlan::new(&pts);
+    for name in ["red-fox", "human"] {
+        let model = FurModel::new(&FurParams::preset(name).expect("shipped preset"));
+        for (mode, opts) in [
+            ("paper 8/5", FarOptions::paper()),
+            ("tol 1e-4", FarOptions::default()),
+        ] {
+            let run = || {
+                let t = Instant::now();
+                let v = plan.predict(&model, LobeSet::ALL, crate::synth::ModelKind::Far, &opts);
+                black_box(v);
+                t.elapsed().as_secs_f64()
+            };
+            run();
+            let best = (0..3).map(|_| run()).fold(f64::INFINITY, f64::min);
+            log(&format!(
+                "synth {name} {mode}: 4 x 61 x 181 = {} samples in {:.3} s on {} threads = {:.3e} samples/s (best of 3)",
+                pts.len(),
+                best,
+                rayon::current_num_threads(),
+                pts.len() as f64 / best
+            ));
+        }
+    }
 }
