@@ -44,7 +44,7 @@ use std::time::Instant;
 use uncertainty::Uncertainty;
 
 /// Relative cost change that ends an LM run on the subsample (see [`fit_data`]).
-const SUBSAMPLE_FTOL: f64 = 1e-4;
+const SUBSAMPLE_FTOL: f64 = 1e-3;
 
 /// Settings of one fit.
 #[derive(Clone, Debug)]
