@@ -32,16 +32,7 @@ fn far_field(c: &mut Criterion) {
 
 fn synth_grid(c: &mut Criterion) {
     let m = FurModel::new(&FurParams::preset("red-fox").unwrap());
-    let mut pts = Vec::new();
-    for ti in [0.0f64, 15.0, 30.0, 45.0] {
-        for k in 0..61 {
-            let tr = -60.0 + 2.0 * k as f64;
-            for j in 0..181 {
-                let phi = -180.0 + 2.0 * j as f64;
-                pts.push((ti.to_radians(), tr.to_radians(), phi.to_radians()));
-            }
-        }
-    }
+    let pts = furfit::report::far_error::throughput_grid();
     let mut g = c.benchmark_group("synth_grid_4x61x181");
     g.sample_size(10);
     g.throughput(Throughput::Elements(pts.len() as u64));

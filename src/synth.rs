@@ -199,6 +199,20 @@ impl GridPlan {
     }
 }
 
+/// The points of the grid `theta_i x theta_r x phi`, in that nesting order (`phi` fastest),
+/// in the units given.
+pub fn grid_points(theta_i: &[f64], theta_r: &[f64], phi: &[f64]) -> Vec<(f64, f64, f64)> {
+    let mut pts = Vec::with_capacity(theta_i.len() * theta_r.len() * phi.len());
+    for &ti in theta_i {
+        for &tr in theta_r {
+            for &p in phi {
+                pts.push((ti, tr, p));
+            }
+        }
+    }
+    pts
+}
+
 /// Synthesize a profile on the grid `theta_i x theta_r x phi` (degrees), value
 /// `exposure * sum_{p in lobes} M_p N_p`. The metadata says it is synthetic and records
 /// the parameters, model, lobes and options. `params` must be validated.
@@ -214,14 +228,7 @@ pub fn synthesize(
     opts: &FarOptions,
 ) -> Profile {
     let model = FurModel::new(params);
-    let mut deg = Vec::with_capacity(theta_i.len() * theta_r.len() * phi.len());
-    for &ti in theta_i {
-        for &tr in theta_r {
-            for &p in phi {
-                deg.push((ti, tr, p));
-            }
-        }
-    }
+    let deg = grid_points(theta_i, theta_r, phi);
     let rad: Vec<(f64, f64, f64)> = deg
         .iter()
         .map(|&(a, b, c)| (a.to_radians(), b.to_radians(), c.to_radians()))

@@ -22,17 +22,9 @@ mod rand_distr_free {
 
 /// 3 theta_i x 31 theta_r x 61 phi, degrees -> radians.
 fn grid() -> Points {
-    let mut p = Points::default();
-    for ti in [-30.0f64, 0.0, 30.0] {
-        for k in 0..31 {
-            let tr = -75.0 + 5.0 * k as f64;
-            for j in 0..61 {
-                let ph = -180.0 + 6.0 * j as f64;
-                p.push(ti.to_radians(), tr.to_radians(), ph.to_radians());
-            }
-        }
-    }
-    p
+    let tr: Vec<f64> = (0..31).map(|k| -75.0 + 5.0 * k as f64).collect();
+    let phi: Vec<f64> = (0..61).map(|j| -180.0 + 6.0 * j as f64).collect();
+    Points::grid_degrees(&[-30.0, 0.0, 30.0], &tr, &phi)
 }
 
 /// Detector floor, relative to the profile's peak: samples below it are not data. Without

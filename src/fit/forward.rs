@@ -71,6 +71,15 @@ impl Points {
         self.plan = OnceLock::new();
     }
 
+    /// The grid `theta_i x theta_r x phi` given in degrees ([`crate::synth::grid_points`]).
+    pub fn grid_degrees(theta_i: &[f64], theta_r: &[f64], phi: &[f64]) -> Points {
+        let mut p = Points::default();
+        for (ti, tr, ph) in crate::synth::grid_points(theta_i, theta_r, phi) {
+            p.push(ti.to_radians(), tr.to_radians(), ph.to_radians());
+        }
+        p
+    }
+
     /// The points at the given indices.
     pub fn subset(&self, idx: &[usize]) -> Points {
         Points {

@@ -8,17 +8,9 @@ use crate::model::LobeSet;
 
 /// A small grid: 3 theta_i x 13 theta_r x 25 phi (degrees in, radians stored).
 pub(crate) fn small_points() -> Points {
-    let mut p = Points::default();
-    for ti in [-20.0f64, 10.0, 40.0] {
-        for k in 0..13 {
-            let tr = -60.0 + 10.0 * k as f64;
-            for j in 0..25 {
-                let ph = -180.0 + 15.0 * j as f64;
-                p.push(ti.to_radians(), tr.to_radians(), ph.to_radians());
-            }
-        }
-    }
-    p
+    let tr: Vec<f64> = (0..13).map(|k| -60.0 + 10.0 * k as f64).collect();
+    let phi: Vec<f64> = (0..25).map(|j| -180.0 + 15.0 * j as f64).collect();
+    Points::grid_degrees(&[-20.0, 10.0, 40.0], &tr, &phi)
 }
 
 fn synth(params: &FurParams, pts: &Points, k: f64) -> Vec<f64> {

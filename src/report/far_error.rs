@@ -311,20 +311,22 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
     Ok(rows)
 }
 
+/// The synthesis benchmark grid (radians): theta_i 0, 15, 30, 45 deg, theta_r
+/// -60..60 deg step 2 (61), phi -180..180 deg step 2 (181). Shared with `benches/far_field.rs`.
+pub fn throughput_grid() -> Vec<(f64, f64, f64)> {
+    let tr: Vec<f64> = (0..61).map(|k| -60.0 + 2.0 * k as f64).collect();
+    let phi: Vec<f64> = (0..181).map(|j| -180.0 + 2.0 * j as f64).collect();
+    crate::synth::grid_points(&[0.0, 15.0, 30.0, 45.0], &tr, &phi)
+        .into_iter()
+        .map(|(a, b, c)| (a.to_radians(), b.to_radians(), c.to_radians()))
+        .collect()
+}
+
 /// Print the throughput of grid synthesis (what `furfit synth` and the fitter do) on the
 /// issue's 4 x 61 x 181 grid, for the paper's fixed segments and the tolerance mode, on
 /// the current rayon pool. Best of three runs after one warm-up (machines are noisy).
 pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
-    let mut pts = Vec::new();
-    for ti in [0.0f64, 15.0, 30.0, 45.0] {
-        for k in 0..61 {
-            let tr = -60.0 + 2.0 * k as f64;
-            for j in 0..181 {
-                let ph = -180.0 + 2.0 * j as f64;
-                pts.push((ti.to_radians(), tr.to_radians(), ph.to_radians()));
-            }
-        }
-    }
+    let pts = throughput_grid();
     let plan = crate::synth::GridPlan::new(&pts);
     for name in ["red-fox", "human"] {
         let model = FurModel::new(&FurParams::preset(name).expect("shipped preset"));
