@@ -142,11 +142,28 @@ impl GridPlan {
         if self.points.is_empty() || lobes.is_empty() {
             return vec![LobeValues::default(); self.points.len()];
         }
-        // N_p per (theta_d, phi), parallel over theta_d.
-        let n_values: Vec<Vec<LobeValues>> = self
-            .groups
+        let n = self.azimuthal_terms(model, lobes, kind, opts);
+        let m = self.longitudinal_terms(model, lobes);
+        self.combine(&n, &m).collect()
+    }
+
+    /// `N_p` of the lobes in `lobes` (others 0) per distinct `(theta_d, phi)`, indexed
+    /// `[group][phi]`; parallel over `theta_d`. Each lobe's value does not depend on which
+    /// other lobes are asked for, so terms of different lobe sets can be merged.
+    pub fn azimuthal_terms(
+        &self,
+        model: &FurModel,
+        lobes: LobeSet,
+        kind: ModelKind,
+        opts: &FarOptions,
+    ) -> Vec<Vec<LobeValues>> {
+        let lobes = lobes.intersect(model.active_lobes());
+        self.groups
             .par_iter()
             .map(|(td, phis)| {
+                if lobes.is_empty() {
+                    return vec![LobeValues::default(); phis.len()];
+                }
                 let az = model.azimuthal(*td);
                 match kind {
                     // The slice (segmentation and fits) depends only on theta_d: build it
@@ -156,7 +173,7 @@ impl GridPlan {
                         if phis.len() >= TABULATE_MIN_PHI {
                             slice.tabulate_scattered();
                         }
-                        phis.iter().map(|&phi| slice.eval(phi)).collect()
+                        slice.eval_many(phis)
                     }
                     ModelKind::NearQuadrature => phis
                         .par_iter()
@@ -165,13 +182,17 @@ impl GridPlan {
                         .collect(),
                 }
             })
-            .collect();
-        // M_p per (theta_i, theta_r) for the unscattered lobes; M_s per point (it depends
-        // on phi through the front/back lerp of Eq. 19).
+            .collect()
+    }
+
+    /// Longitudinal terms per distinct `(theta_i, theta_r)`: `M_p` of the unscattered lobes
+    /// in `lobes`, and the front/back `C^M` of the scattered ones (`None` when no scattered
+    /// lobe is asked for or exists); `M_s` depends on `phi` through the lerp of Eq. 19.
+    pub fn longitudinal_terms(&self, model: &FurModel, lobes: LobeSet) -> Vec<PairTerms> {
+        let lobes = lobes.intersect(model.active_lobes());
         let unsc = lobes.intersect(LobeSet::UNSCATTERED);
         let scat = lobes.intersect(LobeSet::SCATTERED);
-        let m_pairs: Vec<(LobeValues, Option<(f64, f64)>)> = self
-            .pairs
+        self.pairs
             .iter()
             .map(|&(ti, tr)| {
                 let sides = if scat.is_empty() {
@@ -181,23 +202,34 @@ impl GridPlan {
                 };
                 (model.longitudinal(ti, tr, 0.0, unsc), sides)
             })
-            .collect();
+            .collect()
+    }
+
+    /// Per-lobe `M_p N_p` at every point from the two kinds of terms (in point order).
+    pub fn combine<'s>(
+        &'s self,
+        n: &'s [Vec<LobeValues>],
+        m: &'s [PairTerms],
+    ) -> impl IndexedParallelIterator<Item = LobeValues> + 's {
         self.points
             .par_iter()
             .zip(self.where_n.par_iter().zip(self.where_m.par_iter()))
             .with_min_len(1024)
-            .map(|(&(_, _, phi), (&(g, k), &mi))| {
-                let (mut m, sides) = m_pairs[mi];
+            .map(move |(&(_, _, phi), (&(g, k), &mi))| {
+                let (mut mv, sides) = m[mi];
                 if let Some((front, back)) = sides {
                     let ms = front_back_lerp(front, back, phi);
-                    m.set(Lobe::TTs, ms);
-                    m.set(Lobe::TRTs, ms);
+                    mv.set(Lobe::TTs, ms);
+                    mv.set(Lobe::TRTs, ms);
                 }
-                m.mul(&n_values[g][k])
+                mv.mul(&n[g][k])
             })
-            .collect()
     }
 }
+
+/// Longitudinal terms of one `(theta_i, theta_r)` pair ([`GridPlan::longitudinal_terms`]):
+/// unscattered `M_p`, and the front/back `C^M` of the scattered lobes if any.
+pub type PairTerms = (LobeValues, Option<(f64, f64)>);
 
 /// The points of the grid `theta_i x theta_r x phi`, in that nesting order (`phi` fastest),
 /// in the units given.

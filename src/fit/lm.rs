@@ -11,6 +11,14 @@
 //! Termination (besides argmin's `max_iters`): `||J^T r||_inf <= gtol`; an accepted step
 //! with `||delta|| <= xtol (||u|| + xtol)`; an accepted step whose relative cost reduction
 //! is `<= ftol`; or the damping exceeding `1e16` (no further descent possible).
+//!
+//! With [`LevenbergMarquardt::broyden`] on, an accepted step updates the Jacobian by
+//! Broyden's rank-one secant formula `J += (r_new - r - J delta) delta^T / |delta|^2`
+//! (one residual evaluation) instead of recomputing it (one evaluation per parameter by
+//! finite differences), as in MINPACK's `hybrd`. The true Jacobian is recomputed whenever
+//! a step with an updated one is rejected, and before any convergence test is believed:
+//! the solver only stops on a step computed from a freshly differentiated Jacobian, so
+//! the secant updates change the cost of the path, not where it may end.
 
 use argmin::core::{
     Error, IterState, Jacobian, Operator, Problem, Solver, State, TerminationReason,
@@ -66,6 +74,10 @@ pub struct LevenbergMarquardt {
     pub trace: Vec<TracePoint>,
     /// Number of rejected trial steps.
     pub rejected: u64,
+    /// Update the Jacobian by Broyden's formula after accepted steps (see the module doc).
+    pub broyden: bool,
+    /// Is the Jacobian in the state a true (finite-difference) one?
+    fresh: bool,
 }
 
 impl LevenbergMarquardt {
@@ -85,12 +97,32 @@ impl LevenbergMarquardt {
             clock,
             trace: Vec::new(),
             rejected: 0,
+            broyden: false,
+            fresh: true,
         }
     }
 
     /// Why the solver stopped on its own, if it did.
     pub fn converged_reason(&self) -> Option<&'static str> {
         self.converged
+    }
+
+    /// Replace a secant Jacobian by a finite-difference one at the current point `u`.
+    fn refresh<O>(
+        &mut self,
+        problem: &mut Problem<O>,
+        state: LmState,
+        u: DVector<f64>,
+        r: DVector<f64>,
+        cost: f64,
+    ) -> Result<(LmState, Option<KV>), Error>
+    where
+        O: Jacobian<Param = DVector<f64>, Jacobian = DMatrix<f64>>,
+    {
+        let jac = problem.jacobian(&u)?;
+        self.fresh = true;
+        let grad = jac.transpose() * &r;
+        Ok((with_point(state, u, r, jac, grad, cost), None))
     }
 
     fn update_scale(&mut self, jtj: &DMatrix<f64>) -> DVector<f64> {
@@ -126,6 +158,7 @@ where
         let r = problem.apply(&u)?;
         let cost = 0.5 * r.norm_squared();
         let jac = problem.jacobian(&u)?;
+        self.fresh = true;
         let jtj = jac.transpose() * &jac;
         let d = self.update_scale(&jtj);
         self.mu = self.tau * jtj.diagonal().max().max(1e-300) / d.max().max(1e-300);
@@ -151,8 +184,11 @@ where
         let cost = state.get_cost();
 
         if grad.amax() <= self.gtol {
-            self.converged = Some("gradient below tolerance");
-            return Ok((with_point(state, u, r, jac, grad, cost), None));
+            if self.fresh {
+                self.converged = Some("gradient below tolerance");
+                return Ok((with_point(state, u, r, jac, grad, cost), None));
+            }
+            return self.refresh(problem, state, u, r, cost);
         }
         let jtj = jac.transpose() * &jac;
         let d = self.update_scale(&jtj);
@@ -181,12 +217,31 @@ where
         if rho > 0.0 && cost_new.is_finite() {
             self.mu *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
             self.nu = 2.0;
-            if delta.norm() <= self.xtol * (u.norm() + self.xtol) {
-                self.converged = Some("step below tolerance");
+            let converged = if delta.norm() <= self.xtol * (u.norm() + self.xtol) {
+                Some("step below tolerance")
             } else if cost - cost_new <= self.ftol * cost {
-                self.converged = Some("relative cost change below tolerance");
+                Some("relative cost change below tolerance")
+            } else {
+                None
+            };
+            // Stop only on a step from a true Jacobian; otherwise differentiate afresh at
+            // the new point and go on.
+            if self.fresh {
+                self.converged = converged;
             }
-            let jac_new = problem.jacobian(&u_new)?;
+            let jac_new = if self.broyden && converged.is_none() {
+                let dd = delta.norm_squared();
+                let mut j = jac;
+                if dd > 0.0 {
+                    let y = &r_new - &r - &j * &delta;
+                    j.ger(1.0 / dd, &y, &delta, 1.0);
+                }
+                self.fresh = false;
+                j
+            } else {
+                self.fresh = true;
+                problem.jacobian(&u_new)?
+            };
             let grad_new = jac_new.transpose() * &r_new;
             self.trace.push(TracePoint {
                 iter: state.get_iter() + 1,
@@ -202,6 +257,10 @@ where
             self.mu *= self.nu;
             self.nu *= 2.0;
             self.rejected += 1;
+            if !self.fresh {
+                // The secant Jacobian may be what failed: differentiate at `u` again.
+                return self.refresh(problem, state, u, r, cost);
+            }
             if self.mu > 1e16 {
                 self.converged = Some("damping exhausted (no descent direction left)");
             }
@@ -262,5 +321,23 @@ mod tests {
             "{p}"
         );
         assert!(res.state.get_iter() < 200, "did not converge");
+    }
+
+    #[test]
+    fn solves_rosenbrock_with_broyden_updates() {
+        let mut lm = LevenbergMarquardt::new(Instant::now());
+        lm.broyden = true;
+        let res = Executor::new(Rosen, lm)
+            .configure(|s| s.param(DVector::from_vec(vec![-1.2, 1.0])).max_iters(500))
+            .run()
+            .unwrap();
+        let p = res.state.get_best_param().unwrap();
+        // Same exact minimum; the solver may only stop on a fresh Jacobian, so the answer is
+        // as tight as without the secant updates.
+        assert!(
+            (p[0] - 1.0).abs() < 1e-6 && (p[1] - 1.0).abs() < 1e-6,
+            "{p}"
+        );
+        assert!(res.state.get_iter() < 500, "did not converge");
     }
 }

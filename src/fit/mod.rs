@@ -69,6 +69,9 @@ pub struct FitOptions {
     /// Relative cost change that ends the final LM run (default 1e-6, Ceres'
     /// `function_tolerance`).
     pub ftol: f64,
+    /// Broyden updates of the Jacobian after accepted LM steps ([`lm`]; a run still only
+    /// stops on a finite-difference Jacobian).
+    pub broyden: bool,
 }
 
 impl Default for FitOptions {
@@ -84,6 +87,7 @@ impl Default for FitOptions {
             layout: ParamLayout::all_free(),
             weighted: false,
             ftol: 1e-6,
+            broyden: true,
         }
     }
 }
@@ -172,11 +176,13 @@ fn run_lm(
     u0: DVector<f64>,
     max_iters: u64,
     ftol: f64,
+    broyden: bool,
     clock: Instant,
 ) -> Result<RunResult> {
     let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far);
     let mut lm = LevenbergMarquardt::new(clock);
     lm.ftol = ftol;
+    lm.broyden = broyden;
     let res = Executor::new(&prob, lm)
         .configure(|s| s.param(u0).max_iters(max_iters))
         .run()
@@ -326,7 +332,14 @@ pub fn fit_data(
             // On a subsample the runs only choose the basin (the polish on all samples
             // converges tightly), so they stop at a looser relative cost change.
             let ftol = if use_sub { SUBSAMPLE_FTOL } else { opts.ftol };
-            run_lm(&sub, scored[i].2.clone(), opts.max_iters, ftol, clock)
+            run_lm(
+                &sub,
+                scored[i].2.clone(),
+                opts.max_iters,
+                ftol,
+                opts.broyden,
+                clock,
+            )
         })
         .collect();
     let mut runs: Vec<RunResult> = runs.into_iter().collect::<Result<_>>()?;
@@ -346,7 +359,14 @@ pub fn fit_data(
     let mut iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
     let (u, termination) = if use_sub {
         say(&format!("polishing on all {} samples", data.len()));
-        let polish = run_lm(&full, best_run.u, opts.max_iters, opts.ftol, clock)?;
+        let polish = run_lm(
+            &full,
+            best_run.u,
+            opts.max_iters,
+            opts.ftol,
+            opts.broyden,
+            clock,
+        )?;
         full.evals.fetch_add(polish.evals, Ordering::Relaxed);
         let offset = best_run.iters;
         let n = data.len() as f64;
@@ -394,7 +414,7 @@ fn finish(
     let jac = if u.is_empty() {
         nalgebra::DMatrix::zeros(data.len(), 0)
     } else {
-        full.jacobian_forward(&u, &r)
+        full.jacobian_at(&u)
     };
     let unc = uncertainty::estimate(&opts.layout, &u, &jac, &r);
     let params = opts.layout.params(u.as_slice());

@@ -13,16 +13,15 @@
 //! Model values are floored at `f64::MIN_POSITIVE` before the logarithm, so a lobe that
 //! underflows to zero gives a large but finite residual instead of `-inf`.
 
-use super::forward::{predict_points, Points};
+use super::forward::{ModelTerms, Points};
 use super::reparam;
 use crate::model::far::FarOptions;
-use crate::model::LobeSet;
 use crate::params::{FurParams, ParamId, N_PARAMS};
 use argmin::core::{Error as ArgminError, Jacobian, Operator};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
 /// One channel's valid samples, ready for the residuals.
 #[derive(Clone, Debug)]
@@ -198,9 +197,13 @@ pub struct LogResidualProblem<'a> {
     pub far: FarOptions,
     /// Model evaluations (one per residual vector), including finite-difference columns.
     pub evals: AtomicU64,
-    /// Last `(u, r)` computed, so the Jacobian reuses the residuals of its base point.
-    last: Mutex<Option<(DVector<f64>, DVector<f64>)>>,
+    /// Last `(u, r, terms)` computed, so the Jacobian reuses the residuals and model terms
+    /// of its base point.
+    last: Mutex<Option<Cached>>,
 }
+
+/// Residuals and model terms at one point `u`.
+type Cached = (DVector<f64>, DVector<f64>, Arc<ModelTerms>);
 
 /// Relative forward-difference step in `u`.
 pub const FD_STEP: f64 = 1e-6;
@@ -221,24 +224,26 @@ impl<'a> LogResidualProblem<'a> {
         self.layout.free().len()
     }
 
-    /// Model values (no exposure) at `u` ([`predict_points`] is parallel inside).
-    pub fn model_values(&self, u: &[f64]) -> Vec<f64> {
-        let params = self.layout.params(u);
-        let mut out = vec![0.0; self.data.len()];
-        predict_points(
-            &params,
-            &self.data.points,
-            &self.far,
-            LobeSet::ALL,
-            &mut out,
-        );
+    /// Model terms at `u` (all lobes; parallel inside).
+    fn terms(&self, u: &[f64]) -> ModelTerms {
         self.evals.fetch_add(1, Ordering::Relaxed);
+        ModelTerms::new(&self.layout.params(u), &self.data.points, &self.far)
+    }
+
+    /// Model values (no exposure) of `terms`.
+    fn values(&self, terms: &ModelTerms) -> Vec<f64> {
+        let mut out = vec![0.0; self.data.len()];
+        terms.values(&self.data.points, &mut out);
         out
     }
 
-    /// Residuals and `ln k` at `u`.
-    pub fn residuals_and_log_exposure(&self, u: &[f64]) -> (DVector<f64>, f64) {
-        let m = self.model_values(u);
+    /// Model values (no exposure) at `u`.
+    pub fn model_values(&self, u: &[f64]) -> Vec<f64> {
+        self.values(&self.terms(u))
+    }
+
+    /// Residuals and `ln k` of model values `m`.
+    fn residuals_of(&self, m: &[f64]) -> (DVector<f64>, f64) {
         let ln_m: Vec<f64> = m.iter().map(|&v| ln_model(v)).collect();
         let d = self.data;
         let lk = optimal_log_exposure(&ln_m, &d.ln_y, &d.w);
@@ -248,6 +253,11 @@ impl<'a> LogResidualProblem<'a> {
             (0..d.len()).map(|i| d.w[i].sqrt() * (ln_m[i] + lk - d.ln_y[i]) * inv),
         );
         (r, lk)
+    }
+
+    /// Residuals and `ln k` at `u`.
+    pub fn residuals_and_log_exposure(&self, u: &[f64]) -> (DVector<f64>, f64) {
+        self.residuals_of(&self.model_values(u))
     }
 
     /// Residuals at `u`.
@@ -261,20 +271,40 @@ impl<'a> LogResidualProblem<'a> {
     }
 
     /// Forward-difference Jacobian `d r / d u`, one column per free parameter computed in
-    /// parallel; `r0` are the residuals at `u`. Step `FD_STEP * max(1, |u_j|)`.
-    pub fn jacobian_forward(&self, u: &DVector<f64>, r0: &DVector<f64>) -> DMatrix<f64> {
-        let n = u.len();
-        let cols: Vec<DVector<f64>> = (0..n)
+    /// parallel; `r0` and `base` are the residuals and model terms at `u`. Step
+    /// `FD_STEP * max(1, |u_j|)`. A column recomputes only the model terms its parameter
+    /// can change ([`ModelTerms::with_change`]), so `alpha` and `beta_m` cost almost
+    /// nothing; the columns equal full re-evaluations (tested).
+    pub fn jacobian_forward(
+        &self,
+        u: &DVector<f64>,
+        r0: &DVector<f64>,
+        base: &ModelTerms,
+    ) -> DMatrix<f64> {
+        let free = self.layout.free();
+        let cols: Vec<DVector<f64>> = (0..u.len())
             .into_par_iter()
             .map(|j| {
                 let h = FD_STEP * u[j].abs().max(1.0);
                 let mut up = u.clone();
                 up[j] += h;
                 let h = up[j] - u[j];
-                (self.residuals(up.as_slice()) - r0) / h
+                self.evals.fetch_add(1, Ordering::Relaxed);
+                let params = self.layout.params(up.as_slice());
+                let terms = base.with_change(&params, free[j], &self.data.points, &self.far);
+                (self.residuals_of(&self.values(&terms)).0 - r0) / h
             })
             .collect();
         DMatrix::from_columns(&cols)
+    }
+
+    /// Residuals and model terms at `u`, remembered for the Jacobian at the same point.
+    fn evaluate(&self, u: &DVector<f64>) -> (DVector<f64>, Arc<ModelTerms>) {
+        let terms = Arc::new(self.terms(u.as_slice()));
+        let r = self.residuals_of(&self.values(&terms)).0;
+        *self.last.lock().expect("residual cache poisoned") =
+            Some((u.clone(), r.clone(), terms.clone()));
+        (r, terms)
     }
 
     /// Central-difference Jacobian (twice the cost; used to check the forward one).
@@ -298,9 +328,7 @@ impl Operator for LogResidualProblem<'_> {
     type Output = DVector<f64>;
 
     fn apply(&self, u: &DVector<f64>) -> Result<DVector<f64>, ArgminError> {
-        let r = self.residuals(u.as_slice());
-        *self.last.lock().expect("residual cache poisoned") = Some((u.clone(), r.clone()));
-        Ok(r)
+        Ok(self.evaluate(u).0)
     }
 }
 
@@ -309,17 +337,25 @@ impl Jacobian for LogResidualProblem<'_> {
     type Jacobian = DMatrix<f64>;
 
     fn jacobian(&self, u: &DVector<f64>) -> Result<DMatrix<f64>, ArgminError> {
+        Ok(self.jacobian_at(u))
+    }
+}
+
+impl LogResidualProblem<'_> {
+    /// Forward-difference Jacobian at `u`, reusing the residuals and terms of the last
+    /// evaluation when it was at `u` (the solver evaluates a point before its Jacobian).
+    pub fn jacobian_at(&self, u: &DVector<f64>) -> DMatrix<f64> {
         let cached = self
             .last
             .lock()
             .expect("residual cache poisoned")
             .as_ref()
-            .filter(|(cu, _)| cu == u)
-            .map(|(_, r)| r.clone());
-        let r0 = match cached {
-            Some(r) => r,
-            None => self.residuals(u.as_slice()),
+            .filter(|(cu, _, _)| cu == u)
+            .map(|(_, r, t)| (r.clone(), t.clone()));
+        let (r0, base) = match cached {
+            Some(c) => c,
+            None => self.evaluate(u),
         };
-        Ok(self.jacobian_forward(u, &r0))
+        self.jacobian_forward(u, &r0, &base)
     }
 }

@@ -214,6 +214,20 @@ impl FurModel {
         }
     }
 
+    /// The lobes whose azimuthal term `N_p` (near or far field) can change when parameter
+    /// `id` changes. `alpha` and `beta_m` enter only `M_p` (seed Eq. 5, Table 2) and `g`
+    /// only the medulla tables of TTs/TRTs (Eqs. 18-19); every other parameter reaches all
+    /// five lobes through `eta'`, the path geometry or the attenuations. The fitter's
+    /// finite differences use this to reuse the unchanged terms.
+    pub fn azimuthal_dependence(id: crate::params::ParamId) -> LobeSet {
+        use crate::params::ParamId;
+        match id {
+            ParamId::Alpha | ParamId::BetaM => LobeSet::NONE,
+            ParamId::G => LobeSet::SCATTERED,
+            _ => LobeSet::ALL,
+        }
+    }
+
     /// The medulla table slice for these parameters, if scattered lobes exist.
     pub fn medulla(&self) -> Option<&MedullaSlice> {
         self.medulla.as_ref()

@@ -105,18 +105,52 @@ enum Piece {
     },
 }
 
-/// A fitted scattered segment over `u` in `[u0, u0 + len]`, nodes at 0, len/2, len.
+/// One node of the fitted scattered segments (over `u`, nodes at 0, len/2, len of each
+/// segment; neighbouring segments share their end node, whose weights are summed).
 #[derive(Clone, Debug)]
-struct ScatSeg {
-    x_med: [f64; 3],
-    /// Weights `w_j` with `integral = sum_j w_j C^N_shape(x_j, psi_j)`: the Appendix's
+struct ScatNode {
+    x_med: f64,
+    /// Weight `w` with `integral = sum_nodes w C^N_shape(x, psi)`: the Appendix's
     /// `C exp(L)` integral of the quadratic through the node values is linear in those
-    /// values, so the prefactor, the scattered fraction `P_s(tau, x_j)` and the
-    /// exponential part are folded in once per segment instead of once per `phi`.
-    w: [f64; 3],
-    phis: [f64; 3],
-    /// `C^N` at the three nodes tabulated over `psi` ([`FarSlice::tabulate_scattered`]).
-    prof: Option<[Arc<CnProfile>; 3]>,
+    /// values, so the prefactor, the scattered fraction `P_s(tau, x)` and the exponential
+    /// part are folded in once per node instead of once per `phi`.
+    w: f64,
+    phi: f64,
+    /// `C^N` at this node tabulated over `psi` ([`FarSlice::tabulate_scattered`]).
+    prof: Option<Arc<CnProfile>>,
+}
+
+/// The scattered segments of one lobe of one part, as their merged nodes.
+#[derive(Clone, Debug, Default)]
+struct ScatNodes {
+    nodes: Vec<ScatNode>,
+    segments: usize,
+}
+
+impl ScatNodes {
+    /// Add a segment's three nodes `(x_med, phi, w)`, merging its first node into the last
+    /// one when they are the same node (same `x_med` and `phi` bit for bit).
+    fn push_segment(&mut self, nodes: [(f64, f64, f64); 3]) {
+        self.segments += 1;
+        for (j, (x_med, phi, w)) in nodes.into_iter().enumerate() {
+            if j == 0 {
+                if let Some(last) = self.nodes.last_mut() {
+                    if last.x_med.to_bits() == x_med.to_bits()
+                        && last.phi.to_bits() == phi.to_bits()
+                    {
+                        last.w += w;
+                        continue;
+                    }
+                }
+            }
+            self.nodes.push(ScatNode {
+                x_med,
+                w,
+                phi,
+                prof: None,
+            });
+        }
+    }
 }
 
 /// One contiguous range of `h >= 0` with which mirror images it contributes.
@@ -127,7 +161,7 @@ struct Part {
     /// Contributes `D(-h, phi)` (the mirrored `h <= 0` side).
     mirror: bool,
     unsc: [Vec<Piece>; 3],
-    scat: [Vec<ScatSeg>; 2],
+    scat: [ScatNodes; 2],
 }
 
 /// The far field (or a multi-scale range) at one `theta_d`, ready to evaluate at any `phi`.
@@ -662,7 +696,7 @@ impl<'a> FarSlice<'a> {
         n1: Node,
         depth: u32,
         rf: &mut Refine,
-        out: &mut Vec<ScatSeg>,
+        out: &mut ScatNodes,
     ) {
         let i = l.index();
         let k = l.p() - 1;
@@ -720,12 +754,11 @@ impl<'a> FarSlice<'a> {
             let c = quadratic_through([0.0, 0.5 * len, len], e);
             w[j] = pre_p[j] * poly_exp(&c, l0, lin, len);
         }
-        out.push(ScatSeg {
-            w,
-            x_med: [n0.x_med, nm.x_med, n1.x_med],
-            phis: [n0.phis[k], nm.phis[k], n1.phis[k]],
-            prof: None,
-        });
+        out.push_segment([
+            (n0.x_med, n0.phis[k], w[0]),
+            (nm.x_med, nm.phis[k], w[1]),
+            (n1.x_med, n1.phis[k], w[2]),
+        ]);
     }
 
     /// Tabulate `C^N` over `psi` at every scattered node (shared between the two scattered
@@ -738,14 +771,12 @@ impl<'a> FarSlice<'a> {
         };
         let mut cache: HashMap<u64, Arc<CnProfile>> = HashMap::new();
         for part in &mut self.parts {
-            for seg in part.scat.iter_mut().flatten() {
-                let mut get = |x: f64| {
-                    cache
-                        .entry(x.to_bits())
-                        .or_insert_with(|| Arc::new(med.cn_profile(x)))
-                        .clone()
-                };
-                seg.prof = Some([get(seg.x_med[0]), get(seg.x_med[1]), get(seg.x_med[2])]);
+            for node in part.scat.iter_mut().flat_map(|s| s.nodes.iter_mut()) {
+                let prof = cache
+                    .entry(node.x_med.to_bits())
+                    .or_insert_with(|| Arc::new(med.cn_profile(node.x_med)))
+                    .clone();
+                node.prof = Some(prof);
             }
         }
     }
@@ -765,7 +796,7 @@ impl<'a> FarSlice<'a> {
                     }
                 }
             }
-            s.scattered_segments += part.scat[0].len() + part.scat[1].len();
+            s.scattered_segments += part.scat[0].segments + part.scat[1].segments;
         }
         s
     }
@@ -791,108 +822,213 @@ impl<'a> FarSlice<'a> {
         let phi = wrap_angle(phi);
         let mut out = LobeValues::default();
         for part in &self.parts {
-            let mut mus = [0.0; 2];
-            let mut nmu = 0;
-            if part.direct {
-                mus[nmu] = phi;
-                nmu += 1;
-            }
-            if part.mirror {
-                mus[nmu] = -phi;
-                nmu += 1;
-            }
             for p in 0..3 {
-                let beta = self.betas[p];
-                let w = if self.cull {
-                    CULL_SIGMAS * beta
-                } else {
-                    // No culling: every segment, and images up to 40 sigma away.
-                    40.0 * beta + PI
-                };
+                let (beta, w) = self.image_window(p);
                 let mut s = 0.0;
                 for pc in &part.unsc[p] {
-                    let (lo, hi) = match pc {
-                        Piece::Phi { lo, len, .. } => (*lo, lo + len),
-                        Piece::Gl { lo, hi, .. } => (*lo, *hi),
-                    };
-                    for &mu in &mus[..nmu] {
-                        let kmin = ((lo - w - mu) / TAU).ceil() as i64;
-                        let kmax = ((hi + w - mu) / TAU).floor() as i64;
-                        if kmax < kmin {
-                            continue;
-                        }
-                        match pc {
-                            Piece::Phi { lo, len, c, l0, l } => {
-                                for k in kmin..=kmax {
-                                    let m = mu + TAU * k as f64 - lo;
-                                    s += poly_gauss(c, *l0, *l, m, beta, *len);
-                                }
-                            }
-                            Piece::Gl { nodes, .. } => {
-                                if self.cull {
-                                    // Only the images inside the window (as for Phi pieces).
-                                    let norm = 1.0 / (beta * TAU.sqrt());
-                                    let inv2b2 = 0.5 / (beta * beta);
-                                    for k in kmin..=kmax {
-                                        let m = mu + TAU * k as f64;
-                                        for &(ph, wt) in nodes {
-                                            let y = ph - m;
-                                            s += wt * norm * (-y * y * inv2b2).exp();
-                                        }
-                                    }
-                                } else {
-                                    for &(ph, wt) in nodes {
-                                        s += wt * wrapped_gaussian(ph - mu, beta);
-                                    }
-                                }
-                            }
-                        }
+                    if part.direct {
+                        self.add_piece(pc, phi, beta, w, &mut s);
+                    }
+                    if part.mirror {
+                        self.add_piece(pc, -phi, beta, w, &mut s);
                     }
                 }
                 if s != 0.0 {
                     out.0[p] += self.weight * s;
                 }
             }
-            if let Some(med) = self.az.model.medulla() {
-                for k in 0..2 {
-                    let mut s = 0.0;
-                    for seg in &part.scat[k] {
-                        for j in 0..3 {
-                            let (d, m) =
-                                (wrap_angle(phi - seg.phis[j]), wrap_angle(phi + seg.phis[j]));
-                            // P_s is even in x and folded into `w`.
-                            let mut sh = 0.0;
-                            match &seg.prof {
-                                Some(pr) => {
-                                    if part.direct {
-                                        sh += pr[j].shape_clamped(d);
-                                    }
-                                    if part.mirror {
-                                        sh += pr[j].shape_clamped_mirror(m);
-                                    }
-                                }
-                                None => {
-                                    if part.direct {
-                                        sh += med.cn_shape_clamped(seg.x_med[j], d);
-                                    }
-                                    if part.mirror {
-                                        sh += med.cn_shape_clamped(-seg.x_med[j], m);
-                                    }
-                                }
+            self.add_scattered(part, phi, &mut out);
+        }
+        self.keep_lobes(out)
+    }
+
+    /// [`FarSlice::eval`] at many `phi` at once, equal bit for bit to evaluating them one by
+    /// one (same terms added in the same order per `phi`). Faster for a whole grid: each
+    /// unscattered piece finds by binary search the `phi` its culling window can reach,
+    /// instead of every `phi` testing every piece.
+    pub fn eval_many(&self, phis: &[f64]) -> Vec<LobeValues> {
+        if !self.cull {
+            return phis.iter().map(|&phi| self.eval(phi)).collect();
+        }
+        let wrapped: Vec<f64> = phis.iter().map(|&phi| wrap_angle(phi)).collect();
+        let mut order: Vec<usize> = (0..phis.len()).collect();
+        order.sort_by(|&a, &b| wrapped[a].total_cmp(&wrapped[b]).then(a.cmp(&b)));
+        let sorted: Vec<f64> = order.iter().map(|&i| wrapped[i]).collect();
+        let mut out = vec![LobeValues::default(); phis.len()];
+        let mut s = vec![0.0; phis.len()];
+        for part in &self.parts {
+            for p in 0..3 {
+                let (beta, w) = self.image_window(p);
+                s.iter_mut().for_each(|x| *x = 0.0);
+                for pc in &part.unsc[p] {
+                    let (lo, hi) = pc.range();
+                    for (on, sign) in [(part.direct, 1.0), (part.mirror, -1.0)] {
+                        if !on {
+                            continue;
+                        }
+                        // Candidates: mu = sign phi within the window of some image k,
+                        // widened by WINDOW_SLACK so rounding cannot drop a phi that
+                        // add_piece's own test keeps. If the windows of neighbouring images
+                        // could overlap, every phi is a candidate (visited once).
+                        let width = hi - lo + 2.0 * w + 2.0 * WINDOW_SLACK;
+                        let mut visit = |a: usize, b: usize| {
+                            for q in a..b {
+                                let i = order[q];
+                                self.add_piece(pc, sign * sorted[q], beta, w, &mut s[i]);
                             }
-                            s += seg.w[j] * sh;
+                        };
+                        if width >= TAU {
+                            visit(0, sorted.len());
+                            continue;
+                        }
+                        let k0 = ((lo - w - PI) / TAU).floor() as i64 - 1;
+                        let k1 = ((hi + w + PI) / TAU).ceil() as i64 + 1;
+                        for k in k0..=k1 {
+                            let shift = TAU * k as f64;
+                            let (a, b) =
+                                (lo - w - shift - WINDOW_SLACK, hi + w - shift + WINDOW_SLACK);
+                            let (a, b) = if sign > 0.0 { (a, b) } else { (-b, -a) };
+                            if b < -PI || a > PI {
+                                continue;
+                            }
+                            let qa = sorted.partition_point(|&x| x < a);
+                            let qb = sorted.partition_point(|&x| x <= b);
+                            visit(qa, qb);
                         }
                     }
-                    out.0[3 + k] += self.weight * s;
+                }
+                for (o, &si) in out.iter_mut().zip(&s) {
+                    if si != 0.0 {
+                        o.0[p] += self.weight * si;
+                    }
+                }
+            }
+            for (o, &phi) in out.iter_mut().zip(&wrapped) {
+                self.add_scattered(part, phi, o);
+            }
+        }
+        out.into_iter()
+            .map(|v| {
+                let mut v = self.keep_lobes(v);
+                for x in v.0.iter_mut() {
+                    if *x < 0.0 {
+                        *x = 0.0;
+                    }
+                }
+                v
+            })
+            .collect()
+    }
+
+    /// The width `beta_p` of unscattered lobe `p` and the half-width of the window of
+    /// `Phi` around `phi` whose images are summed (the +-8.5 beta culling, or with culling
+    /// off 40 beta + pi).
+    fn image_window(&self, p: usize) -> (f64, f64) {
+        let beta = self.betas[p];
+        let w = if self.cull {
+            CULL_SIGMAS * beta
+        } else {
+            // No culling: every segment, and images up to 40 sigma away.
+            40.0 * beta + PI
+        };
+        (beta, w)
+    }
+
+    /// Add piece `pc`'s wrapped-Gaussian integral at azimuth `mu` (`phi` or `-phi` for the
+    /// mirrored side) to `s`: every `2 pi` image of `mu` within `w` of the piece.
+    fn add_piece(&self, pc: &Piece, mu: f64, beta: f64, w: f64, s: &mut f64) {
+        let (lo, hi) = pc.range();
+        let kmin = ((lo - w - mu) / TAU).ceil() as i64;
+        let kmax = ((hi + w - mu) / TAU).floor() as i64;
+        if kmax < kmin {
+            return;
+        }
+        match pc {
+            Piece::Phi { lo, len, c, l0, l } => {
+                for k in kmin..=kmax {
+                    let m = mu + TAU * k as f64 - lo;
+                    *s += poly_gauss(c, *l0, *l, m, beta, *len);
+                }
+            }
+            Piece::Gl { nodes, .. } => {
+                if self.cull {
+                    // Only the images inside the window (as for Phi pieces).
+                    let norm = 1.0 / (beta * TAU.sqrt());
+                    let inv2b2 = 0.5 / (beta * beta);
+                    for k in kmin..=kmax {
+                        let m = mu + TAU * k as f64;
+                        for &(ph, wt) in nodes {
+                            let y = ph - m;
+                            *s += wt * norm * (-y * y * inv2b2).exp();
+                        }
+                    }
+                } else {
+                    for &(ph, wt) in nodes {
+                        *s += wt * wrapped_gaussian(ph - mu, beta);
+                    }
                 }
             }
         }
+    }
+
+    /// Add the scattered lobes (TTs, TRTs) of `part` at wrapped `phi` to `out`.
+    fn add_scattered(&self, part: &Part, phi: f64, out: &mut LobeValues) {
+        let Some(med) = self.az.model.medulla() else {
+            return;
+        };
+        for k in 0..2 {
+            let mut s = 0.0;
+            for node in &part.scat[k].nodes {
+                let (d, m) = (wrap_angle(phi - node.phi), wrap_angle(phi + node.phi));
+                // P_s is even in x and folded into `w`.
+                let mut sh = 0.0;
+                match &node.prof {
+                    Some(pr) => {
+                        if part.direct {
+                            sh += pr.shape_clamped(d);
+                        }
+                        if part.mirror {
+                            sh += pr.shape_clamped_mirror(m);
+                        }
+                    }
+                    None => {
+                        if part.direct {
+                            sh += med.cn_shape_clamped(node.x_med, d);
+                        }
+                        if part.mirror {
+                            sh += med.cn_shape_clamped(-node.x_med, m);
+                        }
+                    }
+                }
+                s += node.w * sh;
+            }
+            out.0[3 + k] += self.weight * s;
+        }
+    }
+
+    /// `v` with the lobes outside this slice's set zeroed.
+    fn keep_lobes(&self, mut v: LobeValues) -> LobeValues {
         for l in Lobe::ALL {
             if !self.lobes.contains(l) {
-                out.set(l, 0.0);
+                v.set(l, 0.0);
             }
         }
-        out
+        v
+    }
+}
+
+/// Slack (radians) of [`FarSlice::eval_many`]'s candidate windows: far above the rounding
+/// of `lo - w - mu` (~1e-15) and far below any window width, so it only adds candidates
+/// whose own image test then rejects them.
+const WINDOW_SLACK: f64 = 1e-9;
+
+impl Piece {
+    /// The `Phi` range the piece covers.
+    fn range(&self) -> (f64, f64) {
+        match self {
+            Piece::Phi { lo, len, .. } => (*lo, lo + len),
+            Piece::Gl { lo, hi, .. } => (*lo, *hi),
+        }
     }
 }
 
