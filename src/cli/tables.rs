@@ -29,9 +29,9 @@ pub struct BuildArgs {
     pub seed: u64,
     /// Nominal photon paths per table cell (optically thick cells stop earlier, see
     /// `McBudget::from_paths`).
-    #[arg(long, default_value_t = 20_000)]
+    #[arg(long, default_value_t = 16_000)]
     pub paths: usize,
-    /// Use exactly this CP rank for every tensor instead of trying 8, 16, 24, 32.
+    /// Use exactly this CP rank for every tensor instead of trying 16, 32, 48.
     #[arg(long)]
     pub rank: Option<usize>,
     /// Relative L2 error at which the rank search stops.
@@ -56,6 +56,10 @@ pub struct InfoArgs {
     /// Photon paths per hold-out point.
     #[arg(long, default_value_t = 200_000)]
     pub paths: usize,
+    /// Put the hold-out points on the nearest table nodes (no interpolation: the error is
+    /// CP compression plus the build's MC noise), to separate interpolation error.
+    #[arg(long)]
+    pub on_grid: bool,
     /// Seed of the hold-out Monte Carlo (must differ from the build seed).
     #[arg(long, default_value_t = 777)]
     pub seed: u64,
@@ -176,10 +180,15 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
         anyhow::bail!("--seed must differ from the build seed {}", tables.seed);
     }
     let t0 = Instant::now();
-    let pts = medulla_mc::holdout(&tables, a.holdout, a.seed, a.paths);
+    let pts = medulla_mc::holdout(&tables, a.holdout, a.seed, a.paths, a.on_grid);
     println!(
-        "hold-out: {} random off-grid points per table, {} fresh paths each (seed {}), {:.1} s",
+        "hold-out: {} random {} points per table, {} fresh paths each (seed {}), {:.1} s",
         a.holdout,
+        if a.on_grid {
+            "on-grid (nearest node)"
+        } else {
+            "off-grid"
+        },
         a.paths,
         a.seed,
         t0.elapsed().as_secs_f64()

@@ -11,6 +11,13 @@
 //!    samples.)
 //! 3. **Uncertainty** from the Jacobian at the optimum ([`uncertainty`]).
 //!
+//! Cost: Jacobians are forward differences, one column per free parameter in parallel,
+//! each recomputing only the model terms its parameter can change
+//! ([`forward::ModelTerms::with_change`]: `alpha` and `beta_m` touch only `M_p`, `g` only
+//! the scattered lobes). Between accepted steps the LM runs update the Jacobian by
+//! Broyden's secant formula ([`FitOptions::broyden`]); a run stops only on a step taken with
+//! a freshly differenced Jacobian, and the uncertainty always uses one.
+//!
 //! Parameters are bounded by smooth maps ([`reparam`]); fixed parameters (`--fix`) are
 //! removed from the solve. Everything is deterministic for a given seed: parallel work
 //! writes to disjoint slots and every reduction runs in a fixed order.

@@ -444,6 +444,7 @@ impl MedullaTables {
             wm,
             cn: self.cn.clone(),
             cm: self.cm.clone(),
+            nodes: OnceLock::new(),
             sampler: OnceLock::new(),
         }
     }
@@ -461,7 +462,55 @@ pub struct MedullaSlice {
     wm: [Vec<f64>; 2],
     cn: Arc<CpTable>,
     cm: [Arc<CpTable>; 2],
+    /// Node values of the slice (built on first query, see [`SliceNodes`]).
+    nodes: OnceLock<Arc<SliceNodes>>,
     sampler: OnceLock<Arc<MedullaSampler>>,
+}
+
+/// The slice's values at the table nodes of its two remaining modes: `C^N` shape at every
+/// (`x` node, `psi` bin) and `C^M` at every (`theta_i` node, `theta_r` bin) per side,
+/// unclamped. Contracting the ranks once per `(tau, g)` (2 x 16 x 180 x rank
+/// multiply-adds, ~0.1 ms) makes every later query a bilinear lerp whose cost does not
+/// depend on the rank; the values are the same bilinear interpolation as the rank sum of
+/// lerped factors ([`MedullaSlice::cn_compressed`]), up to rounding (tested). The 4-D
+/// tables themselves are never expanded.
+#[derive(Debug)]
+struct SliceNodes {
+    cn: Vec<f64>,
+    n_psi: usize,
+    cm: [Vec<f64>; 2],
+    n_tr: usize,
+}
+
+impl SliceNodes {
+    fn new(s: &MedullaSlice) -> SliceNodes {
+        let grid = |t: &CpTable, w: &[f64]| -> (Vec<f64>, usize) {
+            let n = t.axes[3].len();
+            let v = (0..t.axes[2].len())
+                .flat_map(|i| (0..n).map(move |k| (i, k)))
+                .map(|(i, k)| t.node23(w, i, k))
+                .collect();
+            (v, n)
+        };
+        let (cn, n_psi) = grid(&s.cn, &s.wn);
+        let (cm0, n_tr) = grid(&s.cm[0], &s.wm[0]);
+        let (cm1, _) = grid(&s.cm[1], &s.wm[1]);
+        SliceNodes {
+            cn,
+            n_psi,
+            cm: [cm0, cm1],
+            n_tr,
+        }
+    }
+
+    /// Bilinear interpolation of a `[node][bin]` grid with `n` bins per node.
+    #[inline]
+    fn lerp2(v: &[f64], n: usize, i: usize, fi: f64, k0: usize, k1: usize, fk: f64) -> f64 {
+        let (r0, r1) = (&v[i * n..(i + 1) * n], &v[(i + 1) * n..(i + 2) * n]);
+        let a = r0[k0] + fk * (r0[k1] - r0[k0]);
+        let b = r1[k0] + fk * (r1[k1] - r1[k0]);
+        a + fi * (b - a)
+    }
 }
 
 /// Seed Eq. 19's blend of the front and back `C^M` values: `lerp(front, back, |phi| / pi)`.
@@ -479,6 +528,10 @@ pub fn scatter_probability(tau: f64, x: f64) -> f64 {
 }
 
 impl MedullaSlice {
+    fn nodes(&self) -> &SliceNodes {
+        self.nodes.get_or_init(|| Arc::new(SliceNodes::new(self)))
+    }
+
     /// Normalised `C^N` shape (integrates to ~1 over psi), unclamped.
     #[inline]
     fn cn_shape(&self, x: f64, psi: f64) -> f64 {
@@ -487,7 +540,24 @@ impl MedullaSlice {
         let (i, fi) = locate(&t.axes[2], x);
         let (c0, d, n) = t.last_axis();
         let (k0, k1, fk) = locate_periodic(c0, d, n, psi);
-        t.eval23(&self.wn, i, fi, k0, k1, fk)
+        let nodes = self.nodes();
+        SliceNodes::lerp2(&nodes.cn, nodes.n_psi, i, fi, k0, k1, fk)
+    }
+
+    /// [`Self::cn`] evaluated straight from the compressed factors (a rank sum of lerped
+    /// factors, no node grid): the reference the node grid is tested against, and the
+    /// cost of a query without the per-slice contraction.
+    pub fn cn_compressed(&self, x: f64, psi: f64) -> f64 {
+        let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
+        if psi.is_nan() {
+            return 0.0;
+        }
+        let (xa, psi_a) = if x < 0.0 { (-x, -psi) } else { (x, psi) };
+        let t = &*self.cn;
+        let (i, fi) = locate(&t.axes[2], xa);
+        let (c0, d, n) = t.last_axis();
+        let (k0, k1, fk) = locate_periodic(c0, d, n, psi_a);
+        t.eval23(&self.wn, i, fi, k0, k1, fk).max(0.0) * scatter_probability(self.tau, x)
     }
 
     /// `C^N(x, psi)`: per radian of `psi`, compressed negatives clamped to 0.
@@ -528,17 +598,12 @@ impl MedullaSlice {
         let t = &*self.cn;
         let (i, fi) = locate(&t.axes[2], x.abs());
         let (c0, d, n) = t.last_axis();
-        let r = t.rank;
-        let (f2, f3) = (&t.factors[2], &t.factors[3]);
-        // Collapse the offset mode once, then one dot product per psi bin.
-        let a: Vec<f64> = (0..r)
-            .map(|q| self.wn[q] * (f2[i * r + q] + fi * (f2[(i + 1) * r + q] - f2[i * r + q])))
-            .collect();
-        let shape = f3
-            .chunks_exact(r)
-            .take(n)
-            .map(|row| row.iter().zip(&a).map(|(b, a)| a * b).sum())
-            .collect();
+        let nodes = self.nodes();
+        let (r0, r1) = (
+            &nodes.cn[i * n..(i + 1) * n],
+            &nodes.cn[(i + 1) * n..(i + 2) * n],
+        );
+        let shape = r0.iter().zip(r1).map(|(a, b)| a + fi * (b - a)).collect();
         CnProfile {
             c0,
             d,
@@ -567,7 +632,8 @@ impl MedullaSlice {
         let (i, fi) = locate(&t.axes[2], ti);
         let (c0, d, n) = t.last_axis();
         let (k, fk) = locate_uniform(c0, d, n, tr);
-        t.eval23(&self.wm[s], i, fi, k, k + 1, fk).max(0.0)
+        let nodes = self.nodes();
+        SliceNodes::lerp2(&nodes.cm[s], nodes.n_tr, i, fi, k, k + 1, fk).max(0.0)
     }
 
     /// Seed Eq. 19: `M_s = lerp(C^M_front, C^M_back, |phi| / pi)`.
@@ -726,6 +792,7 @@ pub struct MedullaSampler {
 
 impl MedullaSampler {
     fn new(s: &MedullaSlice) -> Self {
+        let nodes = s.nodes();
         let t = &*s.cn;
         let (c0, d, n) = t.last_axis();
         // Periodic: knots -pi, centres, pi; the value at +-pi is the wrap midpoint.
@@ -734,7 +801,10 @@ impl MedullaSampler {
         psi_knots.push(c0 + (n as f64 - 0.5) * d);
         let cn = (0..t.axes[2].len())
             .map(|i| {
-                let v: Vec<f64> = (0..n).map(|k| t.node23(&s.wn, i, k).max(0.0)).collect();
+                let v: Vec<f64> = nodes.cn[i * n..(i + 1) * n]
+                    .iter()
+                    .map(|v| v.max(0.0))
+                    .collect();
                 let mut vals = vec![0.5 * (v[0] + v[n - 1])];
                 vals.extend_from_slice(&v);
                 vals.push(vals[0]);
@@ -750,8 +820,9 @@ impl MedullaSampler {
             let tab = &*s.cm[side];
             (0..tab.axes[2].len())
                 .map(|i| {
-                    let v: Vec<f64> = (0..n)
-                        .map(|k| tab.node23(&s.wm[side], i, k).max(0.0))
+                    let v: Vec<f64> = nodes.cm[side][i * n..(i + 1) * n]
+                        .iter()
+                        .map(|v| v.max(0.0))
                         .collect();
                     let mut vals = vec![v[0]];
                     vals.extend_from_slice(&v);
@@ -905,6 +976,29 @@ mod tests {
     /// The tabulated profile is the same function as the rank-sum query: only the order of
     /// the rank sum differs, so agreement to 1e-12 of the profile's peak (rounding of ~32
     /// terms of size ~1 is ~1e-15) is a real check, including the `x < 0` flip and mirror.
+    /// The per-slice node grid is a rounding-level reorganisation of the rank sum: queries
+    /// agree with the compressed factors to 1e-12 of the slice's peak (the two sum the
+    /// same products in another order), at random `(tau, g)`, `x` and `psi`.
+    #[test]
+    fn node_grid_matches_compressed_factors() {
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
+        for _ in 0..8 {
+            let s = MedullaTables::builtin()
+                .slice(rng.random_range(0.0..22.0), rng.random_range(-0.95..0.97));
+            let peak = (0..720)
+                .map(|k| s.cn_compressed(0.3, -PI + k as f64 * PI / 360.0))
+                .fold(1e-300f64, f64::max);
+            for _ in 0..200 {
+                let (x, psi) = (rng.random_range(-1.2..1.2), rng.random_range(-4.0..4.0));
+                let (a, b) = (s.cn(x, psi), s.cn_compressed(x, psi));
+                assert!(
+                    (a - b).abs() <= 1e-12 * peak.max(b),
+                    "x {x} psi {psi}: {a} vs {b}"
+                );
+            }
+        }
+    }
+
     #[test]
     fn cn_profile_matches_cn() {
         let s = MedullaTables::builtin().slice(3.0, 0.4);

@@ -46,6 +46,18 @@ use std::sync::Arc;
 /// grid point (`tau <= 20`): the mean number of events is about `tau^2 (1 - g) + tau`.
 const MAX_EVENTS: usize = 200_000;
 
+/// `v` (increasing) with the midpoint of every neighbouring pair inserted.
+fn with_midpoints(v: &[f64]) -> Vec<f64> {
+    let mut out = Vec::with_capacity(2 * v.len());
+    for (i, &a) in v.iter().enumerate() {
+        if i > 0 {
+            out.push(0.5 * (v[i - 1] + a));
+        }
+        out.push(a);
+    }
+    out
+}
+
 /// Table grid: the axes of `C^N` (`tau x g x x x psi`) and `C^M`
 /// (`tau x g x theta_i x theta_r`, one tensor per side).
 #[derive(Clone, Debug, PartialEq)]
@@ -65,19 +77,22 @@ pub struct McGrid {
 }
 
 impl McGrid {
-    /// The grid of the shipped tables: 18 `tau` in `[0, 20]` (dense near 0),
-    /// 16 `g` in `[-0.9, 0.95]` (dense near the forward peak), 16 `x` in `[0, 1]`
+    /// The grid of the shipped tables: 35 `tau` in `[0, 20]` (dense near 0),
+    /// 31 `g` in `[-0.9, 0.95]` (dense near the forward peak), 16 `x` in `[0, 1]`
     /// (`sin`-spaced, dense near the rim where the chord changes fast), 180 `psi` bins
     /// (2 deg), 16 `theta_i` in `[0, 90]` deg (6 deg step), 90 `theta_r` bins (2 deg).
     pub fn standard() -> Self {
-        let tau = vec![
+        // Nodes of the first shipped grid (18 tau, 16 g) with their midpoints inserted:
+        // `tables info --on-grid` showed linear interpolation between those nodes adding
+        // as much error as the compression itself.
+        let tau = with_midpoints(&[
             0.0, 0.05, 0.1, 0.2, 0.35, 0.5, 0.75, 1.0, 1.35, 1.75, 2.25, 3.0, 4.0, 5.5, 7.5, 10.0,
             14.0, 20.0,
-        ];
-        let g = vec![
+        ]);
+        let g = with_midpoints(&[
             -0.9, -0.7, -0.5, -0.3, -0.15, 0.0, 0.15, 0.3, 0.45, 0.6, 0.7, 0.8, 0.85, 0.9, 0.93,
             0.95,
-        ];
+        ]);
         let x = (0..16)
             .map(|k| (k as f64 / 15.0 * FRAC_PI_2).sin())
             .collect();
@@ -538,7 +553,7 @@ impl BuildOptions {
             grid: McGrid::standard(),
             seed,
             budget: McBudget::from_paths(paths),
-            ranks: vec![8, 16, 24, 32],
+            ranks: vec![16, 32, 48],
             target_error: 0.03,
             max_iter: 150,
         }
@@ -724,7 +739,18 @@ fn compare(table: &[f64], h: &HalfHists, dx: f64) -> (f64, f64, f64) {
 /// table (RNG `seed`, `paths` photons each): `tau = tau_max u^2` (denser near 0),
 /// `g` uniform over the axis, `x` uniform in `[-1, 1]`, `theta_i` uniform in
 /// `[-pi/2, pi/2]`. The MC histograms use the table's own bins.
-pub fn holdout(tables: &MedullaTables, n: usize, seed: u64, paths: usize) -> Vec<HoldoutPoint> {
+///
+/// With `on_grid`, each random coordinate is moved to its nearest table node (the sign of
+/// `x` and `theta_i` kept): there the tables interpolate nothing, so the error is the CP
+/// compression plus the build's own Monte Carlo noise, and the difference to the
+/// off-grid error is what interpolation between nodes adds.
+pub fn holdout(
+    tables: &MedullaTables,
+    n: usize,
+    seed: u64,
+    paths: usize,
+    on_grid: bool,
+) -> Vec<HoldoutPoint> {
     let tn = &*tables.cn;
     let tm = &*tables.cm[0];
     let tau_max = *tn.axes[0].last().unwrap();
@@ -740,13 +766,38 @@ pub fn holdout(tables: &MedullaTables, n: usize, seed: u64, paths: usize) -> Vec
         .into_par_iter()
         .flat_map_iter(|c| {
             let mut rng = cell_rng(seed, 3, c as u64);
+            let snap = |axis: &[f64], v: f64| {
+                if !on_grid {
+                    return v;
+                }
+                let a = v.abs();
+                let near = axis
+                    .iter()
+                    .copied()
+                    .min_by(|p, q| (p - a).abs().total_cmp(&(q - a).abs()))
+                    .unwrap_or(a);
+                near.copysign(v)
+            };
             let u: f64 = rng.random();
-            let tau = tau_max * u * u;
-            let g = g_lo + (g_hi - g_lo) * rng.random::<f64>();
+            // At tau = 0 nothing scatters (C^N = 0), so the shape cannot be compared that
+            // way: the on-grid points use the smallest positive node instead.
+            let tau =
+                snap(&tn.axes[0], tau_max * u * u).max(if on_grid { tn.axes[0][1] } else { 0.0 });
+            let g_raw = g_lo + (g_hi - g_lo) * rng.random::<f64>();
+            // g may be negative: snap to the nearest node itself, not by magnitude.
+            let g = if on_grid {
+                tn.axes[1]
+                    .iter()
+                    .copied()
+                    .min_by(|p, q| (p - g_raw).abs().total_cmp(&(q - g_raw).abs()))
+                    .unwrap_or(g_raw)
+            } else {
+                g_raw
+            };
             let slice = tables.slice(tau, g);
             let mut out = Vec::new();
             if c < n {
-                let x = 2.0 * rng.random::<f64>() - 1.0;
+                let x = snap(&tn.axes[2], 2.0 * rng.random::<f64>() - 1.0);
                 let h = simulate_cn(&mut rng, tau, g, x, n_psi, budget);
                 let ps = crate::model::medulla::scatter_probability(tau, x);
                 let t: Vec<f64> = bin_centres(-PI, PI, n_psi)
@@ -764,7 +815,7 @@ pub fn holdout(tables: &MedullaTables, n: usize, seed: u64, paths: usize) -> Vec
                     noise_l2,
                 });
             } else {
-                let ti = PI * (rng.random::<f64>() - 0.5);
+                let ti = snap(&tm.axes[2], PI * (rng.random::<f64>() - 0.5));
                 let (f, b) = simulate_cm(&mut rng, tau, g, ti, n_tr, budget);
                 for (name, side, h) in [
                     ("C^M front", crate::model::medulla::Side::Front, f),

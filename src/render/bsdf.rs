@@ -42,9 +42,13 @@
 //!    inverse-CDF sampling (pdf = Gaussian / in-domain mass; when that mass is < 1e-10 the
 //!    lobe falls back to uniform `theta`, pdf `1/pi`); then `phi` from the wrapped Gaussian
 //!    `D_l` about `Phi_l(h)` at the sampled `theta_d` (pdf = the model's `D_l` exactly).
-//!    Scattered lobes: `phi` uniform, `theta` cosine (`sin theta` uniform), i.e. uniform on
-//!    the sphere, as the seed does. (The real tables now offer `MedullaSlice::sample_cn` /
-//!    `sample_cm` with exact pdfs; switching the scattered lobes to them is future work.)
+//!    Scattered lobes sample the medulla tables: `psi` from `C^N(x, .)` and
+//!    `phi = Phi^s_p + psi`, with `x` and `Phi^s_p` taken at the camera side's specular
+//!    `theta_d` (they depend on `theta_d` through `eta'`, which is not known before `theta`
+//!    is drawn), then `theta` from `M_s(theta_o, ., phi)` = the front/back blend of `C^M`
+//!    (seed Eq. 19) — `MedullaSampler::sample_cn` / `sample_cm`, whose pdfs are exact for
+//!    the piecewise-linear table densities. Using the specular `theta_d` for the frame only
+//!    costs efficiency away from it; the pdf is exact for what is drawn.
 //! 4. pdf: the full mixture `sum_l P_l pdf_l(theta, phi | h)` in the `(theta, phi)` measure.
 //!
 //! For far field and multi-scale the marginal over `h` has no closed form. The renderer
@@ -179,6 +183,10 @@ struct Prep {
     mu: [f64; 5],
     s: [f64; 5],
     mass: [f64; 5],
+    /// Scattered lobes' sampling frame at the camera side's specular `theta_d`: medulla
+    /// entry offset `x` and the segment directions `Phi^s_p` of TTs and TRTs.
+    x_med: f64,
+    phi_s: [f64; 2],
 }
 
 /// RGB fiber BCSDF of one parameter set.
@@ -320,13 +328,15 @@ impl FiberBsdf {
 
     /// Everything the sampler and its pdf need that depends on (`theta_o`, `h`) only.
     fn prepare(&self, theta_o: f64, h: f64) -> Prep {
+        let geo = self.models[0].azimuthal(-theta_o).geometry(h);
         let mut pr = Prep {
             probs: [0.0; 5],
             mu: [0.0; 5],
             s: [1.0; 5],
             mass: [0.0; 5],
+            x_med: medulla_offset(&geo, self.models[0].params.kappa),
+            phi_s: [1, 2].map(|p| crate::model::azimuthal::phi_s_p(p, &geo)),
         };
-        let geo = self.models[0].azimuthal(-theta_o).geometry(h);
         let mut w = [0.0; 5];
         for c in 0..3 {
             let a = self.models[c]
@@ -372,6 +382,7 @@ impl FiberBsdf {
         let slice = self.models[0].azimuthal(geometry::theta_d(theta_o, theta));
         let geo = slice.geometry(h);
         let beta_n = self.models[0].params.beta_n;
+        let sampler = self.models[0].medulla().map(|m| m.sampler());
         let mut pdf = 0.0;
         for l in self.lobes.iter() {
             let i = l.index();
@@ -379,7 +390,10 @@ impl FiberBsdf {
                 continue;
             }
             let v = if l.is_scattered() {
-                theta.cos().max(0.0) / (4.0 * PI)
+                sampler.as_ref().map_or(0.0, |sm| {
+                    sm.pdf_cn(pr.x_med, wrap_angle(phi - pr.phi_s[l.p() - 1]))
+                        * sm.pdf_cm(theta_o, theta, phi)
+                })
             } else {
                 let pt = if pr.mass[i] < MIN_MASS {
                     1.0 / PI
@@ -397,8 +411,8 @@ impl FiberBsdf {
     }
 
     /// Mixture pdf conditional on `h`, `(theta, phi)` measure: `sum_l P_l pdf_l`, with
-    /// `pdf_l` the truncated `M_l` times the wrapped Gaussian `D_l` (unscattered) or
-    /// `cos(theta) / (4 pi)` (scattered).
+    /// `pdf_l` the truncated `M_l` times the wrapped Gaussian `D_l` (unscattered) or the
+    /// table densities `C^N` (in `psi`) times `M_s` (in `theta`) (scattered).
     pub fn pdf_at(&self, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
         let pr = self.prepare(theta_o, h);
         self.pdf_prepared(&pr, theta_o, theta, phi, h)
@@ -451,10 +465,13 @@ impl FiberBsdf {
                 .last()?,
         };
         let (theta, phi) = if lobe.is_scattered() {
-            (
-                (2.0 * u[2] - 1.0).clamp(-1.0, 1.0).asin(),
-                PI * (2.0 * u[3] - 1.0),
-            )
+            // psi from C^N at the sampling frame's offset, then theta_r from M_s at that
+            // phi (the front/back blend of Eq. 19 needs phi first).
+            let sm = self.models[0].medulla()?.sampler();
+            let (psi, _) = sm.sample_cn(pr.x_med, u[3]);
+            let phi = wrap_angle(pr.phi_s[lobe.p() - 1] + psi);
+            let (theta, _) = sm.sample_cm(theta_o, phi, u[2]);
+            (theta, phi)
         } else {
             let i = lobe.index();
             let theta = if pr.mass[i] < MIN_MASS {
