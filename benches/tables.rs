@@ -35,9 +35,18 @@ fn bench(c: &mut Criterion) {
     cpu_per_call("slice(tau, g)", 200_000, |i| {
         t.slice(1.7 + 1e-6 * i as f64, 0.45).tau
     });
+    cpu_per_call("slice + node grids (first query)", 2_000, |i| {
+        t.slice(1.7 + 1e-6 * i as f64, 0.45).cn(0.3, 0.2)
+    });
+    let _ = s.cn(0.3, 0.2); // build the node grids before timing queries
     cpu_per_call("cn", 2_000_000, |i| {
         s.cn(0.31 + 1e-7 * i as f64, (i as f64 * 0.37) % 6.2 - 3.1)
     });
+    cpu_per_call(
+        "cn_compressed (rank sum of the CP factors)",
+        2_000_000,
+        |i| s.cn_compressed(0.31 + 1e-7 * i as f64, (i as f64 * 0.37) % 6.2 - 3.1),
+    );
     cpu_per_call("cm", 2_000_000, |i| {
         s.cm(0.4, (i as f64 * 0.13) % 3.0 - 1.5, Side::Back)
     });

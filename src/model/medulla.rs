@@ -36,8 +36,8 @@
 //!   no weight at all (not reachable on the shipped grid) falls back to `cos(theta_r) / 2`.
 //!
 //! # Grids, interpolation and clamping
-//! Shipped grid ([`crate::model::medulla_mc::McGrid::standard`]): 18 `tau` in `[0, 20]`,
-//! 16 `g` in `[-0.9, 0.95]`, 16 `x` in `[0, 1]`, 180 `psi` bin centres (2 deg), 16
+//! Shipped grid ([`crate::model::medulla_mc::McGrid::standard`]): 35 `tau` in `[0, 20]`,
+//! 31 `g` in `[-0.9, 0.95]`, 16 `x` in `[0, 1]`, 180 `psi` bin centres (2 deg), 16
 //! `theta_i` in `[0, 90]` deg, 90 `theta_r` bin centres (2 deg). Values are bin averages
 //! placed at bin centres. Every mode is interpolated linearly; `tau`, `g`, `x`, `theta_i`
 //! are clamped to their axis ends (the presets of seed Table 4 have `tau` below about 3,
@@ -61,33 +61,32 @@
 //! sha256 of all preceding bytes (32 bytes)
 //! ```
 //! # The shipped file
-//! `assets/medulla_tables.bin` (69 508 bytes, sha256 `2666c390...2f77e`) is produced by
+//! `assets/medulla_tables.bin` (121 348 bytes, sha256 `05808985...9747ef00`) is produced by
 //! ```text
-//! furfit tables build --seed 2017 --paths 12000
+//! furfit tables build --seed 2017 --paths 16000
 //! ```
-//! (defaults: ranks 8, 16, 24, 32 tried per tensor, stop at relative L2 error 0.03; that
-//! target lies below the Monte Carlo noise floor of the raw tensors, so rank 32 is kept for
-//! all three). Measured on the shared 2-core build machine: 107 s of CPU time in total
-//! (Monte Carlo 1.0e8 paths / 5.6e8 scattering events plus CP-ALS), 11-12.5 min of wall
-//! time because ~15 other processes competed for the 2 cores. Two runs with different
-//! binaries and loads produced identical bytes. Per-rank errors of that build (relative L2
-//! against the raw, noisy tensors; the raw-tensor MC noise from an even/odd half split is
-//! C^N 0.072, C^M front 0.156, C^M back 0.122):
+//! (the defaults: ranks 16, 32, 48 tried per tensor, stop at relative L2 error 0.03; that
+//! target lies below the Monte Carlo noise floor of the raw tensors, so rank 48 is kept for
+//! all three). Measured on the shared 2-core build machine: 6 min 42 s of wall time
+//! (Monte Carlo 5.1e8 paths / 2.8e9 scattering events in 261 s, CP-ALS 141 s), with other
+//! work on the second core. Per-rank errors of that build (relative L2 against the raw,
+//! noisy tensors; the raw-tensor MC noise from an even/odd half split is C^N 0.064,
+//! C^M front 0.133, C^M back 0.104):
 //! ```text
-//! rank        8      16      24      32
-//! C^N       0.158   0.101   0.085   0.079
-//! C^M front 0.236   0.185   0.167   0.159
-//! C^M back  0.274   0.188   0.155   0.136
+//! rank        16      32      48
+//! C^N       0.095   0.072   0.067
+//! C^M front 0.158   0.138   0.134
+//! C^M back  0.162   0.119   0.111
 //! ```
-//! `furfit tables info` (12 hold-out points per table, 200 000 fresh paths each, seed 777)
-//! measures the error of the shipped tables against fresh MC at random off-grid points:
-//! relative L2 rms C^N 0.076 (MC noise of the fresh estimates 0.026), C^M front 0.049
-//! (0.020), C^M back 0.048 (0.037); worst points are at strongly negative `g`
-//! (C^N 0.17 at `tau = 1.55, g = -0.81`). Doubling the paths (`--paths 24000`: raw noise
-//! C^N 0.051, rank-32 error 0.062; 167 s CPU) left these hold-out errors unchanged
-//! (C^N 0.078, C^M 0.049 / 0.051), so the remaining error is CP rank and grid
-//! interpolation (in `g` and `tau`), not Monte Carlo noise; the cheaper 12 000-path file is
-//! shipped.
+//! `furfit tables info --holdout 24` (200 000 fresh paths per point, seed 777) measures the
+//! error against fresh MC at random off-grid points, relative L2 rms, with the fresh
+//! estimates' own MC noise in brackets: C^N 0.038 (0.024), C^M front 0.034 (0.026), C^M back
+//! 0.052 (0.039) — net of that noise 0.029 / 0.023 / 0.034. At the table nodes
+//! (`--on-grid`) the same figures are 0.036 / 0.031 / 0.048, so interpolation between nodes
+//! now adds little. The first shipped file (18 `tau` x 16 `g` nodes, rank 32, 12 000 paths,
+//! 69 508 bytes) had off-grid C^N 0.071, C^M 0.072 / 0.062 against on-grid 0.052 /
+//! 0.044 / 0.061: interpolation in `tau` and `g` was then as large as the compression
+//! error, hence the midpoints of the current grid.
 
 use crate::error::{Error, Result};
 use std::f64::consts::{FRAC_PI_2, PI};

@@ -30,7 +30,7 @@
 //! SplitMix64, runs sequentially, and rayon only distributes whole cells whose results are
 //! collected into fixed slots. The output is therefore bit-identical for a given seed and
 //! path budget regardless of thread count. The shipped tables come from
-//! `furfit tables build --seed 2017 --paths 12000` (see [`crate::model::medulla`] for the
+//! `furfit tables build --seed 2017 --paths 16000` (see [`crate::model::medulla`] for the
 //! measured time and errors).
 
 use crate::model::cp::{cp_als, CpModel, CpOptions, Tensor};
