@@ -67,9 +67,10 @@
 //! ```
 //! (the defaults: ranks 16, 32, 48 tried per tensor, stop at relative L2 error 0.03; that
 //! target lies below the Monte Carlo noise floor of the raw tensors, so rank 48 is kept for
-//! all three). Measured on the shared 2-core build machine: 6 min 42 s of wall time
-//! (Monte Carlo 5.1e8 paths / 2.8e9 scattering events in 261 s, CP-ALS 141 s), with other
-//! work on the second core. Per-rank errors of that build (relative L2 against the raw,
+//! all three). Measured on the 2-core build machine: 6 min 42 s of wall time (Monte Carlo
+//! 5.1e8 paths / 2.8e9 scattering events in 261 s, CP-ALS 141 s) with other work on the
+//! second core; a second build from a later commit on the idle machine took 5 min 14 s and
+//! wrote identical bytes. Per-rank errors of that build (relative L2 against the raw,
 //! noisy tensors; the raw-tensor MC noise from an even/odd half split is C^N 0.064,
 //! C^M front 0.133, C^M back 0.104):
 //! ```text
