@@ -30,16 +30,46 @@ impl Aabb {
         }
     }
     /// Slab test; returns the entry distance if the box is hit within (tmin, tmax).
-    /// Slab test; `inv` = 1 / direction (infinite components work: the slab products
-    /// are +-inf and min/max pick the other bound).
+    /// `inv` = 1 / direction from [`safe_inv`], so every product is finite and the plain
+    /// comparisons below (which compile to single min/max instructions, unlike the
+    /// NaN-aware `f64::min`) see no NaN.
     #[inline(always)]
     fn hit(&self, o: V3, inv: V3, tmin: f64, tmax: f64) -> Option<f64> {
         let (x0, x1) = ((self.lo.x - o.x) * inv.x, (self.hi.x - o.x) * inv.x);
         let (y0, y1) = ((self.lo.y - o.y) * inv.y, (self.hi.y - o.y) * inv.y);
         let (z0, z1) = ((self.lo.z - o.z) * inv.z, (self.hi.z - o.z) * inv.z);
-        let t0 = tmin.max(x0.min(x1)).max(y0.min(y1)).max(z0.min(z1));
-        let t1 = tmax.min(x0.max(x1)).min(y0.max(y1)).min(z0.max(z1));
+        let t0 = fmax(fmax(tmin, fmin(x0, x1)), fmax(fmin(y0, y1), fmin(z0, z1)));
+        let t1 = fmin(fmin(tmax, fmax(x0, x1)), fmin(fmax(y0, y1), fmax(z0, z1)));
         (t0 <= t1).then_some(t0)
+    }
+}
+
+#[inline(always)]
+fn fmin(a: f64, b: f64) -> f64 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+#[inline(always)]
+fn fmax(a: f64, b: f64) -> f64 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `1 / x`, with a zero component replaced by `+-1e-300` so the reciprocal is finite
+/// (`0 * inv` is then 0, never NaN, in the slab test).
+#[inline(always)]
+fn safe_inv(x: f64) -> f64 {
+    1.0 / if x.abs() < 1e-300 {
+        1e-300f64.copysign(x)
+    } else {
+        x
     }
 }
 
@@ -155,7 +185,7 @@ impl Bvh {
         if self.nodes.is_empty() {
             return None;
         }
-        let inv = V3::new(1.0 / d.x, 1.0 / d.y, 1.0 / d.z);
+        let inv = V3::new(safe_inv(d.x), safe_inv(d.y), safe_inv(d.z));
         let mut stack = [0u32; 128];
         let mut sp = 1;
         let mut best: Option<Hit> = None;
