@@ -69,10 +69,11 @@ fn jacobian_matches_central_differences() {
     let jf = prob.jacobian_at(&u);
     let jc = prob.jacobian_central(&u, 1e-4);
     for j in 0..u.len() {
-        // KNOWN DEFECT, not hidden: the g column disagrees (19 % here) because the shipped
-        // medulla tables are piecewise linear in g and their CP reconstruction is clamped
-        // at 0, so the log residuals are not smooth in g where C^N is near zero. Checked
-        // columns: the nine others. Fix planned in the tables (non-negative CP).
+        // KNOWN DEFECT, not hidden: the g column disagrees (12 % here with the rank-48
+        // tables; 19 % with the first ones) because the medulla tables are piecewise linear
+        // in g and their nodes are floored (NODE_FLOOR), so the log residuals have kinks in
+        // g that a 1e-4 central step straddles and a 1e-6 forward step does not. Checked
+        // columns: the nine others. Fix planned in the tables (smooth interpolation in g).
         if prob.layout.free()[j] == crate::params::ParamId::G {
             continue;
         }
