@@ -73,10 +73,7 @@ fn measure_far(set: &Set, reps: usize, opts: &FarOptions) -> (Vec<Vec<Vec<LobeVa
         set,
         reps,
         |az, phi| az.far(phi, LobeSet::ALL, opts),
-        |az, phis| {
-            let fs = az.far_slice(LobeSet::ALL, opts);
-            phis.iter().map(|&p| fs.eval(p)).collect()
-        },
+        |az, phis| az.far_slice(LobeSet::ALL, opts).eval_many(phis),
     )
 }
 
