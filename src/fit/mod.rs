@@ -417,7 +417,8 @@ fn finish(
     starts_lm: usize,
     clock: Instant,
 ) -> Result<FitOutcome> {
-    let (r, lk) = full.residuals_and_log_exposure(u.as_slice());
+    // Evaluated through the cache, so the Jacobian below reuses this evaluation.
+    let (r, lk) = full.evaluate_at(&u);
     let jac = if u.is_empty() {
         nalgebra::DMatrix::zeros(data.len(), 0)
     } else {

@@ -298,13 +298,21 @@ impl<'a> LogResidualProblem<'a> {
         DMatrix::from_columns(&cols)
     }
 
-    /// Residuals and model terms at `u`, remembered for the Jacobian at the same point.
-    fn evaluate(&self, u: &DVector<f64>) -> (DVector<f64>, Arc<ModelTerms>) {
+    /// Residuals, `ln k` and model terms at `u`, remembered for the Jacobian at the same
+    /// point.
+    fn evaluate(&self, u: &DVector<f64>) -> (DVector<f64>, f64, Arc<ModelTerms>) {
         let terms = Arc::new(self.terms(u.as_slice()));
-        let r = self.residuals_of(&self.values(&terms)).0;
+        let (r, lk) = self.residuals_of(&self.values(&terms));
         *self.last.lock().expect("residual cache poisoned") =
             Some((u.clone(), r.clone(), terms.clone()));
-        (r, terms)
+        (r, lk, terms)
+    }
+
+    /// [`Self::residuals_and_log_exposure`], remembered so that a following
+    /// [`Self::jacobian_at`] at the same `u` does not evaluate the model there again.
+    pub fn evaluate_at(&self, u: &DVector<f64>) -> (DVector<f64>, f64) {
+        let (r, lk, _) = self.evaluate(u);
+        (r, lk)
     }
 
     /// Central-difference Jacobian (twice the cost; used to check the forward one).
@@ -354,7 +362,10 @@ impl LogResidualProblem<'_> {
             .map(|(_, r, t)| (r.clone(), t.clone()));
         let (r0, base) = match cached {
             Some(c) => c,
-            None => self.evaluate(u),
+            None => {
+                let (r, _, t) = self.evaluate(u);
+                (r, t)
+            }
         };
         self.jacobian_forward(u, &r0, &base)
     }

@@ -43,8 +43,9 @@
 //! are clamped to their axis ends (the presets of seed Table 4 have `tau` below about 3,
 //! so clamping at `tau = 20` only concerns optically thick fits), `psi` is periodic, and
 //! `theta_r` is constant beyond the outermost bin centres (so the piecewise-linear density
-//! integrates to exactly the bin sum). Negative values produced by the compression are
-//! clamped to 0 by [`MedullaSlice::cn`] and [`MedullaSlice::cm`].
+//! integrates to exactly the bin sum). Negative or near-zero values produced by the
+//! compression are raised to [`NODE_FLOOR`] of their row's peak when a slice contracts the
+//! ranks into its node grid, so every query is non-negative.
 //!
 //! # Compression and file format
 //! Each of the three 4-D tensors (`C^N`: `tau x g x x x psi`; `C^M` front and back:
@@ -458,9 +459,9 @@ pub struct MedullaSlice {
 }
 
 /// The slice's values at the table nodes of its two remaining modes: `C^N` shape at every
-/// (`x` node, `psi` bin) and `C^M` at every (`theta_i` node, `theta_r` bin) per side,
-/// unclamped. Contracting the ranks once per `(tau, g)` (2 x 16 x 180 x rank
-/// multiply-adds, ~0.1 ms) makes every later query a bilinear lerp whose cost does not
+/// (`x` node, `psi` bin) and `C^M` at every (`theta_i` node, `theta_r` bin) per side.
+/// Contracting the ranks once per `(tau, g)` (2 x 16 x 180 x rank multiply-adds, 0.24 ms
+/// measured at rank 48) makes every later query a bilinear lerp whose cost does not
 /// depend on the rank; the values are the same bilinear interpolation as the rank sum of
 /// lerped factors ([`MedullaSlice::cn_compressed`]), up to rounding (tested), except that
 /// every node is floored at [`NODE_FLOOR`] of its row's peak. The 4-D tables themselves are
@@ -571,7 +572,7 @@ impl MedullaSlice {
         t.eval23(&self.wn, i, fi, k0, k1, fk).max(0.0) * scatter_probability(self.tau, x)
     }
 
-    /// `C^N(x, psi)`: per radian of `psi`, compressed negatives clamped to 0.
+    /// `C^N(x, psi)`: per radian of `psi`, from the slice's floored node grid.
     #[inline]
     pub fn cn(&self, x: f64, psi: f64) -> f64 {
         let s = self.cn_shape_clamped(x, psi);
@@ -601,9 +602,10 @@ impl MedullaSlice {
     }
 
     /// `C^N` at a fixed entry offset `x`, tabulated over the table's `psi` bins, for
-    /// evaluating many `psi` at one `x` (the far field at many `phi`): one pass over the
-    /// ranks per bin here, then a lerp per query instead of a rank sum.
-    /// [`CnProfile::cn`] equals [`Self::cn`] up to summation rounding.
+    /// evaluating many `psi` at one `x` (the far field at many `phi`): the two node-grid
+    /// rows around `x` lerped once here, then a lerp in `psi` per query.
+    /// [`CnProfile::cn`] equals [`Self::cn`] up to rounding (the two lerps in the other
+    /// order).
     pub fn cn_profile(&self, x: f64) -> CnProfile {
         let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
         let t = &*self.cn;
@@ -803,12 +805,10 @@ impl MedullaSampler {
         psi_knots.push(c0 + (n as f64 - 0.5) * d);
         let cn = (0..t.axes[2].len())
             .map(|i| {
-                let v: Vec<f64> = nodes.cn[i * n..(i + 1) * n]
-                    .iter()
-                    .map(|v| v.max(0.0))
-                    .collect();
+                // Node rows are floored, hence non-negative densities already.
+                let v = &nodes.cn[i * n..(i + 1) * n];
                 let mut vals = vec![0.5 * (v[0] + v[n - 1])];
-                vals.extend_from_slice(&v);
+                vals.extend_from_slice(v);
                 vals.push(vals[0]);
                 PlDensity::new(&psi_knots, vals)
             })
@@ -822,12 +822,9 @@ impl MedullaSampler {
             let tab = &*s.cm[side];
             (0..tab.axes[2].len())
                 .map(|i| {
-                    let v: Vec<f64> = nodes.cm[side][i * n..(i + 1) * n]
-                        .iter()
-                        .map(|v| v.max(0.0))
-                        .collect();
+                    let v = &nodes.cm[side][i * n..(i + 1) * n];
                     let mut vals = vec![v[0]];
-                    vals.extend_from_slice(&v);
+                    vals.extend_from_slice(v);
                     vals.push(v[n - 1]);
                     PlDensity::new(&tr_knots, vals)
                 })
@@ -975,9 +972,6 @@ mod tests {
             .to_bytes()
     }
 
-    /// The tabulated profile is the same function as the rank-sum query: only the order of
-    /// the rank sum differs, so agreement to 1e-12 of the profile's peak (rounding of ~32
-    /// terms of size ~1 is ~1e-15) is a real check, including the `x < 0` flip and mirror.
     /// The per-slice node grid is a rounding-level reorganisation of the rank sum: queries
     /// agree with the compressed factors to 1e-12 of the peak (the two sum the same
     /// products in another order) wherever no floored node is involved, which is most
@@ -1012,6 +1006,9 @@ mod tests {
         }
     }
 
+    /// The tabulated profile is the same function as the point query: both lerp the same
+    /// node grid, in `x` then `psi` or the other way round, so agreement to 1e-12 of the
+    /// profile's peak is a real check, including the `x < 0` flip and mirror.
     #[test]
     fn cn_profile_matches_cn() {
         let s = MedullaTables::builtin().slice(3.0, 0.4);

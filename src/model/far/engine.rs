@@ -808,13 +808,7 @@ impl<'a> FarSlice<'a> {
     /// are returned as 0. [`FarSlice::eval_raw`] gives the unclamped sum (the stability
     /// report counts and sizes those dips).
     pub fn eval(&self, phi: f64) -> LobeValues {
-        let mut v = self.eval_raw(phi);
-        for x in v.0.iter_mut() {
-            if *x < 0.0 {
-                *x = 0.0;
-            }
-        }
-        v
+        clamp_dips(self.eval_raw(phi))
     }
 
     /// [`FarSlice::eval`] without clamping negative rounding dips to 0.
@@ -908,15 +902,7 @@ impl<'a> FarSlice<'a> {
             }
         }
         out.into_iter()
-            .map(|v| {
-                let mut v = self.keep_lobes(v);
-                for x in v.0.iter_mut() {
-                    if *x < 0.0 {
-                        *x = 0.0;
-                    }
-                }
-                v
-            })
+            .map(|v| clamp_dips(self.keep_lobes(v)))
             .collect()
     }
 
@@ -1015,6 +1001,16 @@ impl<'a> FarSlice<'a> {
         }
         v
     }
+}
+
+/// `v` with negative rounding dips set to 0 (see [`FarSlice::eval`]).
+fn clamp_dips(mut v: LobeValues) -> LobeValues {
+    for x in v.0.iter_mut() {
+        if *x < 0.0 {
+            *x = 0.0;
+        }
+    }
+    v
 }
 
 /// Slack (radians) of [`FarSlice::eval_many`]'s candidate windows: far above the rounding
