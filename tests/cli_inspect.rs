@@ -93,3 +93,28 @@ fn inspect_bad_file_fails_with_location_but_reports_the_rest() {
     // The good file is still inspected.
     assert!(out.contains("samples  24"), "{out}");
 }
+
+/// A reader that stops early (`furfit inspect ... | head -1`) closes the pipe: the command
+/// must still finish cleanly (exit 0, no panic message), not die on the failed write.
+#[test]
+fn closed_stdout_is_not_a_panic() {
+    let csv = data("example.csv");
+    let mut child = Command::new(env!("CARGO_BIN_EXE_furfit"))
+        .arg("inspect")
+        .arg(&csv)
+        .arg(&csv)
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Close the read end before the child writes anything.
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        out.status.success(),
+        "status {:?}, stderr: {err}",
+        out.status
+    );
+    assert!(!err.contains("panicked"), "{err}");
+}

@@ -14,10 +14,10 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.synth_only {
-        crate::report::far_error::synth_throughput(&mut |line| println!("{line}"));
+        crate::report::far_error::synth_throughput(&mut |line| outln!("{line}"));
         return Ok(());
     }
     std::fs::create_dir_all(&a.out)?;
-    crate::report::far_error::run(&a.out, &mut |line| println!("{line}"))?;
+    crate::report::far_error::run(&a.out, &mut |line| outln!("{line}"))?;
     Ok(())
 }

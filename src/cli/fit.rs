@@ -126,7 +126,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             } else {
                 format!(" [{}]", s.channel)
             };
-            println!(
+            outln!(
                 "{}{ch}: NRMSE {:.2}% exposure {:.4e} ({} samples, {} iterations, {} evaluations, {:.2} s; {})",
                 job.species,
                 100.0 * o.nrmse,
@@ -142,12 +142,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .iter()
                 .map(|id| format!("{}={:.4}", id.spec().name, file[id.index()]))
                 .collect();
-            println!("  {}", line.join(" "));
+            outln!("  {}", line.join(" "));
             for (id, why) in &o.uncertainty.unconstrained {
-                println!("  unconstrained: {} ({why})", id.spec().name);
+                outln!("  unconstrained: {} ({why})", id.spec().name);
             }
             if a.bench {
-                println!(
+                outln!(
                     "  bench: {:.3e} sample evaluations/s, {:.1} model evaluations/s, model time share {:.0}% ({:.2} s model in {:.2} s wall, {} threads)",
                     o.sample_evaluations as f64 / o.wall_time_s,
                     o.evaluations as f64 / o.wall_time_s,
@@ -158,7 +158,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 );
             }
         }
-        println!("  wrote {}", job.out.display());
+        outln!("  wrote {}", job.out.display());
     }
     Ok(())
 }

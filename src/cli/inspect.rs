@@ -83,13 +83,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         };
         if k > 0 {
-            println!();
+            outln!();
         }
         let p = &l.profile;
         let s = Summary::of(p);
-        println!("{}", path.display());
-        println!("  format   {}", l.format.name());
-        println!(
+        outln!("{}", path.display());
+        outln!("  format   {}", l.format.name());
+        outln!(
             "  samples  {} ({} valid, {} invalid){}",
             s.n_samples,
             s.n_valid,
@@ -100,11 +100,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 String::new()
             }
         );
-        println!("{}", axis_line("theta_i", &s.theta_i));
-        println!("{}", axis_line("theta_r", &s.theta_r));
-        println!("{}", axis_line("phi", &s.phi));
+        outln!("{}", axis_line("theta_i", &s.theta_i));
+        outln!("{}", axis_line("theta_r", &s.theta_r));
+        outln!("{}", axis_line("phi", &s.phi));
         if p.channels.is_empty() {
-            println!("  channels 1 (unnamed)");
+            outln!("  channels 1 (unnamed)");
         } else {
             let list: Vec<String> = p
                 .channels
@@ -112,21 +112,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .zip(&s.valid_per_channel)
                 .map(|(c, n)| format!("{c} ({n} valid)"))
                 .collect();
-            println!("  channels {}: {}", p.channels.len(), list.join(", "));
+            outln!("  channels {}: {}", p.channels.len(), list.join(", "));
         }
         if p.metadata.is_empty() {
-            println!("  metadata -");
+            outln!("  metadata -");
         } else {
-            println!("  metadata");
+            outln!("  metadata");
             for (key, v) in &p.metadata {
-                println!("    {key}: {v}");
+                outln!("    {key}: {v}");
             }
         }
         if p.is_synthetic() {
-            println!("  (synthetic data)");
+            outln!("  (synthetic data)");
         }
         for n in &l.notes {
-            println!("  note: {n}");
+            outln!("  note: {n}");
         }
     }
     if failed > 0 {

@@ -2,6 +2,37 @@
 //! arguments, calls the library and prints. Errors go to stderr with a non-zero exit.
 
 use clap::{Parser, Subcommand};
+use std::io::Write;
+use std::sync::atomic::{AtomicBool, Ordering};
+
+/// `println!` for the subcommands, but a closed stdout (`furfit inspect ... | head`) is not
+/// an error of the job: printing stops quietly and the work (the files it writes) goes on,
+/// where `println!` would panic.
+macro_rules! outln {
+    () => {
+        $crate::cli::out_line(format_args!(""))
+    };
+    ($($t:tt)*) => {
+        $crate::cli::out_line(format_args!($($t)*))
+    };
+}
+
+/// Set once stdout refuses a write; later lines are dropped.
+static STDOUT_CLOSED: AtomicBool = AtomicBool::new(false);
+
+/// Write one line to stdout (see [`outln`]).
+pub(crate) fn out_line(args: std::fmt::Arguments) {
+    if STDOUT_CLOSED.load(Ordering::Relaxed) {
+        return;
+    }
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = writeln!(out, "{args}").and_then(|()| out.flush()) {
+        STDOUT_CLOSED.store(true, Ordering::Relaxed);
+        if e.kind() != std::io::ErrorKind::BrokenPipe {
+            eprintln!("warning: stdout: {e}; further output dropped");
+        }
+    }
+}
 
 pub mod bench_model;
 pub mod fit;

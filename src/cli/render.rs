@@ -185,7 +185,7 @@ fn with_suffix(out: &Path, suffix: &str, ext: &str) -> PathBuf {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let s = settings_from(&a)?;
     let scene = Scene::build(&s.strand);
-    println!(
+    outln!(
         "scene: {} fibers, {} segments; {}x{} at {} spp, mode {}",
         s.strand.fibers,
         scene.bvh.segments().len(),
@@ -229,7 +229,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut tiles = Vec::new();
     for (name, p) in &jobs {
         let r = render_scene(&scene, p, &s)?;
-        println!(
+        outln!(
             "{name}: {:.2} s wall ({:.2} s far-field table + {:.2} s tracing), {} rays, \
              {:.3} Mrays/s (tracing)",
             r.setup_seconds + r.seconds,
@@ -245,7 +245,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         };
         output::write_png(&r.beauty, a.exposure, &out)?;
         output::write_exr(&r.beauty, &with_suffix(&out, "", "exr"))?;
-        println!("wrote {} (+ .exr)", out.display());
+        outln!("wrote {} (+ .exr)", out.display());
         if !a.no_aovs {
             for l in Lobe::ALL {
                 if s.lobes.contains(l) {
@@ -257,7 +257,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     )?;
                 }
             }
-            println!(
+            outln!(
                 "wrote per-lobe AOVs {}",
                 with_suffix(&out, "_<lobe>", "png").display()
             );
@@ -266,7 +266,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if a.all {
         output::write_contact_sheet(&tiles, a.exposure, &a.out)?;
-        println!("wrote contact sheet {}", a.out.display());
+        outln!("wrote contact sheet {}", a.out.display());
     }
     Ok(())
 }

@@ -80,7 +80,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.params, a.max_spp
         );
         for r in &rows {
-            println!(
+            outln!(
                 "{:28} table {:6.2} s + tracing {:7.2} s  RMSE vs unculled {:.3e}  (noise floor {:.3e})",
                 r.name, r.setup_seconds, r.seconds, r.rmse_vs_full, r.noise_rmse
             );
@@ -97,7 +97,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let total = |r: &crate::render::study::CullingRow| r.setup_seconds + r.seconds;
         let saved = 1.0 - total(&rows[1]) / total(&rows[0]);
         let saved_table = 1.0 - rows[1].setup_seconds / rows[0].setup_seconds.max(1e-9);
-        println!(
+        outln!(
             "time saved by culling: {:.1} % of the total, {:.1} % of the table build",
             100.0 * saved,
             100.0 * saved_table
@@ -112,7 +112,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         let p = a.out.join("render_culling.md");
         crate::io::write_atomic(&p, md.as_bytes())?;
-        println!("wrote {}", p.display());
+        outln!("wrote {}", p.display());
         return Ok(());
     }
     let modes: Vec<Mode> = a
@@ -121,16 +121,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .map(Mode::parse)
         .collect::<crate::Result<_>>()?;
     let c = convergence(&scene, &params, &base, &modes, a.max_spp, a.ref_spp, |m| {
-        println!("{m}")
+        outln!("{m}")
     })?;
     let csv = a.out.join("render_convergence.csv");
     crate::io::write_atomic(&csv, c.to_csv().as_bytes())?;
     plot_convergence(&c, &a.out.join("render_convergence.png"), false)?;
     plot_convergence(&c, &a.out.join("render_convergence.svg"), true)?;
-    println!("wrote {} (+ .png, .svg)", csv.display());
+    outln!("wrote {} (+ .png, .svg)", csv.display());
     for m in &modes {
         if let Some(v) = c.inefficiency(*m, 4) {
-            println!(
+            outln!(
                 "{:10} RMSE^2 x seconds (median, spp >= 4): {v:.3e}",
                 m.name()
             );
@@ -143,12 +143,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     let md = a.out.join("render_convergence.md");
     crate::io::write_atomic(&md, c.to_markdown(&command, 4).as_bytes())?;
-    println!("wrote {}", md.display());
+    outln!("wrote {}", md.display());
     if let Some(s) = c.speedup(Mode::Near, Mode::Multiscale, 4) {
-        println!("equal-quality speedup multiscale over near: {s:.2}x (paper: 3.5-8x)");
+        outln!("equal-quality speedup multiscale over near: {s:.2}x (paper: 3.5-8x)");
     }
     if let Some(s) = c.speedup(Mode::Near, Mode::Far, 4) {
-        println!("equal-quality speedup far over near: {s:.2}x");
+        outln!("equal-quality speedup far over near: {s:.2}x");
     }
     Ok(())
 }

@@ -18,7 +18,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let sum = crate::report::nrmse::write_fit_reports(&a.fits, &a.measurements, &a.out)?;
     for p in &sum.written {
-        println!("wrote {}", p.display());
+        outln!("wrote {}", p.display());
     }
     for (s, why) in &sum.skipped {
         eprintln!("skipped {s}: {why}");

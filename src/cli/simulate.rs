@@ -246,7 +246,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "threads": rayon::current_num_threads(),
     });
     output::write_all(&out, &a.file, &csv, &md)?;
-    println!(
+    outln!(
         "{}: {} samples ({} valid), {} paths/angle x {} angles in {:.1} s on {} threads ({:.2e} paths/s); median rel. error above {:.0e} x peak: {}",
         out.join(&a.file).display(),
         m.value.len(),
@@ -260,9 +260,12 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         rel_after.map_or("n/a".into(), |r| format!("{r:.4}")),
     );
     for (ti, t) in s.theta_i.iter().zip(&sim.tally) {
-        println!(
+        outln!(
             "  theta_i {ti:>5}: exited {:.4}, binned {:.4}, guided {:.2e}, {:.1} s",
-            t.exited, t.binned, t.guided, t.seconds
+            t.exited,
+            t.binned,
+            t.guided,
+            t.seconds
         );
     }
     Ok(())
@@ -323,7 +326,7 @@ fn bench() -> anyhow::Result<()> {
             ),
             _ => String::new(),
         };
-        println!(
+        outln!(
             "bench {name}: {n} paths in {dt:.2} s on {threads} threads = {:.3e} paths/s (exited {:.3}, scatter events/path {:.2}){cpu}",
             n as f64 / dt,
             r.tally[0].exited,

@@ -10,7 +10,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let summary = crate::report::stability::run(&a.out, &mut |line| println!("{line}"))?;
+    let summary = crate::report::stability::run(&a.out, &mut |line| outln!("{line}"))?;
     if summary.n_nonfinite > 0 {
         anyhow::bail!(
             "{} NaN/Inf values in {} evaluations",

@@ -108,7 +108,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     prof.set_meta("command", cmd.join(" "));
     synth::save(&a.out, &prof)?;
     let n = prof.samples.len();
-    println!(
+    outln!(
         "wrote {} samples ({} theta_i x {} theta_r x {} phi, model {}) to {} in {:.3} s ({:.3e} samples/s)",
         n,
         ti.len(),

@@ -100,27 +100,35 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
     let raw = medulla_mc::simulate_tables(&opts.grid, opts.seed, opts.budget, &|| bar.inc(1));
     bar.finish();
     let t_mc = t0.elapsed().as_secs_f64();
-    println!(
+    outln!(
         "Monte Carlo: {} cells, {} paths, {} scattering events, {:.1} s",
-        cells, raw.total_paths, raw.total_events, t_mc
+        cells,
+        raw.total_paths,
+        raw.total_events,
+        t_mc
     );
-    println!(
+    outln!(
         "MC noise of the raw tensors (relative L2, even/odd half split): C^N {:.4}, \
          C^M front {:.4}, C^M back {:.4} (the floor under any CP error below)",
-        raw.noise_rel[0], raw.noise_rel[1], raw.noise_rel[2]
+        raw.noise_rel[0],
+        raw.noise_rel[1],
+        raw.noise_rel[2]
     );
     let t1 = Instant::now();
     let (tables, _trials, chosen) = medulla_mc::compress_tables(&raw, &opts, &mut |t| {
-        println!(
+        outln!(
             "CP-ALS {:<10} rank {:>2}: relative L2 error {:.4} ({} sweeps)",
-            t.table, t.rank, t.rel_error, t.iterations
+            t.table,
+            t.rank,
+            t.rel_error,
+            t.iterations
         )
     });
     let t_cp = t1.elapsed().as_secs_f64();
     let bytes = tables.to_bytes();
     crate::io::write_atomic(&a.out, &bytes)
         .with_context(|| format!("writing {}", a.out.display()))?;
-    println!(
+    outln!(
         "ranks C^N {} / C^M front {} / C^M back {}; CP {:.1} s; total {:.1} s",
         chosen[0],
         chosen[1],
@@ -128,7 +136,7 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
         t_cp,
         t0.elapsed().as_secs_f64()
     );
-    println!(
+    outln!(
         "wrote {} ({} bytes, sha256 {})",
         a.out.display(),
         bytes.len(),
@@ -150,16 +158,17 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
             (t, size, "built-in tables".to_string())
         }
     };
-    println!(
+    outln!(
         "{name}: {size} bytes, build seed {}, {} nominal paths/cell",
-        tables.seed, tables.paths
+        tables.seed,
+        tables.paths
     );
     for (label, t) in [
         ("C^N", &tables.cn),
         ("C^M front", &tables.cm[0]),
         ("C^M back", &tables.cm[1]),
     ] {
-        println!(
+        outln!(
             "  {:<10} rank {:>2}, grid {} x {} x {} x {}, tau in [{}, {}], g in [{}, {}]",
             label,
             t.rank,
@@ -181,7 +190,7 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
     }
     let t0 = Instant::now();
     let pts = medulla_mc::holdout(&tables, a.holdout, a.seed, a.paths, a.on_grid);
-    println!(
+    outln!(
         "hold-out: {} random {} points per table, {} fresh paths each (seed {}), {:.1} s",
         a.holdout,
         if a.on_grid {
@@ -193,9 +202,15 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
         a.seed,
         t0.elapsed().as_secs_f64()
     );
-    println!(
+    outln!(
         "  {:<10} {:>7} {:>6} {:>8} {:>9} {:>9} {:>9}",
-        "table", "tau", "g", "x/th_i", "relL2", "max", "MC noise"
+        "table",
+        "tau",
+        "g",
+        "x/th_i",
+        "relL2",
+        "max",
+        "MC noise"
     );
     for p in &pts {
         let coord = if p.table == "C^N" {
@@ -203,9 +218,15 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
         } else {
             format!("{:.1}d", p.coord.to_degrees())
         };
-        println!(
+        outln!(
             "  {:<10} {:>7.3} {:>6.3} {:>8} {:>9.4} {:>9.4} {:>9.4}",
-            p.table, p.tau, p.g, coord, p.rel_l2, p.max_rel, p.noise_l2
+            p.table,
+            p.tau,
+            p.g,
+            coord,
+            p.rel_l2,
+            p.max_rel,
+            p.noise_l2
         );
     }
     for table in ["C^N", "C^M front", "C^M back"] {
@@ -222,7 +243,7 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
         let net = (rms(&|p| p.rel_l2).powi(2) - rms(&|p| p.noise_l2).powi(2))
             .max(0.0)
             .sqrt();
-        println!(
+        outln!(
             "  {:<10} relL2 rms {:.4} (worst {:.4}), max-err worst {:.4}, MC noise rms {:.4}, \
              table error net of noise ~{:.4}",
             table,
