@@ -103,3 +103,71 @@ fn synth_rejects_bad_input() {
     assert!(String::from_utf8_lossy(&st.stderr).contains("XX"));
     assert!(!out.exists());
 }
+
+/// `--scattered-step strict` reaches the library's strict far field bit for bit (so the
+/// flag is wired), differs from the default where TTs/TRTs contribute, and a bad step is
+/// refused before anything is written.
+#[test]
+fn synth_scattered_step_strict_and_bad_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("strict.csv");
+    let run = |step: &str, out: &std::path::Path| {
+        furfit()
+            .args(["synth", "--params", "red-fox", "--theta-i", "20"])
+            .args([
+                "--theta-r",
+                "-30",
+                "--phi",
+                "-180:180:30",
+                "--lobes",
+                "TTs,TRTs",
+            ])
+            .arg(format!("--scattered-step={step}"))
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let st = run("strict", &out);
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let text = std::fs::read_to_string(&out).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("theta_i"))
+        .map(|l| l.split(',').map(|x| x.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 12);
+    let model = furfit::model::FurModel::new(&furfit::FurParams::preset("red-fox").unwrap());
+    let pts: Vec<(f64, f64, f64)> = rows
+        .iter()
+        .map(|r| (r[0].to_radians(), r[1].to_radians(), r[2].to_radians()))
+        .collect();
+    let lobes = furfit::model::LobeSet::SCATTERED;
+    let strict = furfit::model::far::FarOptions {
+        scattered_step: furfit::model::far::SCATTERED_STEP_STRICT,
+        ..Default::default()
+    };
+    let want = furfit::synth::predict(&model, &pts, lobes, &strict);
+    let default = furfit::synth::predict(&model, &pts, lobes, &Default::default());
+    let mut differs = false;
+    for ((r, s), d) in rows.iter().zip(&want).zip(&default) {
+        assert_eq!(r[3], s.sum(), "row {r:?}");
+        differs |= s.sum() != d.sum();
+    }
+    assert!(differs, "strict step changed nothing");
+    for bad in ["0", "-0.1", "2", "fine"] {
+        let out = dir.path().join("bad.csv");
+        let st = run(bad, &out);
+        assert!(!st.status.success(), "--scattered-step {bad} accepted");
+        assert!(
+            String::from_utf8_lossy(&st.stderr).contains("--scattered-step"),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        assert!(!out.exists());
+    }
+}

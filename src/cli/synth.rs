@@ -1,7 +1,7 @@
 //! `furfit synth`: synthesize a profile from parameters on an angle grid.
 
 use crate::grid::{parse_grid, parse_phi_grid};
-use crate::model::far::FarOptions;
+use crate::model::far::{FarOptions, SCATTERED_STEP_STRICT};
 use crate::model::LobeSet;
 use crate::synth::{self, ModelKind};
 use crate::FurParams;
@@ -38,6 +38,11 @@ pub struct Args {
     /// segmentation. Default 1e-4.
     #[arg(long)]
     pub tol: Option<String>,
+    /// Tolerance mode: largest change of the scattered direction per scattered segment,
+    /// in radians, or `strict` (0.001: TTs/TRTs within the tolerance's 1e-4 of their
+    /// peak, at several times the scattered cost). Default 0.15 (a few 1e-4 of the peak).
+    #[arg(long)]
+    pub scattered_step: Option<String>,
     /// Output file (.csv).
     #[arg(long)]
     pub out: PathBuf,
@@ -99,6 +104,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 anyhow::bail!("--tol must be in (0, 1) or 'none', got {v}");
             }
             Some(v)
+        };
+    }
+    if let Some(t) = &a.scattered_step {
+        opts.scattered_step = if t.eq_ignore_ascii_case("strict") {
+            SCATTERED_STEP_STRICT
+        } else {
+            let v: f64 = t
+                .parse()
+                .with_context(|| format!("--scattered-step '{t}' is not a number"))?;
+            if !(v > 0.0 && v <= 1.0) {
+                anyhow::bail!("--scattered-step must be in (0, 1] radians or 'strict', got {v}");
+            }
+            v
         };
     }
     let t0 = std::time::Instant::now();

@@ -9,7 +9,7 @@
 //! grid prediction costs). Gauss-Legendre has no per-theta_d precomputation.
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
-use crate::model::far::FarOptions;
+use crate::model::far::{FarOptions, SCATTERED_STEP_STRICT};
 use crate::model::{AzimuthalSlice, FurModel, LobeSet, LobeValues};
 use crate::params::FurParams;
 use crate::report::plot::{loglog_chart, ChartSpec, Series};
@@ -187,8 +187,8 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
         let opts = FarOptions {
             n_unscattered: n,
             n_scattered: n,
-            cull: true,
             tol: None,
+            ..FarOptions::paper()
         };
         let r = measure_far(&set, reps, &opts);
         push(&mut rows, "far-fixed", format!("n={n}"), r, log);
@@ -200,6 +200,21 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
         };
         let r = measure_far(&set, reps, &opts);
         push(&mut rows, "far-tol", format!("tol={tol:.0e}"), r, log);
+    }
+    for tol in TOLS {
+        let opts = FarOptions {
+            tol: Some(tol),
+            scattered_step: SCATTERED_STEP_STRICT,
+            ..FarOptions::default()
+        };
+        let r = measure_far(&set, reps, &opts);
+        push(
+            &mut rows,
+            "far-tol-strict",
+            format!("tol={tol:.0e}"),
+            r,
+            log,
+        );
     }
     for n in GL_POINTS {
         let r = measure(
@@ -284,6 +299,11 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
         series_of("far-tol", true, "far field, tol 1e-2..1e-6 (amortised)"),
         series_of("far-tol", false, "far field, tol (single call)"),
         series_of(
+            "far-tol-strict",
+            true,
+            "far field, tol, strict scattered step (amortised)",
+        ),
+        series_of(
             "gauss-legendre",
             false,
             "Gauss-Legendre of near field, N = 8..128",
@@ -330,6 +350,13 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
         for (mode, opts) in [
             ("paper 8/5", FarOptions::paper()),
             ("tol 1e-4", FarOptions::default()),
+            (
+                "tol 1e-4 strict",
+                FarOptions {
+                    scattered_step: SCATTERED_STEP_STRICT,
+                    ..FarOptions::default()
+                },
+            ),
         ] {
             let run = || {
                 let t = Instant::now();

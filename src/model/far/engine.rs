@@ -67,6 +67,12 @@ const RATIO_MIN: f64 = 0.5;
 /// A segment spanning at most this many `beta_p` in `Phi` may be integrated by GL.
 const GL_SPAN_SIGMAS: f64 = 2.0;
 const GL_NODES: usize = 16;
+/// At most this many pieces per initial scattered segment from the psi step (the step's
+/// whole range of `Phi^s`, under 2 pi, needs at most ~6300 at the strict step).
+const MAX_PSI_PIECES: f64 = 16384.0;
+/// Up to this many psi-step pieces an initial scattered segment is bisected instead (the
+/// default step needs at most ~21).
+const BISECT_PSI_PIECES: usize = 64;
 
 /// Values at one offset `u = asin h`, for all lobes at once.
 #[derive(Clone, Copy, Debug)]
@@ -171,6 +177,8 @@ pub struct FarSlice<'a> {
     lobes: LobeSet,
     cull: bool,
     tol: Option<f64>,
+    /// [`FarOptions::scattered_step`].
+    scattered_step: f64,
     /// Normalisation: 1/2 for the far field, 1/(h2 - h1) for multi-scale.
     weight: f64,
     parts: Vec<Part>,
@@ -262,6 +270,7 @@ impl<'a> FarSlice<'a> {
             lobes,
             cull: opts.cull,
             tol: opts.tol,
+            scattered_step: opts.scattered_step,
             weight,
             parts: Vec::new(),
             betas: [beta_p(0, bn), beta_p(1, bn), beta_p(2, bn)],
@@ -687,6 +696,15 @@ impl<'a> FarSlice<'a> {
         }
     }
 
+    /// Largest change of `Phi^s_p` across a scattered segment in tolerance mode
+    /// ([`FarOptions::scattered_step`] at `tol = 1e-4`, scaled by the cube root of the
+    /// tolerance ratio within [1/4.6, 4]: below that a finer step buys little, as the
+    /// prefactor fit then dominates).
+    fn max_dps(&self) -> f64 {
+        let ratio = self.tol.unwrap_or(1e-4) / 1e-4;
+        self.scattered_step * ratio.cbrt().clamp(0.01f64.cbrt(), 4.0)
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn build_scat(
         &self,
@@ -703,6 +721,30 @@ impl<'a> FarSlice<'a> {
         let len = n1.u - n0.u;
         if len <= 0.0 {
             return;
+        }
+        if depth == 0 && rf.budget.is_some() {
+            // When the psi step asks for many pieces (the strict step), cut the initial
+            // segment into them at once: bisection would spend the split budget
+            // depth-first and, once it ran out, leave the rest of the range coarse. The
+            // pieces may still be bisected for their fit. Few pieces (the default step)
+            // are left to bisection, which adapts to a non-uniform `Phi^s`.
+            let dps = (n1.phis[k] - n0.phis[k]).abs();
+            let pieces = (dps / self.max_dps()).ceil().clamp(1.0, MAX_PSI_PIECES) as usize;
+            if pieces > BISECT_PSI_PIECES {
+                let at = |j: usize| n0.u + len * j as f64 / pieces as f64;
+                let mut a = n0;
+                for j in 0..pieces {
+                    let b = if j + 1 == pieces {
+                        n1
+                    } else {
+                        self.node(at(j + 1))
+                    };
+                    let m = self.node(0.5 * (a.u + b.u));
+                    self.build_scat(l, a, m, b, 1, rf, out);
+                    a = b;
+                }
+                return;
+            }
         }
         let (l0, l1) = (n0.lam[i], n1.lam[i]);
         let lin = (l1 - l0) / len;
@@ -723,11 +765,11 @@ impl<'a> FarSlice<'a> {
                     e = e.max((fit - q.pre[i] * q.frac * q.lam[i].exp()).abs());
                 }
                 // C^N is interpolated along psi = phi -+ Phi^s: keep its change per segment
-                // small enough for a quadratic to follow a table's structure.
+                // small enough for a quadratic to follow a table's structure
+                // (FarOptions::scattered_step).
                 let dps = (n1.phis[k] - n0.phis[k]).abs();
-                let max_dps = 0.15 * (self.tol.unwrap_or(1e-4) / 1e-4).cbrt().min(4.0);
                 let fit_poor = e > b && e * len > rf.small;
-                if fit_poor || dps > max_dps {
+                if fit_poor || dps > self.max_dps() {
                     if let Some(depth) = rf.split(depth) {
                         self.build_scat(l, n0, q1, nm, depth, rf, out);
                         self.build_scat(l, nm, q3, n1, depth, rf, out);
