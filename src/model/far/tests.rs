@@ -329,23 +329,32 @@ fn far_integrates_over_phi_to_mean_attenuation() {
     }
 }
 
+/// The broad random set of the tolerance-mode tests: eight parameter vectors across the
+/// bounds that matter (eta, kappa, roughness, absorption, g, l) with a theta_d each.
+fn random_cases() -> Vec<([f64; 10], f64)> {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(20170701);
+    (0..8)
+        .map(|_| {
+            let v = [
+                rng.random_range(1.1..2.5),
+                rng.random_range(0.0..0.95),
+                rng.random_range(-10.0..10.0),
+                rng.random_range(2.0..20.0),
+                rng.random_range(0.5..40.0),
+                rng.random_range(0.0..3.0),
+                rng.random_range(0.0..5.0),
+                rng.random_range(0.0..2.0),
+                rng.random_range(-0.8..0.8),
+                rng.random_range(0.3..5.0),
+            ];
+            (v, rng.random_range(-80.0..80.0))
+        })
+        .collect()
+}
+
 #[test]
 fn tol_mode_meets_1e_4_on_random_parameters() {
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(20170701);
-    for case in 0..8 {
-        let v = [
-            rng.random_range(1.1..2.5),
-            rng.random_range(0.0..0.95),
-            rng.random_range(-10.0..10.0),
-            rng.random_range(2.0..20.0),
-            rng.random_range(0.5..40.0),
-            rng.random_range(0.0..3.0),
-            rng.random_range(0.0..5.0),
-            rng.random_range(0.0..2.0),
-            rng.random_range(-0.8..0.8),
-            rng.random_range(0.3..5.0),
-        ];
-        let td = rng.random_range(-80.0..80.0);
+    for (case, (v, td)) in random_cases().into_iter().enumerate() {
         assert_tol_mode(&params(v), &[td], &format!("random case {case} {v:?}"));
     }
 }
@@ -483,21 +492,7 @@ fn eval_many_equals_eval_exactly() {
 /// with the step, and at 4x this step human's TTs was 2.8e-4, so the test can fail).
 #[test]
 fn tol_mode_strict_step_meets_1e_4() {
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(20170701);
-    for case in 0..8 {
-        let v = [
-            rng.random_range(1.1..2.5),
-            rng.random_range(0.0..0.95),
-            rng.random_range(-10.0..10.0),
-            rng.random_range(2.0..20.0),
-            rng.random_range(0.5..40.0),
-            rng.random_range(0.0..3.0),
-            rng.random_range(0.0..5.0),
-            rng.random_range(0.0..2.0),
-            rng.random_range(-0.8..0.8),
-            rng.random_range(0.3..5.0),
-        ];
-        let td = rng.random_range(-80.0..80.0);
+    for (case, (v, td)) in random_cases().into_iter().enumerate() {
         assert_strict_mode(&params(v), &[td], &format!("random case {case} {v:?}"));
     }
     let mut v = base();
