@@ -40,7 +40,8 @@ pub struct Args {
     pub tol: Option<String>,
     /// Tolerance mode: largest change of the scattered direction per scattered segment,
     /// in radians, or `strict` (0.001: TTs/TRTs within the tolerance's 1e-4 of their
-    /// peak, at several times the scattered cost). Default 0.15 (a few 1e-4 of the peak).
+    /// peak except at adversarial corners such as kappa -> 0 or 1, at several times the
+    /// scattered cost). Default 0.15 (a few 1e-4 to 1e-3 of the peak).
     #[arg(long)]
     pub scattered_step: Option<String>,
     /// Output file (.csv).
