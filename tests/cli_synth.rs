@@ -147,10 +147,7 @@ fn synth_scattered_step_strict_and_bad_values() {
         .map(|r| (r[0].to_radians(), r[1].to_radians(), r[2].to_radians()))
         .collect();
     let lobes = furfit::model::LobeSet::SCATTERED;
-    let strict = furfit::model::far::FarOptions {
-        scattered_step: furfit::model::far::SCATTERED_STEP_STRICT,
-        ..Default::default()
-    };
+    let strict = furfit::model::far::FarOptions::strict();
     let want = furfit::synth::predict(&model, &pts, lobes, &strict);
     let default = furfit::synth::predict(&model, &pts, lobes, &Default::default());
     let mut differs = false;

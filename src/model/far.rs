@@ -78,6 +78,15 @@ impl FarOptions {
             scattered_step: SCATTERED_STEP,
         }
     }
+
+    /// The default tolerance mode with the strict scattered step
+    /// ([`SCATTERED_STEP_STRICT`]).
+    pub fn strict() -> Self {
+        FarOptions {
+            scattered_step: SCATTERED_STEP_STRICT,
+            ..FarOptions::default()
+        }
+    }
 }
 
 impl<'a> AzimuthalSlice<'a> {

@@ -9,7 +9,7 @@
 //! grid prediction costs). Gauss-Legendre has no per-theta_d precomputation.
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
-use crate::model::far::{FarOptions, SCATTERED_STEP_STRICT};
+use crate::model::far::FarOptions;
 use crate::model::{AzimuthalSlice, FurModel, LobeSet, LobeValues};
 use crate::params::FurParams;
 use crate::report::plot::{loglog_chart, ChartSpec, Series};
@@ -204,8 +204,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
     for tol in TOLS {
         let opts = FarOptions {
             tol: Some(tol),
-            scattered_step: SCATTERED_STEP_STRICT,
-            ..FarOptions::default()
+            ..FarOptions::strict()
         };
         let r = measure_far(&set, reps, &opts);
         push(
@@ -350,13 +349,7 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
         for (mode, opts) in [
             ("paper 8/5", FarOptions::paper()),
             ("tol 1e-4", FarOptions::default()),
-            (
-                "tol 1e-4 strict",
-                FarOptions {
-                    scattered_step: SCATTERED_STEP_STRICT,
-                    ..FarOptions::default()
-                },
-            ),
+            ("tol 1e-4 strict", FarOptions::strict()),
         ] {
             let run = || {
                 let t = Instant::now();

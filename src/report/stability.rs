@@ -206,24 +206,21 @@ fn modes() -> [FarOptions; 2] {
 /// scattered step (`FarOptions::scattered_step`), which only changes TTs/TRTs.
 fn ref_modes() -> [FarOptions; 3] {
     let [tol, paper] = modes();
-    let strict = FarOptions {
-        scattered_step: SCATTERED_STEP_STRICT,
-        ..tol
-    };
-    [tol, paper, strict]
+    [tol, paper, FarOptions::strict()]
 }
 
-/// The slices of one theta_d: the far field, then each multi-scale range, in both modes.
-fn slices<'a>(az: &AzimuthalSlice<'a>) -> Vec<FarSlice<'a>> {
+/// The slices of one theta_d with the index of their mode in [`modes`]: the far field, then
+/// each multi-scale range, in both modes.
+fn slices<'a>(az: &AzimuthalSlice<'a>) -> Vec<(usize, FarSlice<'a>)> {
     let mut out = Vec::new();
-    for opts in &modes() {
+    for (mode, opts) in modes().iter().enumerate() {
         let mut fs = az.far_slice(LobeSet::ALL, opts);
         fs.tabulate_scattered();
-        out.push(fs);
+        out.push((mode, fs));
         for &(h1, h2) in &MS_RANGES {
             let mut fs = FarSlice::range(az, h1, h2, LobeSet::ALL, opts);
             fs.tabulate_scattered();
-            out.push(fs);
+            out.push((mode, fs));
         }
     }
     out
@@ -238,9 +235,7 @@ fn sweep(v: &[f64; 10], phis: &[f64]) -> CaseResult {
     let m = FurModel::new(&p);
     for td in THETA_D {
         let az = m.azimuthal(td.to_radians());
-        let per_mode = 1 + MS_RANGES.len();
-        for (k, fs) in slices(&az).into_iter().enumerate() {
-            let mode = k / per_mode;
+        for (mode, fs) in slices(&az) {
             r.slices += 1;
             if !fs.stats().capped.is_empty() {
                 r.capped += 1;

@@ -698,8 +698,8 @@ impl<'a> FarSlice<'a> {
 
     /// Largest change of `Phi^s_p` across a scattered segment in tolerance mode
     /// ([`FarOptions::scattered_step`] at `tol = 1e-4`, scaled by the cube root of the
-    /// tolerance ratio within [1/4.6, 4]: below that a finer step buys little, as the
-    /// prefactor fit then dominates).
+    /// tolerance ratio, clamped to [1/4.6, 4], i.e. to `tol` in [1e-6, 6.4e-3]: the lower
+    /// clamp bounds the piece count at tolerances below those the tests and reports use).
     fn max_dps(&self) -> f64 {
         let ratio = self.tol.unwrap_or(1e-4) / 1e-4;
         self.scattered_step * ratio.cbrt().clamp(0.01f64.cbrt(), 4.0)
@@ -722,13 +722,15 @@ impl<'a> FarSlice<'a> {
         if len <= 0.0 {
             return;
         }
+        // C^N is interpolated along psi = phi -+ Phi^s: keep its change per segment small
+        // enough for a quadratic to follow a table's structure (FarOptions::scattered_step).
+        let dps = (n1.phis[k] - n0.phis[k]).abs();
         if depth == 0 && rf.budget.is_some() {
             // When the psi step asks for many pieces (the strict step), cut the initial
             // segment into them at once: bisection would spend the split budget
             // depth-first and, once it ran out, leave the rest of the range coarse. The
             // pieces may still be bisected for their fit. Few pieces (the default step)
             // are left to bisection, which adapts to a non-uniform `Phi^s`.
-            let dps = (n1.phis[k] - n0.phis[k]).abs();
             let pieces = (dps / self.max_dps()).ceil().clamp(1.0, MAX_PSI_PIECES) as usize;
             if pieces > BISECT_PSI_PIECES {
                 let at = |j: usize| n0.u + len * j as f64 / pieces as f64;
@@ -764,10 +766,6 @@ impl<'a> FarSlice<'a> {
                     let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + lin * x).exp();
                     e = e.max((fit - q.pre[i] * q.frac * q.lam[i].exp()).abs());
                 }
-                // C^N is interpolated along psi = phi -+ Phi^s: keep its change per segment
-                // small enough for a quadratic to follow a table's structure
-                // (FarOptions::scattered_step).
-                let dps = (n1.phis[k] - n0.phis[k]).abs();
                 let fit_poor = e > b && e * len > rf.small;
                 if fit_poor || dps > self.max_dps() {
                     if let Some(depth) = rf.split(depth) {

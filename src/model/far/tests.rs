@@ -50,11 +50,7 @@ fn assert_tol_mode(p: &FurParams, tds: &[f64], what: &str) {
 
 /// [`assert_tol_mode`] with the strict scattered step: every lobe within 1e-4 of its peak.
 fn assert_strict_mode(p: &FurParams, tds: &[f64], what: &str) {
-    let opts = FarOptions {
-        scattered_step: SCATTERED_STEP_STRICT,
-        ..FarOptions::default()
-    };
-    assert_tol_mode_with(p, tds, what, &opts, 1e-4);
+    assert_tol_mode_with(p, tds, what, &FarOptions::strict(), 1e-4);
 }
 
 fn assert_tol_mode_with(
@@ -518,9 +514,8 @@ fn tol_mode_strict_step_meets_1e_4() {
 fn strict_step_at_tight_tolerance_is_not_capped() {
     let m = FurModel::new(&FurParams::preset("red-fox").unwrap());
     let opts = FarOptions {
-        scattered_step: SCATTERED_STEP_STRICT,
         tol: Some(1e-6),
-        ..FarOptions::default()
+        ..FarOptions::strict()
     };
     let stats = m.azimuthal(0.0).far_slice(LobeSet::ALL, &opts).stats();
     assert!(stats.capped.is_empty(), "{stats:?}");
