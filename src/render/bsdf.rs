@@ -178,6 +178,7 @@ pub struct BsdfSample {
 }
 
 /// Lobe probabilities and truncated-`M` parameters at one (`theta_o`, `h`).
+#[derive(Clone, Copy, Debug)]
 struct Prep {
     probs: [f64; 5],
     mu: [f64; 5],
@@ -187,6 +188,30 @@ struct Prep {
     /// entry offset `x` and the segment directions `Phi^s_p` of TTs and TRTs.
     x_med: f64,
     phi_s: [f64; 2],
+}
+
+impl Prep {
+    const EMPTY: Prep = Prep {
+        probs: [0.0; 5],
+        mu: [0.0; 5],
+        s: [1.0; 5],
+        mass: [0.0; 5],
+        x_med: 0.0,
+        phi_s: [0.0; 2],
+    };
+}
+
+/// Midpoints of the span averaged by [`FiberBsdf::pdf_mis`].
+const MIS_POINTS: usize = 4;
+
+/// [`FiberBsdf::pdf_mis`]'s camera-side state at one vertex ([`FiberBsdf::mis_prepare`]).
+#[derive(Clone, Copy, Debug)]
+pub struct MisPrep {
+    theta_o: f64,
+    /// Offsets in use: 1 (near field) or [`MIS_POINTS`] (span).
+    n: usize,
+    hs: [f64; MIS_POINTS],
+    preps: [Prep; MIS_POINTS],
 }
 
 /// RGB fiber BCSDF of one parameter set.
@@ -328,14 +353,31 @@ impl FiberBsdf {
 
     /// Everything the sampler and its pdf need that depends on (`theta_o`, `h`) only.
     fn prepare(&self, theta_o: f64, h: f64) -> Prep {
+        self.prepare_at(&self.prepare_long(theta_o), theta_o, h)
+    }
+
+    /// The truncated `M_l` of the unscattered lobes (centre, width, in-domain mass): they
+    /// depend on `theta_o` only, so a vertex computes them once for all its offsets.
+    fn prepare_long(&self, theta_o: f64) -> Prep {
+        let mut pr = Prep::EMPTY;
+        for l in self.lobes.iter().filter(|l| !l.is_scattered()) {
+            let i = l.index();
+            let (mu, s) = self.m_params(l, theta_o);
+            pr.mu[i] = mu;
+            pr.s[i] = s;
+            pr.mass[i] = trunc_mass(mu, s);
+        }
+        pr
+    }
+
+    /// [`Self::prepare`] from the `theta_o`-only part `long` ([`Self::prepare_long`]).
+    fn prepare_at(&self, long: &Prep, theta_o: f64, h: f64) -> Prep {
         let geo = self.models[0].azimuthal(-theta_o).geometry(h);
+        let x_med = medulla_offset(&geo, self.models[0].params.kappa);
         let mut pr = Prep {
-            probs: [0.0; 5],
-            mu: [0.0; 5],
-            s: [1.0; 5],
-            mass: [0.0; 5],
-            x_med: medulla_offset(&geo, self.models[0].params.kappa),
+            x_med,
             phi_s: [1, 2].map(|p| crate::model::azimuthal::phi_s_p(p, &geo)),
+            ..*long
         };
         let mut w = [0.0; 5];
         for c in 0..3 {
@@ -346,21 +388,18 @@ impl FiberBsdf {
                 w[l.index()] += a.get(l) / 3.0;
             }
         }
-        let p = &self.models[0].params;
+        let mut frac = None;
         for l in self.lobes.iter() {
             let i = l.index();
             if l.is_scattered() {
-                let frac = self.models[0]
-                    .medulla()
-                    .map_or(0.0, |m| m.scattered_fraction(medulla_offset(&geo, p.kappa)));
-                w[i] *= frac;
+                let f = *frac.get_or_insert_with(|| {
+                    self.models[0]
+                        .medulla()
+                        .map_or(0.0, |m| m.scattered_fraction(x_med))
+                });
+                w[i] *= f;
             } else {
-                let (mu, s) = self.m_params(l, theta_o);
-                let mass = trunc_mass(mu, s);
-                pr.mu[i] = mu;
-                pr.s[i] = s;
-                pr.mass[i] = mass;
-                w[i] *= mass.max(MIN_MASS);
+                w[i] *= pr.mass[i].max(MIN_MASS);
             }
         }
         let sum: f64 = w.iter().sum();
@@ -377,37 +416,44 @@ impl FiberBsdf {
         (-theta_o + a, b)
     }
 
-    /// Mixture pdf with prepared lobe data, `(theta, phi)` measure.
-    fn pdf_prepared(&self, pr: &Prep, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
+    /// Mixture pdf with prepared lobe data, `(theta, phi)` measure, averaged over the
+    /// offsets `hs` (`preps[k]` prepared at `hs[k]`). Terms that do not depend on `h` (the
+    /// slice at `theta_d`, `M_s` of the scattered lobes) are computed once.
+    fn pdf_prepared(&self, preps: &[Prep], hs: &[f64], theta_o: f64, theta: f64, phi: f64) -> f64 {
         let slice = self.models[0].azimuthal(geometry::theta_d(theta_o, theta));
-        let geo = slice.geometry(h);
         let beta_n = self.models[0].params.beta_n;
         let sampler = self.models[0].medulla().map(|m| m.sampler());
-        let mut pdf = 0.0;
-        for l in self.lobes.iter() {
-            let i = l.index();
-            if pr.probs[i] <= 0.0 {
-                continue;
-            }
-            let v = if l.is_scattered() {
-                sampler.as_ref().map_or(0.0, |sm| {
-                    sm.pdf_cn(pr.x_med, wrap_angle(phi - pr.phi_s[l.p() - 1]))
-                        * sm.pdf_cm(theta_o, theta, phi)
-                })
-            } else {
-                let pt = if pr.mass[i] < MIN_MASS {
-                    1.0 / PI
+        let mut cm = None;
+        let mut total = 0.0;
+        for (pr, &h) in preps.iter().zip(hs) {
+            let geo = slice.geometry(h);
+            let mut pdf = 0.0;
+            for l in self.lobes.iter() {
+                let i = l.index();
+                if pr.probs[i] <= 0.0 {
+                    continue;
+                }
+                let v = if l.is_scattered() {
+                    sampler.as_ref().map_or(0.0, |sm| {
+                        let cm = *cm.get_or_insert_with(|| sm.pdf_cm(theta_o, theta, phi));
+                        sm.pdf_cn(pr.x_med, wrap_angle(phi - pr.phi_s[l.p() - 1])) * cm
+                    })
                 } else {
-                    longitudinal::gaussian(theta, pr.mu[i], pr.s[i]) / pr.mass[i]
+                    let pt = if pr.mass[i] < MIN_MASS {
+                        1.0 / PI
+                    } else {
+                        longitudinal::gaussian(theta, pr.mu[i], pr.s[i]) / pr.mass[i]
+                    };
+                    pt * wrapped_gaussian(
+                        slice.center(l, &geo) - phi,
+                        crate::model::azimuthal::beta_p(l.p(), beta_n),
+                    )
                 };
-                pt * wrapped_gaussian(
-                    slice.center(l, &geo) - phi,
-                    crate::model::azimuthal::beta_p(l.p(), beta_n),
-                )
-            };
-            pdf += pr.probs[i] * v;
+                pdf += pr.probs[i] * v;
+            }
+            total += pdf;
         }
-        pdf
+        total / preps.len() as f64
     }
 
     /// Mixture pdf conditional on `h`, `(theta, phi)` measure: `sum_l P_l pdf_l`, with
@@ -415,26 +461,49 @@ impl FiberBsdf {
     /// table densities `C^N` (in `psi`) times `M_s` (in `theta`) (scattered).
     pub fn pdf_at(&self, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
         let pr = self.prepare(theta_o, h);
-        self.pdf_prepared(&pr, theta_o, theta, phi, h)
+        self.pdf_prepared(&[pr], &[h], theta_o, theta, phi)
+    }
+
+    /// The camera-side state of [`Self::pdf_mis`] at one vertex: a path queries the MIS
+    /// pdf twice per vertex (environment sample, escaped continuation) with the same
+    /// `theta_o` and footprint, so it prepares once.
+    pub fn mis_prepare(&self, theta_o: f64, hr: HRange) -> MisPrep {
+        let hs = match hr {
+            HRange::At(h) => [h; MIS_POINTS],
+            HRange::Span(h1, h2) => {
+                std::array::from_fn(|k| h1 + (k as f64 + 0.5) / MIS_POINTS as f64 * (h2 - h1))
+            }
+        };
+        let n = if matches!(hr, HRange::At(_)) {
+            1
+        } else {
+            MIS_POINTS
+        };
+        let long = self.prepare_long(theta_o);
+        MisPrep {
+            theta_o,
+            n,
+            hs,
+            preps: std::array::from_fn(|k| {
+                if k < n {
+                    self.prepare_at(&long, theta_o, hs[k])
+                } else {
+                    Prep::EMPTY
+                }
+            }),
+        }
+    }
+
+    /// [`Self::pdf_mis`] from a [`MisPrep`].
+    pub fn pdf_mis_prepared(&self, mp: &MisPrep, theta: f64, phi: f64) -> f64 {
+        self.pdf_prepared(&mp.preps[..mp.n], &mp.hs[..mp.n], mp.theta_o, theta, phi)
     }
 
     /// pdf used for MIS weights: exact for the near field; for a span, the 4-point
     /// midpoint average of [`Self::pdf_at`] (any deterministic function of the direction
     /// keeps MIS unbiased; see module doc).
     pub fn pdf_mis(&self, theta_o: f64, theta: f64, phi: f64, hr: HRange) -> f64 {
-        match hr {
-            HRange::At(h) => self.pdf_at(theta_o, theta, phi, h),
-            HRange::Span(h1, h2) => {
-                const K: usize = 4;
-                (0..K)
-                    .map(|k| {
-                        let h = h1 + (k as f64 + 0.5) / K as f64 * (h2 - h1);
-                        self.pdf_at(theta_o, theta, phi, h)
-                    })
-                    .sum::<f64>()
-                    / K as f64
-            }
-        }
+        self.pdf_mis_prepared(&self.mis_prepare(theta_o, hr), theta, phi)
     }
 
     /// Draw a light-side direction with four uniforms (module doc). `None` when no lobe
@@ -485,7 +554,7 @@ impl FiberBsdf {
             let z = SQRT_2 * puruspe::inverf((2.0 * u[3] - 1.0).clamp(-1.0 + 1e-16, 1.0 - 1e-16));
             (theta, wrap_angle(slice.center(lobe, &geo) + sigma * z))
         };
-        let pdf = self.pdf_prepared(&pr, theta_o, theta, phi, h);
+        let pdf = self.pdf_prepared(&[pr], &[h], theta_o, theta, phi);
         if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }

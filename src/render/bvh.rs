@@ -29,47 +29,17 @@ impl Aabb {
             hi: self.hi.max(o.hi),
         }
     }
-    /// Slab test; returns the entry distance if the box is hit within (tmin, tmax).
-    /// `inv` = 1 / direction from [`safe_inv`], so every product is finite and the plain
-    /// comparisons below (which compile to single min/max instructions, unlike the
-    /// NaN-aware `f64::min`) see no NaN.
-    #[inline(always)]
-    fn hit(&self, o: V3, inv: V3, tmin: f64, tmax: f64) -> Option<f64> {
-        let (x0, x1) = ((self.lo.x - o.x) * inv.x, (self.hi.x - o.x) * inv.x);
-        let (y0, y1) = ((self.lo.y - o.y) * inv.y, (self.hi.y - o.y) * inv.y);
-        let (z0, z1) = ((self.lo.z - o.z) * inv.z, (self.hi.z - o.z) * inv.z);
-        let t0 = fmax(fmax(tmin, fmin(x0, x1)), fmax(fmin(y0, y1), fmin(z0, z1)));
-        let t1 = fmin(fmin(tmax, fmax(x0, x1)), fmin(fmax(y0, y1), fmax(z0, z1)));
+
+    /// Slab test in f64: the entry distance if the ray meets the box within (tmin, tmax).
+    fn enter(&self, o: V3, inv: V3, tmin: f64, tmax: f64) -> Option<f64> {
+        let (mut t0, mut t1) = (tmin, tmax);
+        for a in 0..3 {
+            let x0 = (self.lo.axis(a) - o.axis(a)) * inv.axis(a);
+            let x1 = (self.hi.axis(a) - o.axis(a)) * inv.axis(a);
+            t0 = t0.max(x0.min(x1));
+            t1 = t1.min(x0.max(x1));
+        }
         (t0 <= t1).then_some(t0)
-    }
-}
-
-#[inline(always)]
-fn fmin(a: f64, b: f64) -> f64 {
-    if a < b {
-        a
-    } else {
-        b
-    }
-}
-
-#[inline(always)]
-fn fmax(a: f64, b: f64) -> f64 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
-/// `1 / x`, with a zero component replaced by `+-1e-300` so the reciprocal is finite
-/// (`0 * inv` is then 0, never NaN, in the slab test).
-#[inline(always)]
-fn safe_inv(x: f64) -> f64 {
-    1.0 / if x.abs() < 1e-300 {
-        1e-300f64.copysign(x)
-    } else {
-        x
     }
 }
 
@@ -81,6 +51,36 @@ struct Node {
     /// Number of primitives in a leaf, 0 for interior nodes.
     count: u32,
 }
+
+/// Four-wide node of the traversal tree, collapsed from the binary SAH tree: the boxes of
+/// up to four children in single precision, laid out axis-major so the slab test of all
+/// four is a handful of 4-lane operations, and a node fills two cache lines. Boxes are
+/// rounded outward (see [`PAD`]), so they stay conservative: the final segment test is in
+/// f64 and hits are exactly those of a brute-force loop.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Node4 {
+    /// `lo[axis][lane]`, `hi[axis][lane]`.
+    lo: [[f32; 4]; 3],
+    hi: [[f32; 4]; 3],
+    /// Interior child: its node index; leaf child: first primitive index.
+    child: [u32; 4],
+    /// Primitives of a leaf child; 0 for an interior child.
+    count: [u32; 4],
+    /// Lanes in use (1..=4).
+    n: u32,
+}
+
+/// Outward padding of the single-precision boxes (world units). The lock spans a couple of
+/// units around the origin and traversal starts rays at the root box (see
+/// [`Bvh::traverse`]), so coordinates and ray distances stay below ~10 and the rounding
+/// of boxes, origin and slab products is a few ulp of that, ~1e-6; 1e-5 covers it ten
+/// times over and loosens a box by ~2 % of a fiber tip's radius.
+const PAD: f32 = 1e-5;
+
+/// Traversal stack entries: a visit pushes at most three more than it pops, so a tree of
+/// depth `D` needs `3 D + 1`; [`Bvh::build`] checks the collapsed depth against this.
+const STACK: usize = 192;
 
 /// A ray-fiber hit.
 #[derive(Clone, Copy, Debug)]
@@ -98,9 +98,11 @@ pub struct Hit {
     pub segment: u32,
 }
 
-/// BVH over segments (median split on the longest axis, leaves of <= 4).
+/// BVH over segments: binned-SAH binary tree collapsed to four-wide nodes, leaves of <= 4.
 pub struct Bvh {
-    nodes: Vec<Node>,
+    nodes: Vec<Node4>,
+    /// Bounds of everything (f64), where traversal starts its rays.
+    root: Aabb,
     segs: Vec<Segment>,
     /// Leaf primitives in node order: index of the segment whose piece it bounds.
     prims: Vec<u32>,
@@ -156,7 +158,27 @@ impl Bvh {
             build_rec(&mut nodes, &mut order, 0, &boxes, &centers);
         }
         let prims = order.iter().map(|&i| owner[i]).collect();
-        Bvh { nodes, segs, prims }
+        let mut wide = Vec::with_capacity(nodes.len() / 2 + 1);
+        if !nodes.is_empty() {
+            if nodes[0].count > 0 {
+                // The whole tree is one leaf: a root with one leaf lane.
+                let mut root = Node4::empty();
+                root.set_lane(0, &nodes[0].bounds, nodes[0].index, nodes[0].count);
+                root.n = 1;
+                wide.push(root);
+            } else {
+                let (_, depth) = collapse(&nodes, 0, &mut wide, 1);
+                // The binned SAH halves the work per level in practice (depth ~12 for the
+                // default lock); 63 levels would need ~4^63 primitives.
+                assert!(3 * depth < STACK, "BVH depth {depth} exceeds the stack");
+            }
+        }
+        Bvh {
+            nodes: wide,
+            root: boxes.iter().fold(Aabb::empty(), |a, b| a.union(*b)),
+            segs,
+            prims,
+        }
     }
 
     pub fn segments(&self) -> &[Segment] {
@@ -185,21 +207,59 @@ impl Bvh {
         if self.nodes.is_empty() {
             return None;
         }
-        let inv = V3::new(safe_inv(d.x), safe_inv(d.y), safe_inv(d.z));
-        let mut stack = [0u32; 128];
+        // The f32 slab tests run from the ray's entry into the root box (`shift` along the
+        // ray), so a far camera does not cost them precision; distances below are relative
+        // to it. Segment tests and hits stay in f64 from the true origin.
+        let inv64 = V3::new(safe_inv(d.x), safe_inv(d.y), safe_inv(d.z));
+        let shift = match self.root.enter(o, inv64, tmin, tmax) {
+            Some(t) => t.max(tmin),
+            None => return None,
+        };
+        let os = o + d * shift;
+        let of = [os.x as f32, os.y as f32, os.z as f32];
+        let inv = [inv64.x as f32, inv64.y as f32, inv64.z as f32];
+        let tmin32 = (tmin - shift) as f32 - PAD;
+        // Entry distance stored with each pushed node: popped nodes farther than the
+        // closest hit so far are skipped without touching their memory.
+        let mut stack = [(0u32, 0f32); STACK];
+        stack[0] = (0, tmin32);
         let mut sp = 1;
         let mut best: Option<Hit> = None;
         // The last segment tested (neighbouring pieces of one segment share leaves).
         let mut last = u32::MAX;
         while sp > 0 {
             sp -= 1;
-            let node = &self.nodes[stack[sp] as usize];
-            if node.bounds.hit(o, inv, tmin, tmax).is_none() {
+            let (ni, tentry) = stack[sp];
+            if f64::from(tentry) > tmax - shift {
                 continue;
             }
-            if node.count > 0 {
-                let first = node.index as usize;
-                for &si in &self.prims[first..first + node.count as usize] {
+            let node = &self.nodes[ni as usize];
+            let tmax32 = ((tmax - shift) as f32) * (1.0 + 1e-6) + PAD;
+            let (t0, hit) = node.slab(&of, &inv, tmin32, tmax32);
+            // Hit lanes sorted by entry distance (at most four: insertion sort).
+            let mut lanes = [0usize; 4];
+            let mut k = 0;
+            for lane in 0..node.n as usize {
+                if !hit[lane] {
+                    continue;
+                }
+                let mut j = k;
+                while j > 0 && t0[lanes[j - 1]] > t0[lane] {
+                    lanes[j] = lanes[j - 1];
+                    j -= 1;
+                }
+                lanes[j] = lane;
+                k += 1;
+            }
+            // Leaves first, nearest first (a hit shrinks tmax for the rest); interior
+            // children pushed farthest first so the nearest is popped next.
+            for &lane in &lanes[..k] {
+                let count = node.count[lane];
+                if count == 0 {
+                    continue;
+                }
+                let first = node.child[lane] as usize;
+                for &si in &self.prims[first..first + count as usize] {
                     if si == last {
                         continue;
                     }
@@ -217,32 +277,131 @@ impl Bvh {
                         }
                     }
                 }
-            } else {
-                let me = stack[sp] as usize;
-                let (l, r) = (me as u32 + 1, node.index);
-                let tl = self.nodes[l as usize].bounds.hit(o, inv, tmin, tmax);
-                let tr = self.nodes[r as usize].bounds.hit(o, inv, tmin, tmax);
-                match (tl, tr) {
-                    (Some(a), Some(b)) => {
-                        let (near, far) = if a <= b { (l, r) } else { (r, l) };
-                        stack[sp] = far;
-                        stack[sp + 1] = near;
-                        sp += 2;
-                    }
-                    (Some(_), None) => {
-                        stack[sp] = l;
-                        sp += 1;
-                    }
-                    (None, Some(_)) => {
-                        stack[sp] = r;
-                        sp += 1;
-                    }
-                    (None, None) => {}
+            }
+            for &lane in lanes[..k].iter().rev() {
+                if node.count[lane] == 0 {
+                    stack[sp] = (node.child[lane], t0[lane]);
+                    sp += 1;
                 }
             }
         }
         best
     }
+}
+
+impl Node4 {
+    fn empty() -> Node4 {
+        Node4 {
+            lo: [[f32::INFINITY; 4]; 3],
+            hi: [[f32::NEG_INFINITY; 4]; 3],
+            child: [0; 4],
+            count: [0; 4],
+            n: 0,
+        }
+    }
+
+    /// Store `b` in `lane` in f32, padded outward by [`PAD`].
+    fn set_lane(&mut self, lane: usize, b: &Aabb, child: u32, count: u32) {
+        for a in 0..3 {
+            self.lo[a][lane] = b.lo.axis(a) as f32 - PAD;
+            self.hi[a][lane] = b.hi.axis(a) as f32 + PAD;
+        }
+        self.child[lane] = child;
+        self.count[lane] = count;
+    }
+
+    /// Slab test of the four lanes: entry distances and hit flags (lanes >= `n` are
+    /// computed on empty boxes and ignored by the caller). Written lane-wise over fixed
+    /// arrays so it compiles to 4-wide SSE.
+    #[inline(always)]
+    fn slab(&self, o: &[f32; 3], inv: &[f32; 3], tmin: f32, tmax: f32) -> ([f32; 4], [bool; 4]) {
+        let mut t0 = [tmin; 4];
+        let mut t1 = [tmax; 4];
+        for a in 0..3 {
+            for l in 0..4 {
+                let x0 = (self.lo[a][l] - o[a]) * inv[a];
+                let x1 = (self.hi[a][l] - o[a]) * inv[a];
+                t0[l] = fmax32(t0[l], fmin32(x0, x1));
+                t1[l] = fmin32(t1[l], fmax32(x0, x1));
+            }
+        }
+        let mut hit = [false; 4];
+        for l in 0..4 {
+            hit[l] = t0[l] <= t1[l];
+        }
+        (t0, hit)
+    }
+}
+
+#[inline(always)]
+fn fmin32(a: f32, b: f32) -> f32 {
+    if a < b {
+        a
+    } else {
+        b
+    }
+}
+
+#[inline(always)]
+fn fmax32(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// `1 / x` with |x| clamped to >= 1e-30, so the reciprocal stays finite (<= 1e30) also
+/// in f32 and `0 * inv` is never NaN in a slab test.
+#[inline(always)]
+fn safe_inv(x: f64) -> f64 {
+    1.0 / if x.abs() < 1e-30 {
+        1e-30f64.copysign(x)
+    } else {
+        x
+    }
+}
+
+/// Collapse the binary subtree at interior node `i` into four-wide nodes appended to
+/// `out`; returns the index of the new node. Each wide node takes the binary node's two
+/// children and repeatedly opens the interior child of largest surface area until it has
+/// four lanes or only leaves. Returns the new node's index and the depth of its subtree
+/// counted from `depth` (the new node's own level).
+fn collapse(nodes: &[Node], i: usize, out: &mut Vec<Node4>, depth: usize) -> (u32, usize) {
+    let mut kids: Vec<usize> = vec![i + 1, nodes[i].index as usize];
+    while kids.len() < 4 {
+        let open = kids
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| nodes[c].count == 0)
+            .max_by(|a, b| {
+                nodes[*a.1]
+                    .bounds
+                    .area()
+                    .total_cmp(&nodes[*b.1].bounds.area())
+            })
+            .map(|(k, _)| k);
+        let Some(k) = open else { break };
+        let c = kids.swap_remove(k);
+        kids.push(c + 1);
+        kids.push(nodes[c].index as usize);
+    }
+    let me = out.len();
+    out.push(Node4::empty());
+    let mut node = Node4::empty();
+    node.n = kids.len() as u32;
+    let mut deepest = depth;
+    for (lane, &c) in kids.iter().enumerate() {
+        if nodes[c].count > 0 {
+            node.set_lane(lane, &nodes[c].bounds, nodes[c].index, nodes[c].count);
+        } else {
+            let (child, d) = collapse(nodes, c, out, depth + 1);
+            deepest = deepest.max(d);
+            node.set_lane(lane, &nodes[c].bounds, child, 0);
+        }
+    }
+    out[me] = node;
+    (me as u32, deepest)
 }
 
 fn build_rec(
@@ -445,5 +604,82 @@ mod tests {
         }
         // The test must exercise hits, not only misses.
         assert!(hits > 20, "{hits}");
+    }
+
+    /// A camera thousands of units away: the f32 traversal starts at the root box, so
+    /// distant origins lose no hits.
+    #[test]
+    fn bvh_matches_brute_force_from_far_away() {
+        let segs = build_lock(&StrandSpec {
+            fibers: 60,
+            ..Default::default()
+        });
+        let bvh = Bvh::build(segs.clone());
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
+        let mut hits = 0;
+        for _ in 0..3000 {
+            let target = V3::new(
+                rng.random::<f64>() * 0.6 - 0.3,
+                rng.random::<f64>() * 1.2 - 0.6,
+                rng.random::<f64>() * 0.2 - 0.1,
+            );
+            let d =
+                V3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, -1.0).normalized();
+            let o = target - d * 1e4;
+            let brute = segs
+                .iter()
+                .filter_map(|s| intersect_segment(s, o, d, 0.0, f64::INFINITY))
+                .map(|h| h.t)
+                .fold(f64::INFINITY, f64::min);
+            let got = bvh
+                .intersect(o, d, 0.0, f64::INFINITY, None)
+                .map_or(f64::INFINITY, |h| h.t);
+            assert_eq!(brute, got);
+            hits += usize::from(got.is_finite());
+        }
+        assert!(hits > 20, "{hits}");
+    }
+
+    /// Secondary and shadow rays start inside the lock and go anywhere: the f32 boxes must
+    /// stay conservative for every direction, including axis-aligned ones.
+    #[test]
+    fn bvh_matches_brute_force_from_inside_in_all_directions() {
+        let segs = build_lock(&StrandSpec {
+            fibers: 60,
+            ..Default::default()
+        });
+        let bvh = Bvh::build(segs.clone());
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(2);
+        let mut hits = 0;
+        for k in 0..4000 {
+            // Start on a segment's axis (where scattering vertices are), skipping its fiber.
+            let s = &segs[rng.random_range(0..segs.len())];
+            let o = s.a + (s.b - s.a) * rng.random::<f64>();
+            let d = if k % 8 == 0 {
+                // Axis-aligned: zero direction components exercise the reciprocal clamp.
+                let mut v = [0.0; 3];
+                v[k / 8 % 3] = if k % 16 == 0 { 1.0 } else { -1.0 };
+                V3::new(v[0], v[1], v[2])
+            } else {
+                let z: f64 = rng.random::<f64>() * 2.0 - 1.0;
+                let a = rng.random::<f64>() * std::f64::consts::TAU;
+                let r = (1.0 - z * z).sqrt();
+                V3::new(r * a.cos(), r * a.sin(), z)
+            };
+            let skip = Some(s.fiber);
+            let brute = segs
+                .iter()
+                .filter(|q| Some(q.fiber) != skip)
+                .filter_map(|q| intersect_segment(q, o, d, 1e-9, 1e9))
+                .map(|h| h.t)
+                .fold(f64::INFINITY, f64::min);
+            let got = bvh
+                .intersect(o, d, 1e-9, 1e9, skip)
+                .map_or(f64::INFINITY, |h| h.t);
+            assert_eq!(brute, got, "ray {k}");
+            assert_eq!(bvh.occluded(o, d, 1e-9, 1e9, skip), got.is_finite());
+            hits += usize::from(got.is_finite());
+        }
+        assert!(hits > 200, "{hits}");
     }
 }

@@ -11,7 +11,7 @@
 //! far field. `footprint_scale` multiplies every coverage (0 = near field everywhere,
 //! huge = far field everywhere) for tests and studies.
 
-use super::bsdf::{lobe_sum, FiberBsdf, Frame, HRange, LobeRgb, Mode, MIN_COS};
+use super::bsdf::{lobe_sum, FiberBsdf, Frame, HRange, LobeRgb, MisPrep, Mode, MIN_COS};
 use super::bvh::Bvh;
 use super::math::{luminance, Rgb, V3};
 use super::scene::{Camera, DirectionalLight, Environment};
@@ -50,11 +50,13 @@ fn power_heuristic(a: f64, b: f64) -> f64 {
     }
 }
 
-/// Where the last BCSDF sample came from, to compute its MIS pdf lazily on an env hit.
+/// Where the last BCSDF sample came from, to compute its MIS pdf on an env hit.
 struct PrevSample {
-    theta_o: f64,
     theta: f64,
     phi: f64,
+    /// The vertex's MIS state, if its environment sample already prepared it.
+    mis: Option<MisPrep>,
+    theta_o: f64,
     hr: HRange,
 }
 
@@ -94,7 +96,10 @@ impl Integrator<'_> {
                         None => 1.0,
                         Some(s) => {
                             let cos = s.theta.cos().max(MIN_COS);
-                            let pb = self.bsdf.pdf_mis(s.theta_o, s.theta, s.phi, s.hr) / cos;
+                            let mis = s
+                                .mis
+                                .unwrap_or_else(|| self.bsdf.mis_prepare(s.theta_o, s.hr));
+                            let pb = self.bsdf.pdf_mis_prepared(&mis, s.theta, s.phi) / cos;
                             power_heuristic(pb, p_env)
                         }
                     };
@@ -114,6 +119,7 @@ impl Integrator<'_> {
                 if depth == 0 { cos_look } else { 1.0 },
             );
             let skip_me = Some(hit.fiber);
+            let mut mis: Option<MisPrep> = None;
 
             // Next-event estimation: directional light.
             if let Some(light) = &self.light {
@@ -142,7 +148,8 @@ impl Integrator<'_> {
                     let mn = self.bsdf.eval(theta_o, tl, pl, hr);
                     if lobe_sum(&mn).iter().any(|v| *v > 0.0) {
                         let cos = tl.cos().max(MIN_COS);
-                        let pb = self.bsdf.pdf_mis(theta_o, tl, pl, hr) / cos;
+                        let mp = mis.get_or_insert_with(|| self.bsdf.mis_prepare(theta_o, hr));
+                        let pb = self.bsdf.pdf_mis_prepared(mp, tl, pl) / cos;
                         let w = power_heuristic(p_env, pb);
                         let le = self.env.radiance(ld);
                         let e = [0, 1, 2].map(|c| le[c] * thr[c] * w / (cos * p_env));
@@ -184,9 +191,10 @@ impl Integrator<'_> {
             origin = hit.p;
             skip = skip_me;
             prev = Some(PrevSample {
-                theta_o,
                 theta: s.theta,
                 phi: s.phi,
+                mis,
+                theta_o,
                 hr,
             });
             w0 = width;
