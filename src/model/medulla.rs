@@ -544,10 +544,19 @@ impl MedullaSlice {
         self.nodes.get_or_init(|| Arc::new(SliceNodes::new(self)))
     }
 
-    /// Normalised `C^N` shape (integrates to ~1 over psi), unclamped.
+    /// Normalised `C^N` shape (integrates to ~1 over psi), unclamped. Negative `x` reads
+    /// the table at `|x|` with `psi` flipped (mirror symmetry of the cross-section). The
+    /// sign test includes `-0.0`: the Monte-Carlo row at `x = 0` is even in `psi` only up
+    /// to noise, and the far field's node at `h = 0` must take its `h -> 0+` value in the
+    /// direct part and its `h -> 0-` value (flipped) in the mirrored part, or the far field
+    /// stops being even in `phi` (it was off by up to 1e-2 of the lobe peak).
     #[inline]
     fn cn_shape(&self, x: f64, psi: f64) -> f64 {
-        let (x, psi) = if x < 0.0 { (-x, -psi) } else { (x, psi) };
+        let (x, psi) = if x.is_sign_negative() {
+            (-x, -psi)
+        } else {
+            (x, psi)
+        };
         let t = &*self.cn;
         let (i, fi) = locate(&t.axes[2], x);
         let (c0, d, n) = t.last_axis();
@@ -564,7 +573,11 @@ impl MedullaSlice {
         if psi.is_nan() {
             return 0.0;
         }
-        let (xa, psi_a) = if x < 0.0 { (-x, -psi) } else { (x, psi) };
+        let (xa, psi_a) = if x.is_sign_negative() {
+            (-x, -psi)
+        } else {
+            (x, psi)
+        };
         let t = &*self.cn;
         let (i, fi) = locate(&t.axes[2], xa);
         let (c0, d, n) = t.last_axis();
@@ -712,14 +725,19 @@ impl CnProfile {
     /// [`Self::cn`] without the scattered fraction, as [`MedullaSlice::cn_shape_clamped`].
     #[inline]
     pub fn shape_clamped(&self, psi: f64) -> f64 {
-        self.at(if self.x < 0.0 { -psi } else { psi })
+        self.at(if self.x.is_sign_negative() { -psi } else { psi })
     }
 
     /// [`Self::cn_mirror`] without the scattered fraction.
     #[inline]
     pub fn shape_clamped_mirror(&self, psi: f64) -> f64 {
-        // Same rule as a query at `-x` (so `x = 0` is not flipped either way).
-        self.at(if -self.x < 0.0 { -psi } else { psi })
+        // Same rule as a query at `-x`: at `x = +0` the mirror is `-0`, the `h -> 0-`
+        // limit, and flips (see `MedullaSlice::cn_shape`).
+        self.at(if (-self.x).is_sign_negative() {
+            -psi
+        } else {
+            psi
+        })
     }
 
     #[inline]
@@ -886,13 +904,13 @@ impl MedullaSampler {
         let (i, f) = locate(&self.x_axis, x.abs());
         let comps = [(1.0 - f, &self.cn[i]), (f, &self.cn[i + 1])];
         let (psi, pdf) = Self::sample_mixture(&comps, &self.psi_knots, u, (-PI, PI));
-        (if x < 0.0 { -psi } else { psi }, pdf)
+        (if x.is_sign_negative() { -psi } else { psi }, pdf)
     }
 
     /// The pdf [`Self::sample_cn`] samples, at `psi`.
     pub fn pdf_cn(&self, x: f64, psi: f64) -> f64 {
         let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
-        let psi = wrap_pi(if x < 0.0 { -psi } else { psi });
+        let psi = wrap_pi(if x.is_sign_negative() { -psi } else { psi });
         let (i, f) = locate(&self.x_axis, x.abs());
         let comps = [(1.0 - f, &self.cn[i]), (f, &self.cn[i + 1])];
         let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();

@@ -522,3 +522,36 @@ fn strict_step_at_tight_tolerance_is_not_capped() {
     let e = max_rel_err(&m, 0.0, &opts, 48);
     assert!(e.iter().all(|&x| x <= 1e-4), "{e:?}");
 }
+
+/// The far field is even in `phi` (the `h -> -h` mirror): `A_p(-h) = A_p(h)`,
+/// `Phi_p(-h) = -Phi_p(h)` and `C^N(-x, psi) = C^N(x, -psi)`. The engine adds each segment
+/// at `phi` and `-phi`, so it must be even to rounding in every mode, scattered lobes
+/// included: the `h = 0` node once read the table's `x = 0` row unflipped on both sides,
+/// and that row is even only up to Monte-Carlo noise (up to 1e-2 of the peak, paper mode).
+/// Tolerance 1e-12 of the peak: the two sides add the same terms in another order.
+#[test]
+fn far_field_is_even_in_phi() {
+    for name in ["red-fox", "human", "dog", "mouse"] {
+        let m = FurModel::new(&FurParams::preset(name).unwrap());
+        for opts in [FarOptions::default(), FarOptions::paper()] {
+            for td in [0.0f64, 0.3, 0.9, 1.4] {
+                let fs = m.azimuthal(td).far_slice(LobeSet::ALL, &opts);
+                let phis: Vec<f64> = (0..=45).map(|k| k as f64 * 4f64.to_radians()).collect();
+                let pos: Vec<LobeValues> = phis.iter().map(|&p| fs.eval(p)).collect();
+                let neg: Vec<LobeValues> = phis.iter().map(|&p| fs.eval(-p)).collect();
+                for l in Lobe::ALL {
+                    let peak = pos.iter().map(|v| v.get(l)).fold(0.0, f64::max);
+                    for (k, (a, b)) in pos.iter().zip(&neg).enumerate() {
+                        assert!(
+                            (a.get(l) - b.get(l)).abs() <= 1e-12 * peak,
+                            "{name} td {td} {l:?} phi {:.1} deg: {} vs {}",
+                            phis[k].to_degrees(),
+                            a.get(l),
+                            b.get(l)
+                        );
+                    }
+                }
+            }
+        }
+    }
+}
