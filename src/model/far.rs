@@ -49,9 +49,8 @@ pub struct FarOptions {
 pub const SCATTERED_STEP: f64 = 0.15;
 /// [`FarOptions::scattered_step`] at which the scattered lobes meet the tolerance mode's
 /// 1e-4 of the peak on the tests' random set, presets and stiff cases
-/// (`tol_mode_strict_step_meets_1e_4`: 6.7e-5 at most, human's TTs; 4x this step left
-/// 2.8e-4 there). Not everywhere: the stability sweep's adversarial corners (kappa -> 0 or
-/// -> 1, eta -> 1) keep 4e-4 to 3e-3 from other sources (`reports/stability.md`).
+/// (`tol_mode_strict_step_meets_1e_4`). Not everywhere: in the stability sweep kappa -> 1
+/// keeps 3.0e-4 (`reports/stability.md`, strict column).
 pub const SCATTERED_STEP_STRICT: f64 = 0.001;
 
 impl Default for FarOptions {
