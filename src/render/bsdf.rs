@@ -468,16 +468,12 @@ impl FiberBsdf {
     /// pdf twice per vertex (environment sample, escaped continuation) with the same
     /// `theta_o` and footprint, so it prepares once.
     pub fn mis_prepare(&self, theta_o: f64, hr: HRange) -> MisPrep {
-        let hs = match hr {
-            HRange::At(h) => [h; MIS_POINTS],
-            HRange::Span(h1, h2) => {
-                std::array::from_fn(|k| h1 + (k as f64 + 0.5) / MIS_POINTS as f64 * (h2 - h1))
-            }
-        };
-        let n = if matches!(hr, HRange::At(_)) {
-            1
-        } else {
-            MIS_POINTS
+        let (hs, n) = match hr {
+            HRange::At(h) => ([h; MIS_POINTS], 1),
+            HRange::Span(h1, h2) => (
+                std::array::from_fn(|k| h1 + (k as f64 + 0.5) / MIS_POINTS as f64 * (h2 - h1)),
+                MIS_POINTS,
+            ),
         };
         let long = self.prepare_long(theta_o);
         MisPrep {

@@ -175,7 +175,8 @@ impl Bvh {
         }
         Bvh {
             nodes: wide,
-            root: boxes.iter().fold(Aabb::empty(), |a, b| a.union(*b)),
+            // The binary root's bounds are the union of every piece box.
+            root: nodes.first().map_or(Aabb::empty(), |n| n.bounds),
             segs,
             prims,
         }
@@ -548,6 +549,25 @@ mod tests {
     use crate::render::scene::{build_lock, StrandSpec};
     use rand::{Rng, SeedableRng};
 
+    /// A 60-fiber lock and its BVH.
+    fn small_lock() -> (Vec<Segment>, Bvh) {
+        let segs = build_lock(&StrandSpec {
+            fibers: 60,
+            ..Default::default()
+        });
+        let bvh = Bvh::build(segs.clone());
+        (segs, bvh)
+    }
+
+    /// Closest hit distance by testing every segment (infinite on a miss).
+    fn brute_t(segs: &[Segment], o: V3, d: V3, tmin: f64, tmax: f64, skip: Option<u32>) -> f64 {
+        segs.iter()
+            .filter(|q| Some(q.fiber) != skip)
+            .filter_map(|q| intersect_segment(q, o, d, tmin, tmax))
+            .map(|h| h.t)
+            .fold(f64::INFINITY, f64::min)
+    }
+
     #[test]
     fn ribbon_offset_is_signed_distance_over_radius() {
         // Fiber along +y through the origin, ray along -z at x = 0.5 r.
@@ -569,11 +589,7 @@ mod tests {
 
     #[test]
     fn bvh_matches_brute_force() {
-        let segs = build_lock(&StrandSpec {
-            fibers: 60,
-            ..Default::default()
-        });
-        let bvh = Bvh::build(segs.clone());
+        let (segs, bvh) = small_lock();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(1);
         let mut hits = 0;
         for _ in 0..3000 {
@@ -588,11 +604,7 @@ mod tests {
                 -1.0,
             )
             .normalized();
-            let brute = segs
-                .iter()
-                .filter_map(|s| intersect_segment(s, o, d, 0.0, 1e9))
-                .map(|h| h.t)
-                .fold(f64::INFINITY, f64::min);
+            let brute = brute_t(&segs, o, d, 0.0, 1e9, None);
             let got = bvh
                 .intersect(o, d, 0.0, 1e9, None)
                 .map_or(f64::INFINITY, |h| h.t);
@@ -610,11 +622,7 @@ mod tests {
     /// distant origins lose no hits.
     #[test]
     fn bvh_matches_brute_force_from_far_away() {
-        let segs = build_lock(&StrandSpec {
-            fibers: 60,
-            ..Default::default()
-        });
-        let bvh = Bvh::build(segs.clone());
+        let (segs, bvh) = small_lock();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(3);
         let mut hits = 0;
         for _ in 0..3000 {
@@ -626,11 +634,7 @@ mod tests {
             let d =
                 V3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, -1.0).normalized();
             let o = target - d * 1e4;
-            let brute = segs
-                .iter()
-                .filter_map(|s| intersect_segment(s, o, d, 0.0, f64::INFINITY))
-                .map(|h| h.t)
-                .fold(f64::INFINITY, f64::min);
+            let brute = brute_t(&segs, o, d, 0.0, f64::INFINITY, None);
             let got = bvh
                 .intersect(o, d, 0.0, f64::INFINITY, None)
                 .map_or(f64::INFINITY, |h| h.t);
@@ -644,11 +648,7 @@ mod tests {
     /// stay conservative for every direction, including axis-aligned ones.
     #[test]
     fn bvh_matches_brute_force_from_inside_in_all_directions() {
-        let segs = build_lock(&StrandSpec {
-            fibers: 60,
-            ..Default::default()
-        });
-        let bvh = Bvh::build(segs.clone());
+        let (segs, bvh) = small_lock();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(2);
         let mut hits = 0;
         for k in 0..4000 {
@@ -667,12 +667,7 @@ mod tests {
                 V3::new(r * a.cos(), r * a.sin(), z)
             };
             let skip = Some(s.fiber);
-            let brute = segs
-                .iter()
-                .filter(|q| Some(q.fiber) != skip)
-                .filter_map(|q| intersect_segment(q, o, d, 1e-9, 1e9))
-                .map(|h| h.t)
-                .fold(f64::INFINITY, f64::min);
+            let brute = brute_t(&segs, o, d, 1e-9, 1e9, skip);
             let got = bvh
                 .intersect(o, d, 1e-9, 1e9, skip)
                 .map_or(f64::INFINITY, |h| h.t);
