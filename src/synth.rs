@@ -8,6 +8,7 @@
 //! `(theta_i, theta_r)` pair once, then combines: a `theta_i x theta_r x phi` grid costs far
 //! less than one full evaluation per sample. Results do not depend on the thread count.
 
+use crate::model::azimuthal::wrap_angle;
 use crate::model::far::FarOptions;
 use crate::model::geometry::theta_d;
 use crate::model::medulla::front_back_lerp;
@@ -77,11 +78,12 @@ pub fn predict_with(
 
 /// The grid structure of a list of goniometer points, found once and reused for every
 /// parameter set (the fitter evaluates the same points hundreds of times): the distinct
-/// `theta_d` values with their distinct `phi`, and the distinct `(theta_i, theta_r)` pairs.
+/// `theta_d` values with their distinct `|phi|` (wrapped to `[0, pi]`), and the distinct
+/// `(theta_i, theta_r)` pairs.
 #[derive(Clone, Debug, Default)]
 pub struct GridPlan {
     points: Vec<(f64, f64, f64)>,
-    /// Per distinct `theta_d`: the value and its distinct `phi` values.
+    /// Per distinct `theta_d`: the value and its distinct `|phi|` values.
     groups: Vec<(f64, Vec<f64>)>,
     /// Per point: (group, index of its `phi` in the group).
     where_n: Vec<(usize, usize)>,
@@ -106,8 +108,11 @@ impl GridPlan {
                 phi_index.push(HashMap::new());
                 plan.groups.len() - 1
             });
-            let k = *phi_index[g].entry(phi.to_bits()).or_insert_with(|| {
-                plan.groups[g].1.push(phi);
+            // N_p is even and 2 pi-periodic in phi (far_field_is_even_in_phi), so phi and
+            // -phi share one evaluation: a symmetric grid costs half.
+            let phi_n = wrap_angle(phi).abs();
+            let k = *phi_index[g].entry(phi_n.to_bits()).or_insert_with(|| {
+                plan.groups[g].1.push(phi_n);
                 plan.groups[g].1.len() - 1
             });
             plan.where_n.push((g, k));
@@ -329,7 +334,8 @@ mod tests {
         let mut pts = Vec::new();
         for ti in [0.0f64, 30.0] {
             for tr in [-20.0f64, 10.0, 40.0] {
-                for phi in [-170.0f64, -30.0, 0.0, 90.0, 180.0] {
+                // Negative and out-of-range phi exercise the plan's fold to |wrapped phi|.
+                for phi in [-180.0f64, -170.0, -30.0, 0.0, 30.0, 90.0, 180.0, 200.0] {
                     pts.push((ti.to_radians(), tr.to_radians(), phi.to_radians()));
                 }
             }
