@@ -54,7 +54,8 @@ struct Node {
 
 /// Four-wide node of the traversal tree, collapsed from the binary SAH tree: the boxes of
 /// up to four children in single precision, laid out axis-major so the slab test of all
-/// four is a handful of 4-lane operations, and a node fills two cache lines. Boxes are
+/// four is a handful of 4-lane operations, and a node is exactly two cache lines (unused
+/// lanes hold a box at +infinity, which no ray enters, so no lane count is stored). Boxes are
 /// rounded outward (see [`PAD`]), so they stay conservative: the final segment test is in
 /// f64 and hits are exactly those of a brute-force loop.
 #[derive(Clone, Copy, Debug)]
@@ -65,11 +66,11 @@ struct Node4 {
     hi: [[f32; 4]; 3],
     /// Interior child: its node index; leaf child: first primitive index.
     child: [u32; 4],
-    /// Primitives of a leaf child; 0 for an interior child.
+    /// Primitives of a leaf child; 0 for an interior child and for an unused lane.
     count: [u32; 4],
-    /// Lanes in use (1..=4).
-    n: u32,
 }
+
+const _: () = assert!(std::mem::size_of::<Node4>() == 128);
 
 /// Outward padding of the single-precision boxes (world units). The lock spans a couple of
 /// units around the origin and traversal starts rays at the root box (see
@@ -164,7 +165,6 @@ impl Bvh {
                 // The whole tree is one leaf: a root with one leaf lane.
                 let mut root = Node4::empty();
                 root.set_lane(0, &nodes[0].bounds, nodes[0].index, nodes[0].count);
-                root.n = 1;
                 wide.push(root);
             } else {
                 let (_, depth) = collapse(&nodes, 0, &mut wide, 1);
@@ -235,12 +235,13 @@ impl Bvh {
                 continue;
             }
             let node = &self.nodes[ni as usize];
-            let tmax32 = ((tmax - shift) as f32) * (1.0 + 1e-6) + PAD;
+            // Finite, so an unused lane's box at +infinity is never entered.
+            let tmax32 = (((tmax - shift) as f32) * (1.0 + 1e-6) + PAD).min(f32::MAX);
             let (t0, hit) = node.slab(&of, &inv, tmin32, tmax32);
             // Hit lanes sorted by entry distance (at most four: insertion sort).
             let mut lanes = [0usize; 4];
             let mut k = 0;
-            for lane in 0..node.n as usize {
+            for lane in 0..4 {
                 if !hit[lane] {
                     continue;
                 }
@@ -293,11 +294,12 @@ impl Bvh {
 impl Node4 {
     fn empty() -> Node4 {
         Node4 {
+            // A point at +infinity: every slab gives +inf or -inf for both planes, so
+            // the lane misses any ray whose tmax is finite (traverse clamps it).
             lo: [[f32::INFINITY; 4]; 3],
-            hi: [[f32::NEG_INFINITY; 4]; 3],
+            hi: [[f32::INFINITY; 4]; 3],
             child: [0; 4],
             count: [0; 4],
-            n: 0,
         }
     }
 
@@ -311,8 +313,8 @@ impl Node4 {
         self.count[lane] = count;
     }
 
-    /// Slab test of the four lanes: entry distances and hit flags (lanes >= `n` are
-    /// computed on empty boxes and ignored by the caller). Written lane-wise over fixed
+    /// Slab test of the four lanes: entry distances and hit flags (an unused lane's box at
+    /// +infinity never hits while `tmax` is finite). Written lane-wise over fixed
     /// arrays so it compiles to 4-wide SSE.
     #[inline(always)]
     fn slab(&self, o: &[f32; 3], inv: &[f32; 3], tmin: f32, tmax: f32) -> ([f32; 4], [bool; 4]) {
@@ -390,7 +392,6 @@ fn collapse(nodes: &[Node], i: usize, out: &mut Vec<Node4>, depth: usize) -> (u3
     let me = out.len();
     out.push(Node4::empty());
     let mut node = Node4::empty();
-    node.n = kids.len() as u32;
     let mut deepest = depth;
     for (lane, &c) in kids.iter().enumerate() {
         if nodes[c].count > 0 {
@@ -616,6 +617,52 @@ mod tests {
         }
         // The test must exercise hits, not only misses.
         assert!(hits > 20, "{hits}");
+    }
+
+    /// Rays built to pass a segment's axis at `(1 - 1e-6)` of its radius (along the common
+    /// perpendicular, so that is exactly the closest approach `intersect_segment` tests),
+    /// from near and far and at every angle to the segment, including near-parallel ones:
+    /// the f32 boxes must keep every such grazing hit.
+    #[test]
+    fn bvh_keeps_grazing_hits() {
+        // Untapered copies of the lock's segments, so the grazing distance is also within
+        // 1e-6 of the pre-test's radius (the largest along the segment).
+        let segs: Vec<Segment> = small_lock()
+            .0
+            .into_iter()
+            .map(|s| Segment { rb: s.ra, ..s })
+            .collect();
+        let bvh = Bvh::build(segs.clone());
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
+        let mut checked = 0;
+        while checked < 4000 {
+            let s = &segs[rng.random_range(0..segs.len())];
+            let e = s.b - s.a;
+            let sp: f64 = rng.random_range(0.05..0.95);
+            let z: f64 = rng.random::<f64>() * 2.0 - 1.0;
+            let az = rng.random::<f64>() * std::f64::consts::TAU;
+            let d = V3::new(
+                (1.0 - z * z).sqrt() * az.cos(),
+                z,
+                (1.0 - z * z).sqrt() * az.sin(),
+            );
+            let n = e.cross(d);
+            if n.length() < 1e-3 * e.length() {
+                continue; // parallel: the ribbon has no width
+            }
+            let side = if rng.random::<bool>() { 1.0 } else { -1.0 };
+            let r = s.ra + (s.rb - s.ra) * sp;
+            let x = s.a + e * sp + n.normalized() * (side * r * (1.0 - 1e-6));
+            let o = x - d * 10f64.powf(rng.random_range(-2.0..3.0));
+            let brute = brute_t(&segs, o, d, 0.0, f64::INFINITY, None);
+            assert!(brute.is_finite(), "the constructed ray must hit");
+            let got = bvh
+                .intersect(o, d, 0.0, f64::INFINITY, None)
+                .map_or(f64::INFINITY, |h| h.t);
+            assert_eq!(brute, got);
+            assert!(bvh.occluded(o, d, 0.0, f64::INFINITY, None));
+            checked += 1;
+        }
     }
 
     /// A camera thousands of units away: the f32 traversal starts at the root box, so
