@@ -159,6 +159,18 @@ mod tests {
         adaptive_gk(f, &pts, 1e-13, 1e-300, 100_000).value
     }
 
+    /// A random quadratic positive on `[0, x]` (fitted densities are), or `None`.
+    fn positive_quadratic(rng: &mut impl rand::Rng, x: f64) -> Option<[f64; 3]> {
+        let c = [
+            rng.random_range(0.1..2.0),
+            rng.random_range(-2.0..2.0),
+            rng.random_range(-2.0..2.0),
+        ];
+        (0..=8)
+            .all(|k| poly(&c, x * k as f64 / 8.0) > 0.0)
+            .then_some(c)
+    }
+
     /// The low-order rules of the Gauss-Legendre branch (short segment under a wide
     /// Gaussian) against the adaptive reference, on random cases of that branch: 1e-12
     /// relative is three orders below the far field's own tolerance, so the saving costs
@@ -171,14 +183,9 @@ mod tests {
         while checked < 400 {
             let beta: f64 = rng.random_range(0.05..3.0);
             let x: f64 = rng.random_range(0.001..1.0) * beta;
-            let c = [
-                rng.random_range(0.1..2.0),
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-2.0..2.0),
-            ];
-            if (0..=8).any(|k| poly(&c, x * k as f64 / 8.0) <= 0.0) {
-                continue; // fitted densities are positive
-            }
+            let Some(c) = positive_quadratic(&mut rng, x) else {
+                continue;
+            };
             let l: f64 = rng.random_range(-3.0..3.0) / x.max(0.05);
             let m: f64 = rng.random_range(-2.0..2.0) * beta;
             let l0 = rng.random_range(-5.0..0.0);
@@ -206,14 +213,9 @@ mod tests {
         while checked < 3000 {
             let beta: f64 = 10f64.powf(rng.random_range(-2.7..0.5));
             let x: f64 = 10f64.powf(rng.random_range(-3.0..0.3));
-            let c = [
-                rng.random_range(0.1..2.0),
-                rng.random_range(-2.0..2.0),
-                rng.random_range(-2.0..2.0),
-            ];
-            if (0..=8).any(|k| poly(&c, x * k as f64 / 8.0) <= 0.0) {
-                continue; // fitted densities are positive
-            }
+            let Some(c) = positive_quadratic(&mut rng, x) else {
+                continue;
+            };
             let l: f64 = rng.random_range(-30.0..30.0);
             let m: f64 = x * rng.random_range(-0.5..1.5) + beta * rng.random_range(-6.0..6.0);
             let l0 = rng.random_range(-5.0..0.0);

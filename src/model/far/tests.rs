@@ -443,6 +443,40 @@ fn tol_mode_refinement_stays_bounded_at_eta_one_tiny_beta() {
     }
 }
 
+/// Far-field slices for the batch-evaluation tests: 24 random parameter sets (`kappa`
+/// cycling through 0, 0.5, 0.9 and `beta_n` through 0.1..90 deg, so windows range from a
+/// sliver to all images) at a random `theta_d`, both segmentations, the far field and a
+/// multi-scale range; `f` gets a description and the slice.
+fn for_random_slices(seed: u64, mut f: impl FnMut(&str, &FarSlice)) {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    for case in 0..24 {
+        let v = random_params(&mut rng, case);
+        let m = FurModel::new(&params(v));
+        let az = m.azimuthal(rng.random_range(-1.5..1.5));
+        for opts in [FarOptions::paper(), FarOptions::default()] {
+            for (h1, h2) in [(-1.0, 1.0), (-0.2, 0.9)] {
+                let slice = FarSlice::range(&az, h1, h2, LobeSet::ALL, &opts);
+                f(&format!("case {case} {v:?} h {h1}..{h2}"), &slice);
+            }
+        }
+    }
+}
+
+fn random_params(rng: &mut Xoshiro256PlusPlus, case: usize) -> [f64; 10] {
+    [
+        rng.random_range(1.05..2.5),
+        [0.0, 0.5, 0.9][case % 3],
+        rng.random_range(-10.0..10.0),
+        rng.random_range(2.0..20.0),
+        [0.1, 2.0, 15.0, 60.0, 90.0][case % 5],
+        rng.random_range(0.0..3.0),
+        rng.random_range(0.0..5.0),
+        rng.random_range(0.0..2.0),
+        rng.random_range(-0.8..0.8),
+        rng.random_range(0.3..5.0),
+    ]
+}
+
 /// The batch evaluation over a grid of `phi` is a reordering of the loops only: it must
 /// equal per-`phi` evaluation exactly, for random parameters (narrow to very wide
 /// `beta_n`, so windows from a sliver to all images), both segmentations, far field and a
@@ -455,31 +489,12 @@ fn eval_many_equals_eval_exactly() {
         .collect();
     phis.extend([PI, -PI, 3.5 * PI, -7.0, 0.0, 0.0, 1e-300]);
     phis.extend((0..40).map(|_| rng.random_range(-4.0..4.0)));
-    for case in 0..24 {
-        let v = [
-            rng.random_range(1.05..2.5),
-            [0.0, 0.5, 0.9][case % 3],
-            rng.random_range(-10.0..10.0),
-            rng.random_range(2.0..20.0),
-            [0.1, 2.0, 15.0, 60.0, 90.0][case % 5],
-            rng.random_range(0.0..3.0),
-            rng.random_range(0.0..5.0),
-            rng.random_range(0.0..2.0),
-            rng.random_range(-0.8..0.8),
-            rng.random_range(0.3..5.0),
-        ];
-        let m = FurModel::new(&params(v));
-        let az = m.azimuthal(rng.random_range(-1.5..1.5));
-        for opts in [FarOptions::paper(), FarOptions::default()] {
-            for (h1, h2) in [(-1.0, 1.0), (-0.2, 0.9)] {
-                let slice = FarSlice::range(&az, h1, h2, LobeSet::ALL, &opts);
-                let many = slice.eval_many(&phis);
-                for (&phi, b) in phis.iter().zip(&many) {
-                    assert_eq!(slice.eval(phi), *b, "case {case} {v:?} phi {phi}");
-                }
-            }
+    for_random_slices(7, |what, slice| {
+        let many = slice.eval_many(&phis);
+        for (&phi, b) in phis.iter().zip(&many) {
+            assert_eq!(slice.eval(phi), *b, "{what} phi {phi}");
         }
-    }
+    });
 }
 
 /// On an evenly spaced `phi` grid `eval_many` sweeps the quadrature-node pieces with a
@@ -489,7 +504,6 @@ fn eval_many_equals_eval_exactly() {
 /// `eval_many_equals_eval_exactly` and grids fine and coarse, full and half circle.
 #[test]
 fn eval_many_on_even_grids_matches_eval() {
-    let mut rng = Xoshiro256PlusPlus::seed_from_u64(8);
     let grids: Vec<Vec<f64>> = [(0.0, 180.0, 2.0), (-180.0, 179.5, 0.5), (1.0, 179.0, 4.0)]
         .iter()
         .map(|&(a, b, d): &(f64, f64, f64)| {
@@ -497,43 +511,24 @@ fn eval_many_on_even_grids_matches_eval() {
             (0..n).map(|k| (a + d * k as f64).to_radians()).collect()
         })
         .collect();
-    for case in 0..24 {
-        let v = [
-            rng.random_range(1.05..2.5),
-            [0.0, 0.5, 0.9][case % 3],
-            rng.random_range(-10.0..10.0),
-            rng.random_range(2.0..20.0),
-            [0.1, 2.0, 15.0, 60.0, 90.0][case % 5],
-            rng.random_range(0.0..3.0),
-            rng.random_range(0.0..5.0),
-            rng.random_range(0.0..2.0),
-            rng.random_range(-0.8..0.8),
-            rng.random_range(0.3..5.0),
-        ];
-        let m = FurModel::new(&params(v));
-        let az = m.azimuthal(rng.random_range(-1.5..1.5));
-        for opts in [FarOptions::paper(), FarOptions::default()] {
-            for (h1, h2) in [(-1.0, 1.0), (-0.2, 0.9)] {
-                let slice = FarSlice::range(&az, h1, h2, LobeSet::ALL, &opts);
-                for phis in &grids {
-                    let many = slice.eval_many(phis);
-                    let one: Vec<LobeValues> = phis.iter().map(|&p| slice.eval(p)).collect();
-                    for l in Lobe::ALL {
-                        let peak = one.iter().map(|x| x.get(l)).fold(0.0, f64::max);
-                        for (k, (a, b)) in one.iter().zip(&many).enumerate() {
-                            assert!(
-                                (a.get(l) - b.get(l)).abs() <= 1e-12 * peak,
-                                "case {case} {v:?} {l:?} phi {}: {} vs {}",
-                                phis[k],
-                                a.get(l),
-                                b.get(l)
-                            );
-                        }
-                    }
+    for_random_slices(8, |what, slice| {
+        for phis in &grids {
+            let many = slice.eval_many(phis);
+            let one: Vec<LobeValues> = phis.iter().map(|&p| slice.eval(p)).collect();
+            for l in Lobe::ALL {
+                let peak = one.iter().map(|x| x.get(l)).fold(0.0, f64::max);
+                for (k, (a, b)) in one.iter().zip(&many).enumerate() {
+                    assert!(
+                        (a.get(l) - b.get(l)).abs() <= 1e-12 * peak,
+                        "{what} {l:?} phi {}: {} vs {}",
+                        phis[k],
+                        a.get(l),
+                        b.get(l)
+                    );
                 }
             }
         }
-    }
+    });
 }
 
 /// The strict scattered step meets the tolerance mode's 1e-4 of the peak for every lobe:
