@@ -144,7 +144,12 @@ fn locate(axis: &[f64], v: f64) -> (usize, f64) {
 /// Periodic location of `psi` among `n` uniform bin centres starting at `c0` (step `d`).
 #[inline]
 fn locate_periodic(c0: f64, d: f64, n: usize, psi: f64) -> (usize, usize, f64) {
-    let u = (psi - c0) / d;
+    locate_periodic_u((psi - c0) / d, n)
+}
+
+/// [`locate_periodic`] from the position `u` in bins.
+#[inline]
+fn locate_periodic_u(u: f64, n: usize) -> (usize, usize, f64) {
     // floor by truncation and a correction, and the wrap by at most one period for the
     // wrapped angles every caller passes: this runs per (node, phi) in the far field's
     // scattered sum, where a libm floor call and two integer divisions were a tenth of
@@ -755,6 +760,35 @@ impl CnProfile {
         } else {
             psi
         })
+    }
+
+    /// [`Self::shape_clamped`] (or [`Self::shape_clamped_mirror`]) at `psi0 + q dpsi` for
+    /// `q` in `0..n`, passed to `f(q, value)`. The table is `2 pi`-periodic, so no point is
+    /// wrapped, and each bin position is one multiply-add from the first instead of a
+    /// wrap and a division: the positions agree with per-point queries to ~1e-14 of a bin.
+    pub fn shape_on_grid(
+        &self,
+        mirror: bool,
+        psi0: f64,
+        dpsi: f64,
+        n: usize,
+        mut f: impl FnMut(usize, f64),
+    ) {
+        let x = if mirror { -self.x } else { self.x };
+        let (p0, dp) = if x.is_sign_negative() {
+            (-psi0, -dpsi)
+        } else {
+            (psi0, dpsi)
+        };
+        let (u0, du) = ((p0 - self.c0) / self.d, dp / self.d);
+        let m = self.shape.len();
+        for q in 0..n {
+            let (k0, k1, fr) = locate_periodic_u(u0 + q as f64 * du, m);
+            f(
+                q,
+                (self.shape[k0] + fr * (self.shape[k1] - self.shape[k0])).max(0.0),
+            );
+        }
     }
 
     #[inline]

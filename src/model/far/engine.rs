@@ -981,8 +981,15 @@ impl<'a> FarSlice<'a> {
                     }
                 }
             }
-            for (o, &phi) in out.iter_mut().zip(&wrapped) {
-                self.add_scattered(part, phi, o);
+            match &grid {
+                Some(g) if self.scattered_tabulated(part) => {
+                    self.add_scattered_sweep(part, g, &order, &mut s, &mut out)
+                }
+                _ => {
+                    for (o, &phi) in out.iter_mut().zip(&wrapped) {
+                        self.add_scattered(part, phi, o);
+                    }
+                }
             }
         }
         out.into_iter()
@@ -1073,6 +1080,64 @@ impl<'a> FarSlice<'a> {
                 s += node.w * sh;
             }
             out.0[3 + k] += self.weight * s;
+        }
+    }
+
+    /// Whether every scattered node of `part` has its `C^N` profile tabulated.
+    fn scattered_tabulated(&self, part: &Part) -> bool {
+        self.az.model.medulla().is_some()
+            && part
+                .scat
+                .iter()
+                .flat_map(|sn| &sn.nodes)
+                .all(|n| n.prof.is_some())
+    }
+
+    /// [`Self::add_scattered`] for every `phi` of an evenly spaced sorted grid (`out`
+    /// indexed through `order`, `s` scratch of the grid's length): each node's tabulated
+    /// profile is read along the grid ([`CnProfile::shape_on_grid`]). Per `phi` the nodes
+    /// are summed in the same order as `add_scattered`.
+    fn add_scattered_sweep(
+        &self,
+        part: &Part,
+        g: &UniformGrid,
+        order: &[usize],
+        s: &mut [f64],
+        out: &mut [LobeValues],
+    ) {
+        let n = order.len();
+        let mut direct = vec![0.0; n];
+        for k in 0..2 {
+            s.iter_mut().for_each(|x| *x = 0.0);
+            for node in &part.scat[k].nodes {
+                let pr = node.prof.as_ref().expect("tabulated (scattered_tabulated)");
+                // P_s is even in x and folded into `w`; direct at phi - node.phi, mirror
+                // at phi + node.phi (periodic: no wrap needed).
+                match (part.direct, part.mirror) {
+                    (true, true) => {
+                        pr.shape_on_grid(false, g.first - node.phi, g.step, n, |q, v| {
+                            direct[q] = v
+                        });
+                        pr.shape_on_grid(true, g.first + node.phi, g.step, n, |q, v| {
+                            s[q] += node.w * (direct[q] + v)
+                        });
+                    }
+                    (true, false) => {
+                        pr.shape_on_grid(false, g.first - node.phi, g.step, n, |q, v| {
+                            s[q] += node.w * v
+                        });
+                    }
+                    (false, true) => {
+                        pr.shape_on_grid(true, g.first + node.phi, g.step, n, |q, v| {
+                            s[q] += node.w * v
+                        });
+                    }
+                    (false, false) => {}
+                }
+            }
+            for (q, &i) in order.iter().enumerate() {
+                out[i].0[3 + k] += self.weight * s[q];
+            }
         }
     }
 

@@ -500,8 +500,9 @@ fn eval_many_equals_eval_exactly() {
 /// On an evenly spaced `phi` grid `eval_many` sweeps the quadrature-node pieces with a
 /// Gaussian recurrence instead of one exponential per `phi`: it must still match per-`phi`
 /// evaluation, to 1e-12 of each lobe's peak (the recurrence drifts by ~n eps and drops
-/// node terms below e^-36 of their peak), on the random parameters of
-/// `eval_many_equals_eval_exactly` and grids fine and coarse, full and half circle.
+/// node terms below e^-36 of their peak), and with tabulated `C^N` profiles it reads them
+/// along the grid; on the random slices of `eval_many_equals_eval_exactly` and grids fine
+/// and coarse, full and half circle.
 #[test]
 fn eval_many_on_even_grids_matches_eval() {
     let grids: Vec<Vec<f64>> = [(0.0, 180.0, 2.0), (-180.0, 179.5, 0.5), (1.0, 179.0, 4.0)]
@@ -512,7 +513,14 @@ fn eval_many_on_even_grids_matches_eval() {
         })
         .collect();
     for_random_slices(8, |what, slice| {
-        for phis in &grids {
+        // Also with the scattered nodes' C^N tabulated (what grid synthesis does), which
+        // the even-grid path reads along the grid.
+        let mut tabulated = slice.clone();
+        tabulated.tabulate_scattered();
+        for (slice, phis) in [slice, &tabulated]
+            .into_iter()
+            .flat_map(|sl| grids.iter().map(move |g| (sl, g)))
+        {
             let many = slice.eval_many(phis);
             let one: Vec<LobeValues> = phis.iter().map(|&p| slice.eval(p)).collect();
             for l in Lobe::ALL {
