@@ -890,6 +890,8 @@ impl<'a> FarSlice<'a> {
         let sorted: Vec<f64> = order.iter().map(|&i| wrapped[i]).collect();
         let grid = UniformGrid::detect(&sorted);
         let mut out = vec![LobeValues::default(); phis.len()];
+        // Per-lobe sums in sorted order (contiguous for the sweeps), added to `out` through
+        // `order`; each phi's terms are added in the same order as by `eval`.
         let mut s = vec![0.0; phis.len()];
         for part in &self.parts {
             for p in 0..3 {
@@ -908,8 +910,7 @@ impl<'a> FarSlice<'a> {
                         let width = hi - lo + 2.0 * w + 2.0 * WINDOW_SLACK;
                         let visit = |a: usize, b: usize, s: &mut [f64]| {
                             for q in a..b {
-                                let i = order[q];
-                                self.add_piece(pc, sign * sorted[q], beta, w, &mut s[i]);
+                                self.add_piece(pc, sign * sorted[q], beta, w, &mut s[q]);
                             }
                         };
                         // Quadrature-node pieces on an evenly spaced grid: the Gaussian of
@@ -938,7 +939,7 @@ impl<'a> FarSlice<'a> {
                                             beta,
                                             w,
                                         };
-                                        g.gaussian_sweep(nodes, &at, &order, &mut s);
+                                        g.gaussian_sweep(nodes, &at, &mut s);
                                     }
                                 }
                                 None => visit(0, sorted.len(), &mut s),
@@ -968,16 +969,16 @@ impl<'a> FarSlice<'a> {
                                         beta,
                                         w,
                                     };
-                                    g.gaussian_sweep(nodes, &at, &order, &mut s);
+                                    g.gaussian_sweep(nodes, &at, &mut s);
                                 }
                                 None => visit(qa, qb, &mut s),
                             }
                         }
                     }
                 }
-                for (o, &si) in out.iter_mut().zip(&s) {
+                for (&i, &si) in order.iter().zip(&s) {
                     if si != 0.0 {
-                        o.0[p] += self.weight * si;
+                        out[i].0[p] += self.weight * si;
                     }
                 }
             }
@@ -1215,19 +1216,13 @@ impl UniformGrid {
             .then_some(UniformGrid { first, step })
     }
 
-    /// Add `sum_nodes wt G(ph - mu_q; beta)` to `s[order[q]]` for every `q` of the window
+    /// Add `sum_nodes wt G(ph - mu_q; beta)` to `s[q]` (sorted order) for every `q` of the window
     /// whose image `mu_q` lies within `w` of the node (beyond, a node's Gaussian is below
     /// `e^-36` of its peak, as [`FarSlice::add_piece`] would add). Along the grid
     /// `y_q = ph - mu_q` moves by `-sign * step`, so `G_{q+1} = G_q r_q` with
     /// `r_{q+1} = r_q exp(-step^2 / beta^2)`: two exponentials per run of [`SWEEP_RUN`]
     /// points instead of one per `phi`.
-    fn gaussian_sweep(
-        &self,
-        nodes: &[(f64, f64)],
-        at: &SweepWindow,
-        order: &[usize],
-        s: &mut [f64],
-    ) {
+    fn gaussian_sweep(&self, nodes: &[(f64, f64)], at: &SweepWindow, s: &mut [f64]) {
         let c = 0.5 / (at.beta * at.beta);
         let norm = 1.0 / (at.beta * TAU.sqrt());
         let d = at.sign * self.step;
@@ -1249,8 +1244,8 @@ impl UniformGrid {
                 let y = ph - mu;
                 let mut g = wt * norm * (-y * y * c).exp();
                 let mut r = ((2.0 * y * d - self.step * self.step) * c).exp();
-                for &i in &order[start..(start + SWEEP_RUN).min(q1)] {
-                    s[i] += g;
+                for x in &mut s[start..(start + SWEEP_RUN).min(q1)] {
+                    *x += g;
                     g *= r;
                     r *= damp;
                 }
