@@ -150,10 +150,10 @@ fn locate_periodic(c0: f64, d: f64, n: usize, psi: f64) -> (usize, usize, f64) {
 /// [`locate_periodic`] from the position `u` in bins.
 #[inline]
 fn locate_periodic_u(u: f64, n: usize) -> (usize, usize, f64) {
-    // floor by truncation and a correction, and the wrap by at most one period for the
-    // wrapped angles every caller passes: this runs per (node, phi) in the far field's
-    // scattered sum, where a libm floor call and two integer divisions were a tenth of
-    // the synthesis time.
+    // floor by truncation and a correction, and the wrap by one period when `u` is within
+    // a period of the table (wrapped angles, or grid positions a little beyond), else by
+    // a remainder: this runs per (node, phi) in the far field's scattered sum, where a
+    // libm floor call and two integer divisions were a tenth of the synthesis time.
     let mut k = u as i64;
     if k as f64 > u {
         k -= 1;
@@ -747,19 +747,27 @@ impl CnProfile {
     /// [`Self::cn`] without the scattered fraction, as [`MedullaSlice::cn_shape_clamped`].
     #[inline]
     pub fn shape_clamped(&self, psi: f64) -> f64 {
-        self.at(if self.x.is_sign_negative() { -psi } else { psi })
+        self.at(if self.flips(false) { -psi } else { psi })
     }
 
     /// [`Self::cn_mirror`] without the scattered fraction.
     #[inline]
     pub fn shape_clamped_mirror(&self, psi: f64) -> f64 {
-        // Same rule as a query at `-x`: at `x = +0` the mirror is `-0`, the `h -> 0-`
-        // limit, and flips (see `MedullaSlice::cn_shape`).
-        self.at(if (-self.x).is_sign_negative() {
-            -psi
-        } else {
-            psi
-        })
+        self.at(if self.flips(true) { -psi } else { psi })
+    }
+
+    /// Whether a query at `x` (or, `mirror`, at `-x`) reads the table with `psi` flipped:
+    /// the sign test of [`MedullaSlice::cn_shape`], so at `x = +0` the mirror is `-0`, the
+    /// `h -> 0-` limit, and flips.
+    #[inline]
+    fn flips(&self, mirror: bool) -> bool {
+        (if mirror { -self.x } else { self.x }).is_sign_negative()
+    }
+
+    /// The clamped linear interpolation at a located bin position.
+    #[inline]
+    fn lerp(&self, (k0, k1, f): (usize, usize, f64)) -> f64 {
+        (self.shape[k0] + f * (self.shape[k1] - self.shape[k0])).max(0.0)
     }
 
     /// [`Self::shape_clamped`] (or [`Self::shape_clamped_mirror`]) at `psi0 + q dpsi` for
@@ -774,8 +782,7 @@ impl CnProfile {
         n: usize,
         mut f: impl FnMut(usize, f64),
     ) {
-        let x = if mirror { -self.x } else { self.x };
-        let (p0, dp) = if x.is_sign_negative() {
+        let (p0, dp) = if self.flips(mirror) {
             (-psi0, -dpsi)
         } else {
             (psi0, dpsi)
@@ -783,11 +790,7 @@ impl CnProfile {
         let (u0, du) = ((p0 - self.c0) / self.d, dp / self.d);
         let m = self.shape.len();
         for q in 0..n {
-            let (k0, k1, fr) = locate_periodic_u(u0 + q as f64 * du, m);
-            f(
-                q,
-                (self.shape[k0] + fr * (self.shape[k1] - self.shape[k0])).max(0.0),
-            );
+            f(q, self.lerp(locate_periodic_u(u0 + q as f64 * du, m)));
         }
     }
 
@@ -796,8 +799,7 @@ impl CnProfile {
         if psi.is_nan() {
             return 0.0;
         }
-        let (k0, k1, f) = locate_periodic(self.c0, self.d, self.shape.len(), psi);
-        (self.shape[k0] + f * (self.shape[k1] - self.shape[k0])).max(0.0)
+        self.lerp(locate_periodic(self.c0, self.d, self.shape.len(), psi))
     }
 }
 
@@ -1104,8 +1106,13 @@ mod tests {
     fn cn_profile_matches_cn() {
         let s = MedullaTables::builtin().slice(3.0, 0.4);
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
-        for _ in 0..40 {
-            let x: f64 = rng.random_range(-1.0..1.0);
+        // +0 and -0 first: the h -> 0+ and h -> 0- limits read the x = 0 row unflipped
+        // and flipped, in the profile as in the point query.
+        let xs: Vec<f64> = [0.0, -0.0]
+            .into_iter()
+            .chain((0..40).map(|_| rng.random_range(-1.0..1.0)))
+            .collect();
+        for x in xs {
             let prof = s.cn_profile(x);
             let peak = (0..720)
                 .map(|k| s.cn(x, -PI + k as f64 * PI / 360.0))

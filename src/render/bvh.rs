@@ -569,6 +569,25 @@ mod tests {
             .fold(f64::INFINITY, f64::min)
     }
 
+    /// The BVH's closest hit equals the brute-force one and `occluded` agrees with it;
+    /// returns the hit distance (infinite on a miss).
+    fn check_ray(
+        segs: &[Segment],
+        bvh: &Bvh,
+        o: V3,
+        d: V3,
+        (tmin, tmax): (f64, f64),
+        skip: Option<u32>,
+    ) -> f64 {
+        let brute = brute_t(segs, o, d, tmin, tmax, skip);
+        let got = bvh
+            .intersect(o, d, tmin, tmax, skip)
+            .map_or(f64::INFINITY, |h| h.t);
+        assert_eq!(brute, got, "ray {o:?} {d:?}");
+        assert_eq!(bvh.occluded(o, d, tmin, tmax, skip), got.is_finite());
+        got
+    }
+
     #[test]
     fn ribbon_offset_is_signed_distance_over_radius() {
         // Fiber along +y through the origin, ray along -z at x = 0.5 r.
@@ -605,15 +624,8 @@ mod tests {
                 -1.0,
             )
             .normalized();
-            let brute = brute_t(&segs, o, d, 0.0, 1e9, None);
-            let got = bvh
-                .intersect(o, d, 0.0, 1e9, None)
-                .map_or(f64::INFINITY, |h| h.t);
-            assert_eq!(brute, got);
-            if got.is_finite() {
-                hits += 1;
-                assert!(bvh.occluded(o, d, 0.0, 1e9, None));
-            }
+            let got = check_ray(&segs, &bvh, o, d, (0.0, 1e9), None);
+            hits += usize::from(got.is_finite());
         }
         // The test must exercise hits, not only misses.
         assert!(hits > 20, "{hits}");
@@ -625,8 +637,9 @@ mod tests {
     /// the f32 boxes must keep every such grazing hit.
     #[test]
     fn bvh_keeps_grazing_hits() {
-        // Untapered copies of the lock's segments, so the grazing distance is also within
-        // 1e-6 of the pre-test's radius (the largest along the segment).
+        // Untapered copies of the lock's segments: the radius is the same all along, so
+        // the grazing distance is also within 1e-6 of the largest radius, which the piece
+        // boxes are built from.
         let segs: Vec<Segment> = small_lock()
             .0
             .into_iter()
@@ -654,13 +667,8 @@ mod tests {
             let r = s.ra + (s.rb - s.ra) * sp;
             let x = s.a + e * sp + n.normalized() * (side * r * (1.0 - 1e-6));
             let o = x - d * 10f64.powf(rng.random_range(-2.0..3.0));
-            let brute = brute_t(&segs, o, d, 0.0, f64::INFINITY, None);
-            assert!(brute.is_finite(), "the constructed ray must hit");
-            let got = bvh
-                .intersect(o, d, 0.0, f64::INFINITY, None)
-                .map_or(f64::INFINITY, |h| h.t);
-            assert_eq!(brute, got);
-            assert!(bvh.occluded(o, d, 0.0, f64::INFINITY, None));
+            let got = check_ray(&segs, &bvh, o, d, (0.0, f64::INFINITY), None);
+            assert!(got.is_finite(), "the constructed ray must hit");
             checked += 1;
         }
     }
@@ -681,11 +689,7 @@ mod tests {
             let d =
                 V3::new(rng.random::<f64>() - 0.5, rng.random::<f64>() - 0.5, -1.0).normalized();
             let o = target - d * 1e4;
-            let brute = brute_t(&segs, o, d, 0.0, f64::INFINITY, None);
-            let got = bvh
-                .intersect(o, d, 0.0, f64::INFINITY, None)
-                .map_or(f64::INFINITY, |h| h.t);
-            assert_eq!(brute, got);
+            let got = check_ray(&segs, &bvh, o, d, (0.0, f64::INFINITY), None);
             hits += usize::from(got.is_finite());
         }
         assert!(hits > 20, "{hits}");
@@ -713,13 +717,7 @@ mod tests {
                 let r = (1.0 - z * z).sqrt();
                 V3::new(r * a.cos(), r * a.sin(), z)
             };
-            let skip = Some(s.fiber);
-            let brute = brute_t(&segs, o, d, 1e-9, 1e9, skip);
-            let got = bvh
-                .intersect(o, d, 1e-9, 1e9, skip)
-                .map_or(f64::INFINITY, |h| h.t);
-            assert_eq!(brute, got, "ray {k}");
-            assert_eq!(bvh.occluded(o, d, 1e-9, 1e9, skip), got.is_finite());
+            let got = check_ray(&segs, &bvh, o, d, (1e-9, 1e9), Some(s.fiber));
             hits += usize::from(got.is_finite());
         }
         assert!(hits > 200, "{hits}");

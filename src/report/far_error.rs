@@ -34,6 +34,8 @@ pub struct Row {
     pub median_err: f64,
     pub us_single: f64,
     pub us_amortised: f64,
+    /// The far-field options measured (`None` for Gauss-Legendre).
+    pub opts: Option<FarOptions>,
 }
 
 struct Set {
@@ -65,18 +67,23 @@ fn errors(set: &Set, vals: &[Vec<Vec<LobeValues>>]) -> (f64, f64) {
     (max, med)
 }
 
-/// Evaluate a method over the set; returns values and (single, amortised) microseconds
-/// per five-lobe evaluation (best of `reps` timing passes).
-/// [`measure`] for the far field with `opts`: single calls and one `far_slice` per theta_d.
-fn measure_far(set: &Set, reps: usize, opts: &FarOptions) -> (Vec<Vec<Vec<LobeValues>>>, f64, f64) {
-    measure(
-        set,
-        reps,
-        |az, phi| az.far(phi, LobeSet::ALL, opts),
-        |az, phis| az.far_slice(LobeSet::ALL, opts).eval_many(phis),
-    )
+/// The far field with `opts`, one call per `phi` (what `eval_far` costs).
+fn far_single(opts: &FarOptions) -> impl Fn(&AzimuthalSlice, f64) -> LobeValues + '_ {
+    move |az: &AzimuthalSlice, phi: f64| az.far(phi, LobeSet::ALL, opts)
 }
 
+/// The far field with `opts`, one `far_slice` per theta_d evaluated at all its `phi`.
+fn far_amortised(opts: &FarOptions) -> impl Fn(&AzimuthalSlice, &[f64]) -> Vec<LobeValues> + '_ {
+    move |az: &AzimuthalSlice, phis: &[f64]| az.far_slice(LobeSet::ALL, opts).eval_many(phis)
+}
+
+/// [`measure`] for the far field with `opts`.
+fn measure_far(set: &Set, reps: usize, opts: &FarOptions) -> (Vec<Vec<Vec<LobeValues>>>, f64, f64) {
+    measure(set, reps, far_single(opts), far_amortised(opts))
+}
+
+/// Evaluate a method over the set; returns values and (single, amortised) microseconds
+/// per five-lobe evaluation (best of `reps` timing passes).
 fn measure<F, G>(
     set: &Set,
     reps: usize,
@@ -147,9 +154,7 @@ const H2H_ROUNDS: usize = 9;
 /// slowdown of the shared machine then hits both sides of a ratio, where the table's
 /// separate best-of-3 timings, minutes apart, moved these ratios by +-50% between runs.
 fn head_to_head(set: &Set, opts: &FarOptions, n: usize) -> (f64, f64) {
-    let far_s = |az: &AzimuthalSlice, phi: f64| az.far(phi, LobeSet::ALL, opts);
-    let far_a =
-        |az: &AzimuthalSlice, phis: &[f64]| az.far_slice(LobeSet::ALL, opts).eval_many(phis);
+    let (far_s, far_a) = (far_single(opts), far_amortised(opts));
     let gl_s = |az: &AzimuthalSlice, phi: f64| az.far_gl(phi, n, LobeSet::ALL);
     let mut rs = Vec::new();
     let mut ra = Vec::new();
@@ -212,6 +217,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
                 method: &str,
                 setting: String,
                 r: (Vec<Vec<Vec<LobeValues>>>, f64, f64),
+                opts: Option<FarOptions>,
                 log: &mut dyn FnMut(&str)| {
         let (max_err, median_err) = errors(&set, &r.0);
         log(&format!(
@@ -225,6 +231,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
             median_err,
             us_single: r.1,
             us_amortised: r.2,
+            opts,
         });
     };
     for n in 1..=16usize {
@@ -235,7 +242,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
             ..FarOptions::paper()
         };
         let r = measure_far(&set, reps, &opts);
-        push(&mut rows, "far-fixed", format!("n={n}"), r, log);
+        push(&mut rows, "far-fixed", format!("n={n}"), r, Some(opts), log);
     }
     for tol in TOLS {
         let opts = FarOptions {
@@ -243,7 +250,14 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
             ..FarOptions::default()
         };
         let r = measure_far(&set, reps, &opts);
-        push(&mut rows, "far-tol", format!("tol={tol:.0e}"), r, log);
+        push(
+            &mut rows,
+            "far-tol",
+            format!("tol={tol:.0e}"),
+            r,
+            Some(opts),
+            log,
+        );
     }
     for tol in TOLS {
         let opts = FarOptions {
@@ -256,6 +270,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
             "far-tol-strict",
             format!("tol={tol:.0e}"),
             r,
+            Some(opts),
             log,
         );
     }
@@ -270,46 +285,24 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
                     .collect()
             },
         );
-        push(&mut rows, "gauss-legendre", format!("N={n}"), r, log);
+        push(&mut rows, "gauss-legendre", format!("N={n}"), r, None, log);
     }
     // Speedup at equal error.
     let gl: Vec<&Row> = rows
         .iter()
         .filter(|r| r.method == "gauss-legendre")
         .collect();
-    // The rows the goal is stated for, with their options.
+    // The rows the goal is stated for.
     let compared = [
-        (
-            "far-fixed",
-            "n=8",
-            FarOptions {
-                n_unscattered: 8,
-                n_scattered: 8,
-                tol: None,
-                ..FarOptions::paper()
-            },
-        ),
-        (
-            "far-tol",
-            "tol=1e-4",
-            FarOptions {
-                tol: Some(1e-4),
-                ..FarOptions::default()
-            },
-        ),
-        (
-            "far-tol-strict",
-            "tol=1e-4",
-            FarOptions {
-                tol: Some(1e-4),
-                ..FarOptions::strict()
-            },
-        ),
+        ("far-fixed", "n=8"),
+        ("far-tol", "tol=1e-4"),
+        ("far-tol-strict", "tol=1e-4"),
     ];
-    for (method, setting, opts) in compared {
-        let Some(r) = rows
+    for (method, setting) in compared {
+        let Some((r, opts)) = rows
             .iter()
             .find(|r| r.method == method && r.setting == setting)
+            .and_then(|r| Some((r, r.opts?)))
         else {
             continue;
         };

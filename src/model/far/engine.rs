@@ -923,26 +923,33 @@ impl<'a> FarSlice<'a> {
                             }
                             _ => None,
                         };
+                        // The images `sign * phi + shift` of sorted `qa..qb`, by sweep or
+                        // one `phi` at a time.
+                        let images = |shift: f64, qa: usize, qb: usize, s: &mut [f64]| match sweep {
+                            Some((nodes, g)) => {
+                                let at = SweepWindow {
+                                    sign,
+                                    shift,
+                                    qa,
+                                    qb,
+                                    beta,
+                                    w,
+                                };
+                                g.gaussian_sweep(nodes, &at, s);
+                            }
+                            None => visit(qa, qb, s),
+                        };
                         if width >= TAU {
-                            match sweep {
+                            if sweep.is_some() {
                                 // Every image whose window can reach the grid; the sweep
                                 // cuts each node to its own window.
-                                Some((nodes, g)) => {
-                                    let k0 = ((lo - w - PI) / TAU).floor() as i64;
-                                    let k1 = ((hi + w + PI) / TAU).ceil() as i64;
-                                    for k in k0..=k1 {
-                                        let at = SweepWindow {
-                                            sign,
-                                            shift: TAU * k as f64,
-                                            qa: 0,
-                                            qb: sorted.len(),
-                                            beta,
-                                            w,
-                                        };
-                                        g.gaussian_sweep(nodes, &at, &mut s);
-                                    }
+                                let k0 = ((lo - w - PI) / TAU).floor() as i64;
+                                let k1 = ((hi + w + PI) / TAU).ceil() as i64;
+                                for k in k0..=k1 {
+                                    images(TAU * k as f64, 0, sorted.len(), &mut s);
                                 }
-                                None => visit(0, sorted.len(), &mut s),
+                            } else {
+                                visit(0, sorted.len(), &mut s);
                             }
                             continue;
                         }
@@ -959,20 +966,7 @@ impl<'a> FarSlice<'a> {
                             }
                             let qa = sorted.partition_point(|&x| x < a);
                             let qb = sorted.partition_point(|&x| x <= b);
-                            match sweep {
-                                Some((nodes, g)) => {
-                                    let at = SweepWindow {
-                                        sign,
-                                        shift,
-                                        qa,
-                                        qb,
-                                        beta,
-                                        w,
-                                    };
-                                    g.gaussian_sweep(nodes, &at, &mut s);
-                                }
-                                None => visit(qa, qb, &mut s),
-                            }
+                            images(shift, qa, qb, &mut s);
                         }
                     }
                 }
@@ -1107,33 +1101,26 @@ impl<'a> FarSlice<'a> {
         out: &mut [LobeValues],
     ) {
         let n = order.len();
+        // Stays 0 when the part has no direct side.
         let mut direct = vec![0.0; n];
         for k in 0..2 {
             s.iter_mut().for_each(|x| *x = 0.0);
             for node in &part.scat[k].nodes {
                 let pr = node.prof.as_ref().expect("tabulated (scattered_tabulated)");
                 // P_s is even in x and folded into `w`; direct at phi - node.phi, mirror
-                // at phi + node.phi (periodic: no wrap needed).
-                match (part.direct, part.mirror) {
-                    (true, true) => {
-                        pr.shape_on_grid(false, g.first - node.phi, g.step, n, |q, v| {
-                            direct[q] = v
-                        });
-                        pr.shape_on_grid(true, g.first + node.phi, g.step, n, |q, v| {
-                            s[q] += node.w * (direct[q] + v)
-                        });
+                // at phi + node.phi (periodic: no wrap needed). A side that is off adds 0,
+                // as in add_scattered.
+                if part.direct {
+                    pr.shape_on_grid(false, g.first - node.phi, g.step, n, |q, v| direct[q] = v);
+                }
+                if part.mirror {
+                    pr.shape_on_grid(true, g.first + node.phi, g.step, n, |q, v| {
+                        s[q] += node.w * (direct[q] + v)
+                    });
+                } else {
+                    for (x, &d) in s.iter_mut().zip(&direct) {
+                        *x += node.w * d;
                     }
-                    (true, false) => {
-                        pr.shape_on_grid(false, g.first - node.phi, g.step, n, |q, v| {
-                            s[q] += node.w * v
-                        });
-                    }
-                    (false, true) => {
-                        pr.shape_on_grid(true, g.first + node.phi, g.step, n, |q, v| {
-                            s[q] += node.w * v
-                        });
-                    }
-                    (false, false) => {}
                 }
             }
             for (q, &i) in order.iter().enumerate() {

@@ -443,6 +443,29 @@ fn tol_mode_refinement_stays_bounded_at_eta_one_tiny_beta() {
     }
 }
 
+/// Every lobe of `got[k]` within `rel` of the peak over `want` of that lobe of `want[k]`;
+/// `what(k)` names sample `k` in a failure.
+fn assert_within_of_peak(
+    want: &[LobeValues],
+    got: &[LobeValues],
+    rel: f64,
+    what: impl Fn(usize) -> String,
+) {
+    assert_eq!(want.len(), got.len());
+    for l in Lobe::ALL {
+        let peak = want.iter().map(|v| v.get(l)).fold(0.0, f64::max);
+        for (k, (a, b)) in want.iter().zip(got).enumerate() {
+            assert!(
+                (a.get(l) - b.get(l)).abs() <= rel * peak,
+                "{} {l:?}: {} vs {}",
+                what(k),
+                a.get(l),
+                b.get(l)
+            );
+        }
+    }
+}
+
 /// Far-field slices for the batch-evaluation tests: 24 random parameter sets (`kappa`
 /// cycling through 0, 0.5, 0.9 and `beta_n` through 0.1..90 deg, so windows range from a
 /// sliver to all images) at a random `theta_d`, both segmentations, the far field and a
@@ -523,18 +546,7 @@ fn eval_many_on_even_grids_matches_eval() {
         {
             let many = slice.eval_many(phis);
             let one: Vec<LobeValues> = phis.iter().map(|&p| slice.eval(p)).collect();
-            for l in Lobe::ALL {
-                let peak = one.iter().map(|x| x.get(l)).fold(0.0, f64::max);
-                for (k, (a, b)) in one.iter().zip(&many).enumerate() {
-                    assert!(
-                        (a.get(l) - b.get(l)).abs() <= 1e-12 * peak,
-                        "{what} {l:?} phi {}: {} vs {}",
-                        phis[k],
-                        a.get(l),
-                        b.get(l)
-                    );
-                }
-            }
+            assert_within_of_peak(&one, &many, 1e-12, |k| format!("{what} phi {}", phis[k]));
         }
     });
 }
@@ -596,18 +608,9 @@ fn far_field_is_even_in_phi() {
                 let phis: Vec<f64> = (0..=45).map(|k| k as f64 * 4f64.to_radians()).collect();
                 let pos: Vec<LobeValues> = phis.iter().map(|&p| fs.eval(p)).collect();
                 let neg: Vec<LobeValues> = phis.iter().map(|&p| fs.eval(-p)).collect();
-                for l in Lobe::ALL {
-                    let peak = pos.iter().map(|v| v.get(l)).fold(0.0, f64::max);
-                    for (k, (a, b)) in pos.iter().zip(&neg).enumerate() {
-                        assert!(
-                            (a.get(l) - b.get(l)).abs() <= 1e-12 * peak,
-                            "{name} td {td} {l:?} phi {:.1} deg: {} vs {}",
-                            phis[k].to_degrees(),
-                            a.get(l),
-                            b.get(l)
-                        );
-                    }
-                }
+                assert_within_of_peak(&pos, &neg, 1e-12, |k| {
+                    format!("{name} td {td} phi {:.1} deg", phis[k].to_degrees())
+                });
             }
         }
     }
