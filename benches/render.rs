@@ -44,11 +44,12 @@ fn kernels(c: &mut Criterion) {
     let p = FurParams::preset("red-fox").unwrap();
     let b = FiberBsdf::new(&p, Tint::default(), LobeSet::ALL);
     c.bench_function("bsdf_sample_near", |bn| {
+        let side = b.camera_side(0.3);
         let mut k = 0u64;
         bn.iter(|| {
             k += 1;
             let u = (k as f64 * 0.618_033_988_75).fract();
-            b.sample(0.3, HRange::At(0.2), [u, 0.5, 1.0 - u, 0.3])
+            b.sample(&side, HRange::At(0.2), [u, 0.5, 1.0 - u, 0.3])
         })
     });
     c.bench_function("bsdf_eval_near", |bn| {

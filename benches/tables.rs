@@ -86,7 +86,11 @@ fn bench(c: &mut Criterion) {
         })
     });
     c.bench_function("medulla sampler build", |b| {
-        b.iter(|| t.slice(black_box(1.7), black_box(0.45)).sampler())
+        b.iter(|| {
+            t.slice(black_box(1.7), black_box(0.45))
+                .sampler()
+                .pdf_cn(0.1, 0.2)
+        })
     });
     let mut u = 0.0f64;
     c.bench_function("medulla sample_cn", |b| {

@@ -230,7 +230,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for (name, p) in &jobs {
         let r = render_scene(&scene, p, &s)?;
         outln!(
-            "{name}: {:.2} s wall ({:.2} s far-field table + {:.2} s tracing), {} rays, \
+            "{name}: {:.2} s wall ({:.2} s setup + {:.2} s tracing), {} rays, \
              {:.3} Mrays/s (tracing)",
             r.setup_seconds + r.seconds,
             r.setup_seconds,

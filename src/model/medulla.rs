@@ -702,10 +702,9 @@ impl MedullaSlice {
     }
 
     /// The importance sampler of this slice (built on first use, then cached).
-    pub fn sampler(&self) -> Arc<MedullaSampler> {
+    pub fn sampler(&self) -> &MedullaSampler {
         self.sampler
             .get_or_init(|| Arc::new(MedullaSampler::new(self)))
-            .clone()
     }
 
     /// Sample `psi` for entry offset `x` from `u in [0,1)`: see [`MedullaSampler::sample_cn`].
@@ -824,8 +823,9 @@ impl PlDensity {
     fn mass(&self) -> f64 {
         *self.cdf.last().unwrap()
     }
-    fn eval(&self, knots: &[f64], t: f64) -> f64 {
-        let (j, f) = locate(knots, t);
+    /// Value at the knot location `(j, f)` = `locate(knots, t)` (mixtures on one knot
+    /// set locate `t` once for all their components).
+    fn eval_at(&self, (j, f): (usize, f64)) -> f64 {
         self.vals[j] + f * (self.vals[j + 1] - self.vals[j])
     }
     /// Invert the CDF at mass `m in [0, mass]`.
@@ -946,7 +946,8 @@ impl MedullaSampler {
         let (w, p) = comps[chosen];
         let local = ((target - acc) / w).clamp(0.0, p.mass());
         let v = p.invert(knots, local);
-        let pdf: f64 = comps.iter().map(|(w, p)| w * p.eval(knots, v)).sum::<f64>() / total;
+        let at = locate(knots, v);
+        let pdf: f64 = comps.iter().map(|(w, p)| w * p.eval_at(at)).sum::<f64>() / total;
         (v, pdf)
     }
 
@@ -968,11 +969,8 @@ impl MedullaSampler {
         let comps = [(1.0 - f, &self.cn[i]), (f, &self.cn[i + 1])];
         let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
         if total > 0.0 {
-            comps
-                .iter()
-                .map(|(w, p)| w * p.eval(&self.psi_knots, psi))
-                .sum::<f64>()
-                / total
+            let at = locate(&self.psi_knots, psi);
+            comps.iter().map(|(w, p)| w * p.eval_at(at)).sum::<f64>() / total
         } else {
             1.0 / (2.0 * PI)
         }
@@ -1009,11 +1007,8 @@ impl MedullaSampler {
         let comps = self.cm_comps(ti, phi);
         let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
         if total > 0.0 {
-            comps
-                .iter()
-                .map(|(w, p)| w * p.eval(&self.tr_knots, tr))
-                .sum::<f64>()
-                / total
+            let at = locate(&self.tr_knots, tr);
+            comps.iter().map(|(w, p)| w * p.eval_at(at)).sum::<f64>() / total
         } else {
             1.0 / PI
         }

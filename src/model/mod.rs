@@ -330,7 +330,12 @@ impl AzimuthalSlice<'_> {
     /// Attenuation `A_p(h)` (R, TT, TRT; seed Eqs. 13-14) and `A^s_p(h)` (TTs, TRTs; Eq. 20)
     /// for the lobes in `lobes`.
     pub fn attenuation(&self, geo: &PathGeometry, lobes: LobeSet) -> LobeValues {
-        let f = self.cuticle(geo);
+        self.attenuation_with(self.cuticle(geo), geo, lobes)
+    }
+
+    /// [`Self::attenuation`] with the cuticle reflectance `f` = [`Self::cuticle`] given
+    /// (models that differ only in absorption share it).
+    pub fn attenuation_with(&self, f: f64, geo: &PathGeometry, lobes: LobeSet) -> LobeValues {
         let mut a = LobeValues::default();
         for l in lobes.intersect(self.model.active_lobes()).iter() {
             let v = if l.is_scattered() {

@@ -101,12 +101,103 @@ pub struct Hit {
 
 /// BVH over segments: binned-SAH binary tree collapsed to four-wide nodes, leaves of <= 4.
 pub struct Bvh {
+    tree: Tree,
+    segs: Vec<Segment>,
+}
+
+/// A four-wide tree over the segments' pieces (see [`Bvh::build`]), in some frame.
+struct Tree {
     nodes: Vec<Node4>,
     /// Bounds of everything (f64), where traversal starts its rays.
     root: Aabb,
-    segs: Vec<Segment>,
     /// Leaf primitives in node order: index of the segment whose piece it bounds.
     prims: Vec<u32>,
+}
+
+/// A piece of a segment (see [`Bvh::build`]): axis from `p0` to `p1`, largest radius `r`.
+struct Piece {
+    p0: V3,
+    p1: V3,
+    r: f64,
+    owner: u32,
+}
+
+/// The pieces of `segs`, each at most [`PIECE_RADII`] radii long.
+fn pieces(segs: &[Segment]) -> Vec<Piece> {
+    let mut out = Vec::new();
+    for (i, s) in segs.iter().enumerate() {
+        let r = s.ra.max(s.rb);
+        let len = (s.b - s.a).length();
+        let n = ((len / (PIECE_RADII * r.max(1e-12))).ceil() as usize).clamp(1, MAX_PIECES);
+        for k in 0..n {
+            out.push(Piece {
+                p0: s.a + (s.b - s.a) * (k as f64 / n as f64),
+                p1: s.a + (s.b - s.a) * ((k + 1) as f64 / n as f64),
+                r,
+                owner: i as u32,
+            });
+        }
+    }
+    out
+}
+
+impl Tree {
+    /// Binned-SAH binary tree over `boxes` (`area` weighs a box by how likely the rays
+    /// of interest meet it), collapsed to four-wide nodes.
+    fn build(boxes: &[Aabb], owner: &[u32], area: fn(&Aabb) -> f64) -> Tree {
+        let mut order: Vec<usize> = (0..boxes.len()).collect();
+        let centers: Vec<V3> = boxes.iter().map(|b| (b.lo + b.hi) * 0.5).collect();
+        let ctx = BuildCtx {
+            boxes,
+            centers: &centers,
+            area,
+        };
+        let nodes = if boxes.is_empty() {
+            Vec::new()
+        } else {
+            build_rec(&mut order, 0, &ctx)
+        };
+        let prims = order.iter().map(|&i| owner[i]).collect();
+        let mut wide = Vec::with_capacity(nodes.len() / 2 + 1);
+        if !nodes.is_empty() {
+            if nodes[0].count > 0 {
+                // The whole tree is one leaf: a root with one leaf lane.
+                let mut root = Node4::empty();
+                root.set_lane(0, &nodes[0].bounds, nodes[0].index, nodes[0].count);
+                wide.push(root);
+            } else {
+                let (_, depth) = collapse(&nodes, 0, &mut wide, 1, area);
+                // The binned SAH halves the work per level in practice (depth ~12 for the
+                // default lock); 63 levels would need ~4^63 primitives.
+                assert!(3 * depth < STACK, "BVH depth {depth} exceeds the stack");
+            }
+        }
+        Tree {
+            nodes: wide,
+            // The binary root's bounds are the union of every piece box.
+            root: nodes.first().map_or(Aabb::empty(), |n| n.bounds),
+            prims,
+        }
+    }
+}
+
+/// Shadow rays toward a directional light all travel along one direction `d`. In a frame
+/// whose z axis is `d` each is a point `(x, y)` moving towards +z, so a tree built in that
+/// frame tests a box with comparisons only (no slab products), and its SAH weighs boxes by
+/// their area projected along `d` (the chance such a ray meets them) instead of their
+/// surface area. Leaves hold the same pieces and the segment test is the same f64 test
+/// as [`Bvh::occluded`], so [`Bvh::occluded_along`] gives exactly its answer.
+pub struct DirTree {
+    dir: V3,
+    /// Rows of the rotation into the frame (`axes[2] = dir`).
+    axes: [V3; 3],
+    tree: Tree,
+}
+
+impl DirTree {
+    pub fn dir(&self) -> V3 {
+        self.dir
+    }
 }
 
 /// Leaves hold at most this many pieces.
@@ -118,12 +209,22 @@ const PIECE_RADII: f64 = 10.0;
 const MAX_PIECES: usize = 32;
 
 impl Aabb {
+    /// Surface area: the SAH weight of a box for rays in all directions.
     fn area(&self) -> f64 {
         let e = self.hi - self.lo;
         if e.x < 0.0 {
             return 0.0;
         }
         2.0 * (e.x * e.y + e.y * e.z + e.z * e.x)
+    }
+
+    /// Area projected along z: the SAH weight for rays along z ([`DirTree`]).
+    fn projected_area(&self) -> f64 {
+        let e = self.hi - self.lo;
+        if e.x < 0.0 {
+            return 0.0;
+        }
+        e.x * e.y
     }
 }
 
@@ -135,51 +236,108 @@ impl Bvh {
     /// force loop (every hit lies within `r` of the axis point at its parameter, inside
     /// that piece's box). The tree is split by the binned surface-area heuristic.
     pub fn build(segs: Vec<Segment>) -> Bvh {
-        let mut boxes = Vec::new();
-        let mut owner = Vec::new();
-        for (i, s) in segs.iter().enumerate() {
-            let r = s.ra.max(s.rb);
-            let len = (s.b - s.a).length();
-            let n = ((len / (PIECE_RADII * r.max(1e-12))).ceil() as usize).clamp(1, MAX_PIECES);
-            let e = V3::new(r, r, r);
-            for k in 0..n {
-                let p0 = s.a + (s.b - s.a) * (k as f64 / n as f64);
-                let p1 = s.a + (s.b - s.a) * ((k + 1) as f64 / n as f64);
-                boxes.push(Aabb {
-                    lo: p0.min(p1) - e,
-                    hi: p0.max(p1) + e,
-                });
-                owner.push(i as u32);
-            }
-        }
-        let mut order: Vec<usize> = (0..boxes.len()).collect();
-        let centers: Vec<V3> = boxes.iter().map(|b| (b.lo + b.hi) * 0.5).collect();
-        let mut nodes = Vec::with_capacity(2 * boxes.len() / LEAF + 1);
-        if !boxes.is_empty() {
-            build_rec(&mut nodes, &mut order, 0, &boxes, &centers);
-        }
-        let prims = order.iter().map(|&i| owner[i]).collect();
-        let mut wide = Vec::with_capacity(nodes.len() / 2 + 1);
-        if !nodes.is_empty() {
-            if nodes[0].count > 0 {
-                // The whole tree is one leaf: a root with one leaf lane.
-                let mut root = Node4::empty();
-                root.set_lane(0, &nodes[0].bounds, nodes[0].index, nodes[0].count);
-                wide.push(root);
-            } else {
-                let (_, depth) = collapse(&nodes, 0, &mut wide, 1);
-                // The binned SAH halves the work per level in practice (depth ~12 for the
-                // default lock); 63 levels would need ~4^63 primitives.
-                assert!(3 * depth < STACK, "BVH depth {depth} exceeds the stack");
-            }
-        }
+        let ps = pieces(&segs);
+        let boxes: Vec<Aabb> = ps
+            .iter()
+            .map(|p| {
+                let e = V3::new(p.r, p.r, p.r);
+                Aabb {
+                    lo: p.p0.min(p.p1) - e,
+                    hi: p.p0.max(p.p1) + e,
+                }
+            })
+            .collect();
+        let owner: Vec<u32> = ps.iter().map(|p| p.owner).collect();
         Bvh {
-            nodes: wide,
-            // The binary root's bounds are the union of every piece box.
-            root: nodes.first().map_or(Aabb::empty(), |n| n.bounds),
+            tree: Tree::build(&boxes, &owner, Aabb::area),
             segs,
-            prims,
         }
+    }
+
+    /// The tree for rays along `dir` ([`DirTree`]).
+    pub fn dir_tree(&self, dir: V3) -> DirTree {
+        let z = dir.normalized();
+        // Any unit vector perpendicular to z completes the frame.
+        let helper = if z.x.abs() < 0.9 {
+            V3::new(1.0, 0.0, 0.0)
+        } else {
+            V3::new(0.0, 1.0, 0.0)
+        };
+        let x = helper.cross(z).normalized();
+        let axes = [x, z.cross(x), z];
+        let to = |p: V3| V3::new(p.dot(axes[0]), p.dot(axes[1]), p.dot(axes[2]));
+        let ps = pieces(&self.segs);
+        // A capsule of radius r about p0-p1 lies in the box of its rotated ends grown by r.
+        let boxes: Vec<Aabb> = ps
+            .iter()
+            .map(|p| {
+                let (q0, q1) = (to(p.p0), to(p.p1));
+                let e = V3::new(p.r, p.r, p.r);
+                Aabb {
+                    lo: q0.min(q1) - e,
+                    hi: q0.max(q1) + e,
+                }
+            })
+            .collect();
+        let owner: Vec<u32> = ps.iter().map(|p| p.owner).collect();
+        DirTree {
+            dir,
+            axes,
+            tree: Tree::build(&boxes, &owner, Aabb::projected_area),
+        }
+    }
+
+    /// [`Self::occluded`] for a ray along `t.dir()` from `o`, traversing `t`.
+    pub fn occluded_along(
+        &self,
+        t: &DirTree,
+        o: V3,
+        tmin: f64,
+        tmax: f64,
+        skip: Option<u32>,
+    ) -> bool {
+        let tree = &t.tree;
+        if tree.nodes.is_empty() {
+            return false;
+        }
+        let q = [0, 1, 2].map(|a| o.dot(t.axes[a]));
+        let (x, y) = (q[0] as f32, q[1] as f32);
+        // The ray covers z in [q + tmin, q + tmax]; boxes are padded, so comparing against
+        // the rounded ends stays conservative.
+        let zlo = (q[2] + tmin) as f32 - PAD;
+        let zhi = ((q[2] + tmax) as f32 + PAD).min(f32::MAX);
+        let mut stack = [0u32; STACK];
+        let mut sp = 1;
+        let mut last = u32::MAX;
+        while sp > 0 {
+            sp -= 1;
+            let node = &tree.nodes[stack[sp] as usize];
+            let hit = node.contains_column(x, y, zlo, zhi);
+            for lane in 0..4 {
+                if !hit[lane] {
+                    continue;
+                }
+                let count = node.count[lane];
+                if count == 0 {
+                    stack[sp] = node.child[lane];
+                    sp += 1;
+                    continue;
+                }
+                let first = node.child[lane] as usize;
+                for &si in &tree.prims[first..first + count as usize] {
+                    if si == last {
+                        continue;
+                    }
+                    last = si;
+                    let s = &self.segs[si as usize];
+                    if Some(s.fiber) != skip && intersect_segment(s, o, t.dir, tmin, tmax).is_some()
+                    {
+                        return true;
+                    }
+                }
+            }
+        }
+        false
     }
 
     pub fn segments(&self) -> &[Segment] {
@@ -205,14 +363,15 @@ impl Bvh {
         skip: Option<u32>,
         any: bool,
     ) -> Option<Hit> {
-        if self.nodes.is_empty() {
+        let Tree { nodes, root, prims } = &self.tree;
+        if nodes.is_empty() {
             return None;
         }
         // The f32 slab tests run from the ray's entry into the root box (`shift` along the
         // ray), so a far camera does not cost them precision; distances below are relative
         // to it. Segment tests and hits stay in f64 from the true origin.
         let inv64 = V3::new(safe_inv(d.x), safe_inv(d.y), safe_inv(d.z));
-        let shift = match self.root.enter(o, inv64, tmin, tmax) {
+        let shift = match root.enter(o, inv64, tmin, tmax) {
             Some(t) => t.max(tmin),
             None => return None,
         };
@@ -234,7 +393,7 @@ impl Bvh {
             if f64::from(tentry) > tmax - shift {
                 continue;
             }
-            let node = &self.nodes[ni as usize];
+            let node = &nodes[ni as usize];
             // Finite, so an unused lane's box at +infinity is never entered.
             let tmax32 = (((tmax - shift) as f32) * (1.0 + 1e-6) + PAD).min(f32::MAX);
             let (t0, hit) = node.slab(&of, &inv, tmin32, tmax32);
@@ -261,7 +420,7 @@ impl Bvh {
                     continue;
                 }
                 let first = node.child[lane] as usize;
-                for &si in &self.prims[first..first + count as usize] {
+                for &si in &prims[first..first + count as usize] {
                     if si == last {
                         continue;
                     }
@@ -311,6 +470,20 @@ impl Node4 {
         }
         self.child[lane] = child;
         self.count[lane] = count;
+    }
+
+    /// Which lanes' boxes meet the column `(x, y) x [zlo, zhi]` (a ray along +z of the
+    /// box frame; an unused lane's box at +infinity never does).
+    #[inline(always)]
+    fn contains_column(&self, x: f32, y: f32, zlo: f32, zhi: f32) -> [bool; 4] {
+        std::array::from_fn(|l| {
+            (self.lo[0][l] <= x)
+                & (x <= self.hi[0][l])
+                & (self.lo[1][l] <= y)
+                & (y <= self.hi[1][l])
+                & (self.hi[2][l] >= zlo)
+                & (self.lo[2][l] <= zhi)
+        })
     }
 
     /// Slab test of the four lanes: entry distances and hit flags (an unused lane's box at
@@ -370,19 +543,20 @@ fn safe_inv(x: f64) -> f64 {
 /// children and repeatedly opens the interior child of largest surface area until it has
 /// four lanes or only leaves. Returns the new node's index and the depth of its subtree
 /// counted from `depth` (the new node's own level).
-fn collapse(nodes: &[Node], i: usize, out: &mut Vec<Node4>, depth: usize) -> (u32, usize) {
+fn collapse(
+    nodes: &[Node],
+    i: usize,
+    out: &mut Vec<Node4>,
+    depth: usize,
+    area: fn(&Aabb) -> f64,
+) -> (u32, usize) {
     let mut kids: Vec<usize> = vec![i + 1, nodes[i].index as usize];
     while kids.len() < 4 {
         let open = kids
             .iter()
             .enumerate()
             .filter(|(_, &c)| nodes[c].count == 0)
-            .max_by(|a, b| {
-                nodes[*a.1]
-                    .bounds
-                    .area()
-                    .total_cmp(&nodes[*b.1].bounds.area())
-            })
+            .max_by(|a, b| area(&nodes[*a.1].bounds).total_cmp(&area(&nodes[*b.1].bounds)))
             .map(|(k, _)| k);
         let Some(k) = open else { break };
         let c = kids.swap_remove(k);
@@ -397,7 +571,7 @@ fn collapse(nodes: &[Node], i: usize, out: &mut Vec<Node4>, depth: usize) -> (u3
         if nodes[c].count > 0 {
             node.set_lane(lane, &nodes[c].bounds, nodes[c].index, nodes[c].count);
         } else {
-            let (child, d) = collapse(nodes, c, out, depth + 1);
+            let (child, d) = collapse(nodes, c, out, depth + 1, area);
             deepest = deepest.max(d);
             node.set_lane(lane, &nodes[c].bounds, child, 0);
         }
@@ -406,22 +580,32 @@ fn collapse(nodes: &[Node], i: usize, out: &mut Vec<Node4>, depth: usize) -> (u3
     (me as u32, deepest)
 }
 
-fn build_rec(
-    nodes: &mut Vec<Node>,
-    order: &mut [usize],
-    first: usize,
-    boxes: &[Aabb],
-    centers: &[V3],
-) -> usize {
-    let me = nodes.len();
+/// What [`build_rec`] reads: the piece boxes, their centres and the SAH area weight.
+struct BuildCtx<'a> {
+    boxes: &'a [Aabb],
+    centers: &'a [V3],
+    area: fn(&Aabb) -> f64,
+}
+
+/// Subtrees with more primitives than this build their two halves in parallel.
+const PARALLEL_BUILD: usize = 4096;
+
+/// Binary SAH subtree over `order` (primitives `first..` in leaf order), in depth-first
+/// order with interior `index` fields relative to the returned vector's start.
+fn build_rec(order: &mut [usize], first: usize, ctx: &BuildCtx) -> Vec<Node> {
+    let BuildCtx {
+        boxes,
+        centers,
+        area,
+    } = *ctx;
     let bounds = order.iter().fold(Aabb::empty(), |b, &i| b.union(boxes[i]));
-    nodes.push(Node {
+    let mut nodes = vec![Node {
         bounds,
         index: first as u32,
         count: order.len() as u32,
-    });
+    }];
     if order.len() <= LEAF {
-        return me;
+        return nodes;
     }
     let cb = order.iter().fold(Aabb::empty(), |b, &i| Aabb {
         lo: b.lo.min(centers[i]),
@@ -450,7 +634,7 @@ fn build_rec(
         for k in (1..BINS).rev() {
             acc = acc.union(bb[k]);
             n += cnt[k];
-            right_area[k] = acc.area();
+            right_area[k] = area(&acc);
             right_cnt[k] = n;
         }
         let (mut acc, mut n) = (Aabb::empty(), 0);
@@ -460,7 +644,7 @@ fn build_rec(
             if n == 0 || right_cnt[k] == 0 {
                 continue;
             }
-            let cost = n as f64 * acc.area() + right_cnt[k] as f64 * right_area[k];
+            let cost = n as f64 * area(&acc) + right_cnt[k] as f64 * right_area[k];
             if best.map_or(true, |b| cost < b.0) {
                 best = Some((cost, axis, lo + k as f64 / scale));
             }
@@ -497,15 +681,35 @@ fn build_rec(
     } else {
         mid
     };
+    let big = order.len() > PARALLEL_BUILD;
     let (left, right) = order.split_at_mut(mid);
-    build_rec(nodes, left, first, boxes, centers);
-    let r = build_rec(nodes, right, first + mid, boxes, centers);
-    nodes[me].index = r as u32;
-    nodes[me].count = 0;
-    me
+    let (l, r) = if big {
+        rayon::join(
+            || build_rec(left, first, ctx),
+            || build_rec(right, first + mid, ctx),
+        )
+    } else {
+        (
+            build_rec(left, first, ctx),
+            build_rec(right, first + mid, ctx),
+        )
+    };
+    // Left child at 1, right child after the left subtree; shift the children's relative
+    // interior links by where they land.
+    nodes[0].index = (1 + l.len()) as u32;
+    nodes[0].count = 0;
+    for (base, sub) in [(1, l), (nodes[0].index as usize, r)] {
+        nodes.extend(sub.into_iter().map(|mut n| {
+            if n.count == 0 {
+                n.index += base as u32;
+            }
+            n
+        }));
+    }
+    nodes
 }
 
-#[inline]
+#[inline(always)]
 pub fn intersect_segment(s: &Segment, o: V3, d: V3, tmin: f64, tmax: f64) -> Option<Hit> {
     let e = s.b - s.a;
     let w0 = o - s.a;
@@ -721,5 +925,55 @@ mod tests {
             hits += usize::from(got.is_finite());
         }
         assert!(hits > 200, "{hits}");
+    }
+
+    /// Shadow rays along one direction through the direction's own tree: the same answer
+    /// as a brute-force loop for origins on fibers (skipping their fiber), off the lock and
+    /// far away, for directions along the axes and in general position.
+    #[test]
+    fn dir_tree_matches_brute_force() {
+        let (segs, bvh) = small_lock();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(9);
+        let mut dirs = vec![
+            V3::new(-0.5, 0.6, 0.62).normalized(),
+            V3::new(1.0, 0.0, 0.0),
+            V3::new(0.0, -1.0, 0.0),
+            V3::new(0.0, 0.0, 1.0),
+        ];
+        for _ in 0..4 {
+            let z: f64 = rng.random::<f64>() * 2.0 - 1.0;
+            let a = rng.random::<f64>() * std::f64::consts::TAU;
+            let r = (1.0 - z * z).sqrt();
+            dirs.push(V3::new(r * a.cos(), r * a.sin(), z));
+        }
+        let (mut blocked, mut total) = (0, 0);
+        for d in dirs {
+            let tree = bvh.dir_tree(d);
+            for k in 0..1500 {
+                let s = &segs[rng.random_range(0..segs.len())];
+                let (o, skip, tmax) = match k % 3 {
+                    0 | 1 => (s.a + (s.b - s.a) * rng.random::<f64>(), Some(s.fiber), 1e9),
+                    // Off the lock, towards it from up to 1e3 units away, bounded tmax.
+                    _ => {
+                        let dist = 10f64.powf(rng.random_range(-1.0..3.0));
+                        (s.a - d * dist, None, dist * rng.random_range(0.5..1.5))
+                    }
+                };
+                let brute = brute_t(&segs, o, d, 1e-9, tmax, skip).is_finite();
+                assert_eq!(
+                    bvh.occluded_along(&tree, o, 1e-9, tmax, skip),
+                    brute,
+                    "ray {o:?} {d:?}"
+                );
+                assert_eq!(bvh.occluded(o, d, 1e-9, tmax, skip), brute);
+                blocked += usize::from(brute);
+                total += 1;
+            }
+        }
+        // Both answers must be exercised.
+        assert!(
+            blocked > total / 10 && blocked < total * 9 / 10,
+            "{blocked}/{total}"
+        );
     }
 }

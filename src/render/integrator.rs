@@ -11,8 +11,10 @@
 //! far field. `footprint_scale` multiplies every coverage (0 = near field everywhere,
 //! huge = far field everywhere) for tests and studies.
 
-use super::bsdf::{lobe_sum, FiberBsdf, Frame, HRange, LobeRgb, MisPrep, Mode, MIN_COS};
-use super::bvh::Bvh;
+use super::bsdf::{
+    lobe_sum, CameraSide, FiberBsdf, Frame, HRange, LobeRgb, MisPrep, Mode, MIN_COS,
+};
+use super::bvh::{Bvh, DirTree};
 use super::math::{luminance, Rgb, V3};
 use super::scene::{Camera, DirectionalLight, Environment};
 use rand::Rng;
@@ -22,6 +24,8 @@ use std::f64::consts::PI;
 /// Everything a path needs, borrowed.
 pub struct Integrator<'a> {
     pub bvh: &'a Bvh,
+    /// Shadow-ray tree along `light`'s direction ([`DirTree`]); `None` uses `bvh`.
+    pub light_tree: Option<&'a DirTree>,
     pub bsdf: &'a FiberBsdf,
     pub camera: &'a Camera,
     pub light: Option<DirectionalLight>,
@@ -56,7 +60,7 @@ struct PrevSample {
     phi: f64,
     /// The vertex's MIS state, if its environment sample already prepared it.
     mis: Option<MisPrep>,
-    theta_o: f64,
+    side: CameraSide,
     hr: HRange,
 }
 
@@ -98,7 +102,7 @@ impl Integrator<'_> {
                             let cos = s.theta.cos().max(MIN_COS);
                             let mis = s
                                 .mis
-                                .unwrap_or_else(|| self.bsdf.mis_prepare(s.theta_o, s.hr));
+                                .unwrap_or_else(|| self.bsdf.mis_prepare(&s.side, s.hr));
                             let pb = self.bsdf.pdf_mis_prepared(&mis, s.theta, s.phi) / cos;
                             power_heuristic(pb, p_env)
                         }
@@ -111,6 +115,7 @@ impl Integrator<'_> {
             let wo = -dir;
             let frame = Frame::new(hit.u, wo);
             let theta_o = frame.to_local(wo).0;
+            let side = self.bsdf.camera_side(theta_o);
             let width = w0 + hit.t * spread;
             let hr = self.hrange(
                 hit.h,
@@ -124,10 +129,17 @@ impl Integrator<'_> {
             // Next-event estimation: directional light.
             if let Some(light) = &self.light {
                 res.rays += 1;
-                if !self
-                    .bvh
-                    .occluded(hit.p, light.dir, 0.0, f64::INFINITY, skip_me)
-                {
+                let blocked = match self.light_tree {
+                    Some(t) => {
+                        debug_assert!(t.dir() == light.dir);
+                        self.bvh
+                            .occluded_along(t, hit.p, 0.0, f64::INFINITY, skip_me)
+                    }
+                    None => self
+                        .bvh
+                        .occluded(hit.p, light.dir, 0.0, f64::INFINITY, skip_me),
+                };
+                if !blocked {
                     let (tl, pl) = frame.to_local(light.dir);
                     let mn = self.bsdf.eval(theta_o, tl, pl, hr);
                     let k = 1.0 / tl.cos().max(MIN_COS);
@@ -148,7 +160,7 @@ impl Integrator<'_> {
                     let mn = self.bsdf.eval(theta_o, tl, pl, hr);
                     if lobe_sum(&mn).iter().any(|v| *v > 0.0) {
                         let cos = tl.cos().max(MIN_COS);
-                        let mp = mis.get_or_insert_with(|| self.bsdf.mis_prepare(theta_o, hr));
+                        let mp = mis.get_or_insert_with(|| self.bsdf.mis_prepare(&side, hr));
                         let pb = self.bsdf.pdf_mis_prepared(mp, tl, pl) / cos;
                         let w = power_heuristic(p_env, pb);
                         let le = self.env.radiance(ld);
@@ -160,7 +172,7 @@ impl Integrator<'_> {
 
             // Continue the path by sampling the BCSDF.
             let u = [rng.random(), rng.random(), rng.random(), rng.random()];
-            let s = match self.bsdf.sample(theta_o, hr, u) {
+            let s = match self.bsdf.sample(&side, hr, u) {
                 Some(s) => s,
                 None => break,
             };
@@ -194,7 +206,7 @@ impl Integrator<'_> {
                 theta: s.theta,
                 phi: s.phi,
                 mis,
-                theta_o,
+                side,
                 hr,
             });
             w0 = width;

@@ -22,6 +22,7 @@ pub mod math;
 pub mod ntable;
 pub mod output;
 pub mod scene;
+pub mod select;
 pub mod study;
 
 #[cfg(test)]
@@ -30,7 +31,7 @@ mod bsdf_tests;
 use crate::model::LobeSet;
 use crate::params::FurParams;
 use bsdf::{FiberBsdf, Mode, Tint};
-use bvh::Bvh;
+use bvh::{Bvh, DirTree};
 use integrator::Integrator;
 use math::{Rgb, V3};
 use rand::SeedableRng;
@@ -165,7 +166,8 @@ pub struct RenderOutput {
     pub rays: u64,
     /// Seconds tracing paths (excludes `setup_seconds`).
     pub seconds: f64,
-    /// Seconds building the far-field table (0 when none is built).
+    /// Seconds of setup before tracing: the far-field table (when one is built), the
+    /// lobe-selection table and the shadow-ray tree (when not cached by the scene).
     pub setup_seconds: f64,
 }
 
@@ -183,6 +185,8 @@ type TableKey = ([u64; 10], [u64; 3], LobeSet, bool);
 pub struct Scene {
     pub bvh: Bvh,
     tables: std::sync::Mutex<Vec<(TableKey, std::sync::Arc<ntable::FarTable>)>>,
+    /// Shadow-ray trees of the key light directions rendered so far.
+    light_trees: std::sync::Mutex<Vec<([u64; 3], std::sync::Arc<DirTree>)>>,
 }
 
 impl Scene {
@@ -190,7 +194,21 @@ impl Scene {
         Scene {
             bvh: Bvh::build(scene::build_lock(strand)),
             tables: Default::default(),
+            light_trees: Default::default(),
         }
+    }
+
+    /// The tree for shadow rays toward a directional light along `dir` (built on first
+    /// use; [`DirTree`]).
+    pub fn light_tree(&self, dir: V3) -> std::sync::Arc<DirTree> {
+        let key = [dir.x, dir.y, dir.z].map(f64::to_bits);
+        let mut cache = self.light_trees.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, t)) = cache.iter().find(|(k, _)| *k == key) {
+            return t.clone();
+        }
+        let t = std::sync::Arc::new(self.bvh.dir_tree(dir));
+        cache.push((key, t.clone()));
+        t
     }
 
     /// The far-field table of `bsdf`, built on first use (returns whether it was built).
@@ -275,6 +293,8 @@ fn render_in_pool(
     if s.far_table && spans {
         scene.far_table(&mut bsdf, params, s);
     }
+    bsdf.build_select_table();
+    let light_tree = s.light.map(|l| scene.light_tree(l.dir));
     let setup_seconds = setup.elapsed().as_secs_f64();
     let camera = Camera::look_at(
         V3::new(0.0, 0.0, 0.0),
@@ -287,6 +307,7 @@ fn render_in_pool(
     );
     let integ = Integrator {
         bvh: &scene.bvh,
+        light_tree: light_tree.as_deref(),
         bsdf: &bsdf,
         camera: &camera,
         light: s.light,

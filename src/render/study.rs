@@ -125,6 +125,10 @@ pub fn convergence(
     let mut points = Vec::new();
     let mut reference_seconds = Vec::new();
     let mut setup_seconds = Vec::new();
+    // The shadow-ray tree is shared by every mode: build it before the per-mode setups.
+    if let Some(l) = base.light {
+        scene.light_tree(l.dir);
+    }
     for &mode in modes {
         let mut s = base.clone();
         s.mode = mode;
