@@ -299,11 +299,20 @@ pub fn culling_study(
         let r = render_scene(scene, params, &s)?;
         Ok((r.beauty, r.seconds, r.setup_seconds))
     };
-    let scene = Scene::build(strand);
+    // A fresh scene whose shadow-ray tree is built outside the timed setup, which then
+    // times the far-field table alone.
+    let fresh = || {
+        let scene = Scene::build(strand);
+        if let Some(l) = base.light {
+            scene.light_tree(l.dir);
+        }
+        scene
+    };
+    let scene = fresh();
     let (full, t_full, s_full) = run(&scene, false, base.seed)?;
     let (full2, _, _) = run(&scene, false, base.seed + 17)?;
     let noise = full.rmse(&full2);
-    let scene = Scene::build(strand);
+    let scene = fresh();
     let (cull, t_cull, s_cull) = run(&scene, true, base.seed)?;
     Ok(vec![
         CullingRow {
