@@ -10,6 +10,8 @@ use crate::params::FurParams;
 #[derive(Clone, Debug)]
 pub struct ConvergencePoint {
     pub mode: Mode,
+    /// Which independent render (seed) of this spp, from 0.
+    pub repeat: usize,
     pub spp: usize,
     pub seconds: f64,
     pub rmse: f64,
@@ -26,15 +28,43 @@ pub struct Convergence {
 }
 
 impl Convergence {
-    /// Inefficiency `RMSE^2 * time` of a mode (Monte Carlo error falls as 1/sqrt(time), so
-    /// this is constant once in the asymptotic regime), the median over the points with at
-    /// least `min_spp` samples per pixel.
-    pub fn inefficiency(&self, mode: Mode, min_spp: usize) -> Option<f64> {
-        let mut v: Vec<f64> = self
+    /// The curve of a mode: per spp, the mean over the repeats in `which` (all when
+    /// `None`) of the squared RMSE and of the seconds, as `(spp, seconds, rmse)`.
+    pub fn curve(&self, mode: Mode, which: Option<usize>) -> Vec<(usize, f64, f64)> {
+        let mut out: Vec<(usize, f64, f64, usize)> = Vec::new();
+        for p in self
             .points
             .iter()
-            .filter(|p| p.mode == mode && p.spp >= min_spp && p.rmse > 0.0)
-            .map(|p| p.rmse * p.rmse * p.seconds)
+            .filter(|p| p.mode == mode && p.rmse > 0.0 && which.map_or(true, |r| r == p.repeat))
+        {
+            match out.iter_mut().find(|c| c.0 == p.spp) {
+                Some(c) => {
+                    c.1 += p.seconds;
+                    c.2 += p.rmse * p.rmse;
+                    c.3 += 1;
+                }
+                None => out.push((p.spp, p.seconds, p.rmse * p.rmse, 1)),
+            }
+        }
+        out.sort_by_key(|c| c.0);
+        out.iter()
+            .map(|&(spp, t, e2, n)| (spp, t / n as f64, (e2 / n as f64).sqrt()))
+            .collect()
+    }
+
+    /// Inefficiency `RMSE^2 * time` of a mode (Monte Carlo error falls as 1/sqrt(time), so
+    /// this is constant once in the asymptotic regime): the median over the spp >= `min_spp`
+    /// of the [`Self::curve`] pooled over all repeats.
+    pub fn inefficiency(&self, mode: Mode, min_spp: usize) -> Option<f64> {
+        self.inefficiency_of(mode, min_spp, None)
+    }
+
+    fn inefficiency_of(&self, mode: Mode, min_spp: usize, which: Option<usize>) -> Option<f64> {
+        let mut v: Vec<f64> = self
+            .curve(mode, which)
+            .into_iter()
+            .filter(|c| c.0 >= min_spp)
+            .map(|(_, t, e)| e * e * t)
             .collect();
         if v.is_empty() {
             return None;
@@ -43,10 +73,23 @@ impl Convergence {
         Some(v[v.len() / 2])
     }
 
-    /// Equal-quality speedup of `fast` over `slow`: ratio of their inefficiencies (time
-    /// needed to reach the same RMSE).
+    /// Equal-quality speedup of `fast` over `slow`: ratio of their pooled inefficiencies
+    /// (time needed to reach the same RMSE).
     pub fn speedup(&self, slow: Mode, fast: Mode, min_spp: usize) -> Option<f64> {
         Some(self.inefficiency(slow, min_spp)? / self.inefficiency(fast, min_spp)?)
+    }
+
+    /// The speedup of each repeat on its own: its spread is the measurement's noise.
+    pub fn speedup_per_repeat(&self, slow: Mode, fast: Mode, min_spp: usize) -> Vec<f64> {
+        let repeats = self.points.iter().map(|p| p.repeat + 1).max().unwrap_or(0);
+        (0..repeats)
+            .filter_map(|r| {
+                Some(
+                    self.inefficiency_of(slow, min_spp, Some(r))?
+                        / self.inefficiency_of(fast, min_spp, Some(r))?,
+                )
+            })
+            .collect()
     }
 
     /// Markdown report: the points, the per-mode inefficiency and the speedups.
@@ -56,16 +99,14 @@ impl Convergence {
              against a high-spp reference of the SAME mode (another seed). `seconds` is \
              path-tracing time on the machine as shared at run time (2 cores, other jobs \
              running: absolute figures are inflated and noisy; the ratios are what \
-             matter).\n\n| mode | spp | seconds | RMSE |\n|---|---|---|---|\n"
+             matter). With several repeats (independent seeds) the table shows the mean \
+             seconds and the root-mean-square RMSE per spp.\n\n\
+             | mode | spp | seconds | RMSE |\n|---|---|---|---|\n"
         );
-        for p in &self.points {
-            s += &format!(
-                "| {} | {} | {:.3} | {:.3e} |\n",
-                p.mode.name(),
-                p.spp,
-                p.seconds,
-                p.rmse
-            );
+        for (m, _) in &self.reference_seconds {
+            for (spp, t, e) in self.curve(*m, None) {
+                s += &format!("| {} | {spp} | {t:.3} | {e:.3e} |\n", m.name());
+            }
         }
         s += "\n| mode | reference seconds | far-field table build (s, once) | RMSE^2 x seconds |\n|---|---|---|---|\n";
         for (m, t) in &self.reference_seconds {
@@ -85,10 +126,17 @@ impl Convergence {
         );
         for (slow, fast) in [(Mode::Near, Mode::Multiscale), (Mode::Near, Mode::Far)] {
             if let Some(x) = self.speedup(slow, fast, min_spp) {
+                let each = self.speedup_per_repeat(slow, fast, min_spp);
                 s += &format!(
-                    "- equal-quality speedup of {} over {}: **{x:.2}x**\n",
+                    "- equal-quality speedup of {} over {}: **{x:.2}x** pooled over {} \
+                     repeats; per repeat {}\n",
                     fast.name(),
-                    slow.name()
+                    slow.name(),
+                    each.len(),
+                    each.iter()
+                        .map(|v| format!("{v:.2}x"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
                 );
             }
         }
@@ -97,11 +145,12 @@ impl Convergence {
     }
 
     pub fn to_csv(&self) -> String {
-        let mut s = String::from("mode,spp,seconds,rmse\n");
+        let mut s = String::from("mode,repeat,spp,seconds,rmse\n");
         for p in &self.points {
             s += &format!(
-                "{},{},{:.6},{:.6e}\n",
+                "{},{},{},{:.6},{:.6e}\n",
                 p.mode.name(),
+                p.repeat,
                 p.spp,
                 p.seconds,
                 p.rmse
@@ -111,15 +160,16 @@ impl Convergence {
     }
 }
 
-/// Render each mode at spp 1, 2, 4, ... `max_spp` and a `ref_spp` reference with another
-/// seed; RMSE against the reference of the same mode. `progress` is called per render.
+/// Render each mode at spp 1, 2, 4, ... `max_spp`, `repeats` times with independent seeds,
+/// and a `ref_spp` reference with yet another seed; RMSE against the reference of the same
+/// mode. `progress` is called per render.
 pub fn convergence(
     scene: &Scene,
     params: &FurParams,
     base: &RenderSettings,
     modes: &[Mode],
-    max_spp: usize,
-    ref_spp: usize,
+    (max_spp, ref_spp): (usize, usize),
+    repeats: usize,
     mut progress: impl FnMut(&str),
 ) -> crate::Result<Convergence> {
     let mut points = Vec::new();
@@ -144,25 +194,29 @@ pub fn convergence(
         reference_seconds.push((mode, r.seconds));
         setup_seconds.push((mode, r.setup_seconds));
         let reference: Image = r.beauty;
-        let mut spp = 1;
-        while spp <= max_spp {
-            let mut s = base.clone();
-            s.mode = mode;
-            s.spp = spp;
-            let r = render_scene(scene, params, &s)?;
-            let rmse = r.beauty.rmse(&reference);
-            progress(&format!(
-                "{} {spp} spp: {:.3} s, RMSE {rmse:.4e}",
-                mode.name(),
-                r.seconds
-            ));
-            points.push(ConvergencePoint {
-                mode,
-                spp,
-                seconds: r.seconds,
-                rmse,
-            });
-            spp *= 2;
+        for repeat in 0..repeats {
+            let mut spp = 1;
+            while spp <= max_spp {
+                let mut s = base.clone();
+                s.mode = mode;
+                s.spp = spp;
+                s.seed = base.seed.wrapping_add(7919 * repeat as u64);
+                let r = render_scene(scene, params, &s)?;
+                let rmse = r.beauty.rmse(&reference);
+                progress(&format!(
+                    "{} {spp} spp (repeat {repeat}): {:.3} s, RMSE {rmse:.4e}",
+                    mode.name(),
+                    r.seconds
+                ));
+                points.push(ConvergencePoint {
+                    mode,
+                    repeat,
+                    spp,
+                    seconds: r.seconds,
+                    rmse,
+                });
+                spp *= 2;
+            }
         }
     }
     Ok(Convergence {
@@ -177,20 +231,30 @@ pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> c
     use plotters::prelude::*;
     super::output::register_font();
     let err = |e: String| crate::Error::file(path, format!("plotting failed: {e}"));
-    let pts: Vec<&ConvergencePoint> = c.points.iter().filter(|p| p.rmse > 0.0).collect();
+    // Pooled curves (mean seconds, RMS of the RMSE over the repeats) per mode.
+    let curves: Vec<(Mode, Vec<(f64, f64)>)> = [Mode::Near, Mode::Far, Mode::Multiscale]
+        .into_iter()
+        .map(|m| {
+            (
+                m,
+                c.curve(m, None).iter().map(|&(_, t, e)| (t, e)).collect(),
+            )
+        })
+        .collect();
+    let pts: Vec<(f64, f64)> = curves.iter().flat_map(|c| c.1.iter().copied()).collect();
     if pts.is_empty() {
         return Err(crate::Error::file(path, "no convergence points to plot"));
     }
-    let (tmin, tmax) = pts.iter().fold((f64::MAX, 0.0f64), |a, p| {
-        (a.0.min(p.seconds), a.1.max(p.seconds))
-    });
-    let (emin, emax) = pts.iter().fold((f64::MAX, 0.0f64), |a, p| {
-        (a.0.min(p.rmse), a.1.max(p.rmse))
-    });
+    let (tmin, tmax) = pts
+        .iter()
+        .fold((f64::MAX, 0.0f64), |a, p| (a.0.min(p.0), a.1.max(p.0)));
+    let (emin, emax) = pts
+        .iter()
+        .fold((f64::MAX, 0.0f64), |a, p| (a.0.min(p.1), a.1.max(p.1)));
     #[allow(clippy::type_complexity)]
     fn draw_chart<DB: DrawingBackend>(
         root: DrawingArea<DB, plotters::coord::Shift>,
-        pts: &[&ConvergencePoint],
+        curves: &[(Mode, Vec<(f64, f64)>)],
         (tmin, tmax, emin, emax): (f64, f64, f64, f64),
     ) -> Result<(), String> {
         root.fill(&WHITE).map_err(|e| e.to_string())?;
@@ -217,11 +281,10 @@ pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> c
             (Mode::Far, BLUE),
             (Mode::Multiscale, GREEN),
         ] {
-            let series: Vec<(f64, f64)> = pts
+            let series: Vec<(f64, f64)> = curves
                 .iter()
-                .filter(|p| p.mode == mode)
-                .map(|p| (p.seconds, p.rmse))
-                .collect();
+                .find(|c| c.0 == mode)
+                .map_or(Vec::new(), |c| c.1.clone());
             if series.is_empty() {
                 continue;
             }
@@ -248,7 +311,7 @@ pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> c
         let mut s = String::new();
         draw_chart(
             SVGBackend::with_string(&mut s, (720, 480)).into_drawing_area(),
-            &pts,
+            &curves,
             bounds,
         )
         .map_err(err)?;
@@ -257,7 +320,7 @@ pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> c
         let mut buf = vec![0u8; 720 * 480 * 3];
         draw_chart(
             BitMapBackend::with_buffer(&mut buf, (720, 480)).into_drawing_area(),
-            &pts,
+            &curves,
             bounds,
         )
         .map_err(err)?;
@@ -330,4 +393,49 @@ pub fn culling_study(
             noise_rmse: noise,
         },
     ])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn point(mode: Mode, repeat: usize, spp: usize, seconds: f64, rmse: f64) -> ConvergencePoint {
+        ConvergencePoint {
+            mode,
+            repeat,
+            spp,
+            seconds,
+            rmse,
+        }
+    }
+
+    /// Pooling averages the squared RMSE and the seconds per spp over the repeats; the
+    /// per-repeat speedups use each repeat alone. Values chosen so every number is exact.
+    #[test]
+    fn curves_pool_repeats_and_speedups_split_them() {
+        let mut points = Vec::new();
+        for (r, (near_e, ms_e)) in [(0.2f64, 0.1f64), (0.4, 0.1)].into_iter().enumerate() {
+            for spp in [4, 8] {
+                points.push(point(Mode::Near, r, spp, 1.0, near_e));
+                points.push(point(Mode::Multiscale, r, spp, 1.0, ms_e));
+            }
+        }
+        let c = Convergence {
+            points,
+            reference_seconds: vec![(Mode::Near, 1.0), (Mode::Multiscale, 1.0)],
+            setup_seconds: vec![],
+        };
+        let near = c.curve(Mode::Near, None);
+        assert_eq!(near.len(), 2);
+        // RMS of 0.2 and 0.4: sqrt(0.1).
+        assert!((near[0].2 - 0.1f64.sqrt()).abs() < 1e-15 && near[0].1 == 1.0);
+        // Pooled: 0.1 / 0.01 = 10; per repeat: 0.04 / 0.01 = 4 and 0.16 / 0.01 = 16.
+        let s = c.speedup(Mode::Near, Mode::Multiscale, 4).unwrap();
+        assert!((s - 10.0).abs() < 1e-9, "{s}");
+        let each = c.speedup_per_repeat(Mode::Near, Mode::Multiscale, 4);
+        assert_eq!(each.len(), 2);
+        assert!((each[0] - 4.0).abs() < 1e-9 && (each[1] - 16.0).abs() < 1e-9);
+        // spp below the threshold are ignored.
+        assert!(c.speedup(Mode::Near, Mode::Multiscale, 16).is_none());
+    }
 }
