@@ -74,7 +74,7 @@ use super::select::{SelectTable, Selection};
 use crate::model::azimuthal::{self, medulla_offset, wrap_angle};
 use crate::model::far::FarOptions;
 use crate::model::geometry::PathGeometry;
-use crate::model::{geometry, longitudinal, FurModel, Lobe, LobeSet};
+use crate::model::{geometry, longitudinal, FurModel, Lobe, LobeSet, LobeValues};
 use crate::params::FurParams;
 use std::f64::consts::{FRAC_PI_2, PI, SQRT_2};
 use std::sync::Arc;
@@ -182,31 +182,22 @@ pub struct BsdfSample {
     pub pdf: f64,
 }
 
-/// Lobe probabilities and truncated-`M` parameters at one (`theta_o`, `h`).
+/// The truncated Gaussians `M_l` of the unscattered lobes for one `theta_o`: centre, width
+/// and [`trunc_tails`] (zero for the other lobes).
 #[derive(Clone, Copy, Debug)]
-struct Prep {
-    probs: [f64; 5],
+struct TruncM {
     mu: [f64; 5],
     s: [f64; 5],
-    mass: [f64; 5],
-    /// [`trunc_tails`] of each unscattered `M_l` (`mass = qa - qb`).
     tails: [(f64, f64); 5],
-    /// Scattered lobes' sampling frame at the camera side's specular `theta_d`: medulla
-    /// entry offset `x` and the segment directions `Phi^s_p` of TTs and TRTs.
-    x_med: f64,
-    phi_s: [f64; 2],
 }
 
-impl Prep {
-    const EMPTY: Prep = Prep {
-        probs: [0.0; 5],
-        mu: [0.0; 5],
-        s: [1.0; 5],
-        mass: [0.0; 5],
-        tails: [(0.0, 0.0); 5],
-        x_med: 0.0,
-        phi_s: [0.0; 2],
-    };
+impl TruncM {
+    /// Mass of lobe `i`'s `M_l` inside [-pi/2, pi/2].
+    #[inline]
+    fn mass(&self, i: usize) -> f64 {
+        let (qa, qb) = self.tails[i];
+        qa - qb
+    }
 }
 
 /// The camera side of a path vertex: what the sampler and its pdf need from `theta_o`
@@ -215,13 +206,7 @@ impl Prep {
 #[derive(Clone, Copy, Debug)]
 pub struct CameraSide {
     theta_o: f64,
-    long: Prep,
-}
-
-impl CameraSide {
-    pub fn theta_o(&self) -> f64 {
-        self.theta_o
-    }
+    m: TruncM,
 }
 
 /// Midpoints of the span averaged by [`FiberBsdf::pdf_mis`].
@@ -234,7 +219,7 @@ pub struct MisPrep {
     /// Offsets in use: 1 (near field) or [`MIS_POINTS`] (span).
     n: usize,
     hs: [f64; MIS_POINTS],
-    preps: [Prep; MIS_POINTS],
+    sels: [Selection; MIS_POINTS],
 }
 
 /// RGB fiber BCSDF of one parameter set.
@@ -365,9 +350,6 @@ impl FiberBsdf {
         let m = m0.longitudinal(theta_o, theta, phi, self.lobes);
         let s0 = m0.azimuthal(at.td);
         let geo = &at.geo;
-        // The cuticle depends on eta and l only, which the channels share (the tint
-        // scales absorption): one Fresnel term for the three.
-        let f = s0.cuticle(geo);
         let mut out = [[0.0; 3]; 5];
         let mut md = [0.0; 5];
         for l in self.lobes.iter() {
@@ -381,11 +363,7 @@ impl FiberBsdf {
                     };
             }
         }
-        let td = at.td;
-        for c in 0..3 {
-            let a = self.models[c]
-                .azimuthal(td)
-                .attenuation_with(f, geo, self.lobes);
+        for (c, a) in self.attenuation_rgb(at.td, geo).iter().enumerate() {
             for l in self.lobes.iter() {
                 out[l.index()][c] = a.get(l) * md[l.index()];
             }
@@ -425,64 +403,56 @@ impl FiberBsdf {
 
     /// Lobe selection probabilities at (`theta_o`, `h`) (module doc, step 2).
     pub fn lobe_probs(&self, theta_o: f64, h: f64) -> [f64; 5] {
-        self.prepare(theta_o, h).probs
+        self.select_at(&self.camera_side(theta_o), h).probs
     }
 
-    /// Everything the sampler and its pdf need that depends on (`theta_o`, `h`) only.
-    fn prepare(&self, theta_o: f64, h: f64) -> Prep {
-        self.prepare_at(&self.prepare_long(theta_o), theta_o, h)
-    }
-
-    /// The camera side of a vertex ([`CameraSide`]).
+    /// The camera side of a vertex ([`CameraSide`]): the truncated `M_l` of the
+    /// unscattered lobes, which depend on `theta_o` only.
     pub fn camera_side(&self, theta_o: f64) -> CameraSide {
-        CameraSide {
-            theta_o,
-            long: self.prepare_long(theta_o),
-        }
-    }
-
-    /// The truncated `M_l` of the unscattered lobes (centre, width, in-domain mass): they
-    /// depend on `theta_o` only, so a vertex computes them once for all its offsets.
-    fn prepare_long(&self, theta_o: f64) -> Prep {
-        let mut pr = Prep::EMPTY;
+        let mut m = TruncM {
+            mu: [0.0; 5],
+            s: [1.0; 5],
+            tails: [(0.0, 0.0); 5],
+        };
         for l in self.lobes.iter().filter(|l| !l.is_scattered()) {
             let i = l.index();
             let (mu, s) = self.m_params(l, theta_o);
-            pr.mu[i] = mu;
-            pr.s[i] = s;
-            let (qa, qb) = trunc_tails(mu, s);
-            pr.tails[i] = (qa, qb);
-            pr.mass[i] = qa - qb;
+            m.mu[i] = mu;
+            m.s[i] = s;
+            m.tails[i] = trunc_tails(mu, s);
         }
-        pr
+        CameraSide { theta_o, m }
     }
 
-    /// [`Self::prepare`] from the `theta_o`-only part `long` ([`Self::prepare_long`]): the
-    /// lobe selection from the per-render table when one is set, else exact.
-    fn prepare_at(&self, long: &Prep, theta_o: f64, h: f64) -> Prep {
-        let sel = match &self.select {
-            Some(t) => t.lookup(theta_o, h),
-            None => self.selection(long, theta_o, h),
-        };
-        Prep {
-            probs: sel.probs,
-            x_med: sel.x_med,
-            phi_s: sel.phi_s,
-            ..*long
+    /// The lobe selection at offset `h` of a camera side: from the per-render table when
+    /// one is set, else exact.
+    fn select_at(&self, side: &CameraSide, h: f64) -> Selection {
+        match &self.select {
+            Some(t) => t.lookup(side.theta_o, h),
+            None => self.selection(side, h),
         }
     }
 
-    /// Exact lobe selection at (`theta_o`, `h`) (module doc, step 2): energy per lobe on the
+    /// Per-channel attenuations at one path of slice `theta_d`: the cuticle depends on eta
+    /// and l only, which the channels share (the tint scales absorption), so one Fresnel
+    /// term serves the three.
+    fn attenuation_rgb(&self, theta_d: f64, geo: &PathGeometry) -> [LobeValues; 3] {
+        let f = self.models[0].azimuthal(theta_d).cuticle(geo);
+        std::array::from_fn(|c| {
+            self.models[c]
+                .azimuthal(theta_d)
+                .attenuation_with(f, geo, self.lobes)
+        })
+    }
+
+    /// Exact lobe selection at offset `h` (module doc, step 2): energy per lobe on the
     /// camera side, averaged over the channels, and the scattered lobes' frame.
-    fn selection(&self, long: &Prep, theta_o: f64, h: f64) -> Selection {
-        let slice = self.models[0].azimuthal(-theta_o);
-        let geo = slice.geometry(h);
+    fn selection(&self, side: &CameraSide, h: f64) -> Selection {
+        let theta_o = side.theta_o;
+        let geo = self.models[0].azimuthal(-theta_o).geometry(h);
         let x_med = medulla_offset(&geo, self.models[0].params.kappa);
         let mut w = [0.0; 5];
-        for c in 0..3 {
-            let a = self.models[c]
-                .azimuthal(-theta_o)
-                .attenuation(&geo, self.lobes);
+        for a in self.attenuation_rgb(-theta_o, &geo) {
             for l in self.lobes.iter() {
                 w[l.index()] += a.get(l) / 3.0;
             }
@@ -498,7 +468,7 @@ impl FiberBsdf {
                 });
                 w[i] *= f;
             } else {
-                w[i] *= long.mass[i].max(MIN_MASS);
+                w[i] *= side.m.mass(i).max(MIN_MASS);
             }
         }
         let sum: f64 = w.iter().sum();
@@ -509,16 +479,13 @@ impl FiberBsdf {
                 [0.0; 5]
             },
             x_med,
-            phi_s: [1, 2].map(|p| crate::model::azimuthal::phi_s_p(p, &geo)),
+            phi_s: [1, 2].map(|p| azimuthal::phi_s_p(p, &geo)),
         }
     }
 
     /// Tabulate the lobe selection ([`super::select`]) for this render.
     pub fn build_select_table(&mut self) {
-        self.select = None;
-        let table = SelectTable::build(|theta_o, h| {
-            self.selection(&self.prepare_long(theta_o), theta_o, h)
-        });
+        let table = SelectTable::build(|theta_o, h| self.selection(&self.camera_side(theta_o), h));
         self.select = Some(Arc::new(table));
     }
 
@@ -530,25 +497,33 @@ impl FiberBsdf {
     }
 
     /// Mixture pdf with prepared lobe data, `(theta, phi)` measure, averaged over the
-    /// offsets `hs` (`preps[k]` prepared at `hs[k]`). Terms that do not depend on `h` (the
+    /// offsets `hs` (`sels[k]` the lobe selection at `hs[k]`). Terms that do not depend on `h` (the
     /// slice at `theta_d`, `M_s` of the scattered lobes) are computed once.
-    fn pdf_prepared(&self, preps: &[Prep], hs: &[f64], theta_o: f64, theta: f64, phi: f64) -> f64 {
-        let slice = self.models[0].azimuthal(geometry::theta_d(theta_o, theta));
-        let mut q = PdfQuery::new(self, &preps[0], theta_o, theta, phi);
+    fn pdf_prepared(
+        &self,
+        side: &CameraSide,
+        sels: &[Selection],
+        hs: &[f64],
+        theta: f64,
+        phi: f64,
+    ) -> f64 {
+        let slice = self.models[0].azimuthal(geometry::theta_d(side.theta_o, theta));
+        let mut q = PdfQuery::new(self, side, theta, phi);
         let mut total = 0.0;
-        for (pr, &h) in preps.iter().zip(hs) {
+        for (sel, &h) in sels.iter().zip(hs) {
             let d = self.unscattered_d(&slice.geometry(h), phi);
-            total += q.at(pr, &d);
+            total += q.at(sel, &d);
         }
-        total / preps.len() as f64
+        total / sels.len() as f64
     }
 
     /// Mixture pdf conditional on `h`, `(theta, phi)` measure: `sum_l P_l pdf_l`, with
     /// `pdf_l` the truncated `M_l` times the wrapped Gaussian `D_l` (unscattered) or the
     /// table densities `C^N` (in `psi`) times `M_s` (in `theta`) (scattered).
     pub fn pdf_at(&self, theta_o: f64, theta: f64, phi: f64, h: f64) -> f64 {
-        let pr = self.prepare(theta_o, h);
-        self.pdf_prepared(&[pr], &[h], theta_o, theta, phi)
+        let side = self.camera_side(theta_o);
+        let sel = self.select_at(&side, h);
+        self.pdf_prepared(&side, &[sel], &[h], theta, phi)
     }
 
     /// The camera-side state of [`Self::pdf_mis`] at one vertex: a path queries the MIS
@@ -566,11 +541,11 @@ impl FiberBsdf {
             side: *side,
             n,
             hs,
-            preps: std::array::from_fn(|k| {
+            sels: std::array::from_fn(|k| {
                 if k < n {
-                    self.prepare_at(&side.long, side.theta_o, hs[k])
+                    self.select_at(side, hs[k])
                 } else {
-                    Prep::EMPTY
+                    Selection::default()
                 }
             }),
         }
@@ -578,13 +553,7 @@ impl FiberBsdf {
 
     /// [`Self::pdf_mis`] from a [`MisPrep`].
     pub fn pdf_mis_prepared(&self, mp: &MisPrep, theta: f64, phi: f64) -> f64 {
-        self.pdf_prepared(
-            &mp.preps[..mp.n],
-            &mp.hs[..mp.n],
-            mp.side.theta_o,
-            theta,
-            phi,
-        )
+        self.pdf_prepared(&mp.side, &mp.sels[..mp.n], &mp.hs[..mp.n], theta, phi)
     }
 
     /// pdf used for MIS weights: exact for the near field; for a span, the 4-point
@@ -607,8 +576,8 @@ impl FiberBsdf {
             HRange::Span(h1, h2) => (h1 + u[0] * (h2 - h1), u[1]),
         };
         // In span mode u[1] picks the lobe; in near mode u[0] does and u[1] is free.
-        let pr = self.prepare_at(&side.long, theta_o, h);
-        let probs = pr.probs;
+        let sel = self.select_at(side, h);
+        let probs = sel.probs;
         let mut acc = 0.0;
         let mut lobe = None;
         for l in self.lobes.iter() {
@@ -630,16 +599,16 @@ impl FiberBsdf {
             // psi from C^N at the sampling frame's offset, then theta_r from M_s at that
             // phi (the front/back blend of Eq. 19 needs phi first).
             let sm = self.models[0].medulla()?.sampler();
-            let (psi, _) = sm.sample_cn(pr.x_med, u[3]);
-            let phi = wrap_angle(pr.phi_s[lobe.p() - 1] + psi);
+            let (psi, _) = sm.sample_cn(sel.x_med, u[3]);
+            let phi = wrap_angle(sel.phi_s[lobe.p() - 1] + psi);
             let (theta, _) = sm.sample_cm(theta_o, phi, u[2]);
             (theta, phi, None)
         } else {
-            let i = lobe.index();
-            let theta = if pr.mass[i] < MIN_MASS {
+            let (i, m) = (lobe.index(), &side.m);
+            let theta = if m.mass(i) < MIN_MASS {
                 PI * (u[2] - 0.5)
             } else {
-                trunc_sample(pr.mu[i], pr.s[i], pr.tails[i], u[2])
+                trunc_sample(m.mu[i], m.s[i], m.tails[i], u[2])
             };
             let td = geometry::theta_d(theta_o, theta);
             let slice = self.models[0].azimuthal(td);
@@ -654,7 +623,7 @@ impl FiberBsdf {
             Some((td, geo)) => self.near_point_at(td, geo, phi),
             None => self.near_point(theta_o, theta, phi, h),
         };
-        let pdf = PdfQuery::new(self, &pr, theta_o, theta, phi).at(&pr, &at.d);
+        let pdf = PdfQuery::new(self, side, theta, phi).at(&sel, &at.d);
         if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }
@@ -697,18 +666,20 @@ struct PdfQuery<'a> {
 }
 
 impl<'a> PdfQuery<'a> {
-    fn new(bsdf: &'a FiberBsdf, long: &Prep, theta_o: f64, theta: f64, phi: f64) -> Self {
+    fn new(bsdf: &'a FiberBsdf, side: &CameraSide, theta: f64, phi: f64) -> Self {
+        let m = &side.m;
         let pt = std::array::from_fn(|i| {
-            if long.mass[i] < MIN_MASS {
+            let mass = m.mass(i);
+            if mass < MIN_MASS {
                 1.0 / PI
             } else {
-                longitudinal::gaussian(theta, long.mu[i], long.s[i]) / long.mass[i]
+                longitudinal::gaussian(theta, m.mu[i], m.s[i]) / mass
             }
         });
         PdfQuery {
             bsdf,
             sampler: bsdf.models[0].medulla().map(|m| m.sampler()),
-            theta_o,
+            theta_o: side.theta_o,
             theta,
             phi,
             pt,
@@ -716,12 +687,13 @@ impl<'a> PdfQuery<'a> {
         }
     }
 
-    /// `sum_l P_l pdf_l` at the offset `pr` was prepared at, with its unscattered `D_l`.
-    fn at(&mut self, pr: &Prep, d: &[f64; 5]) -> f64 {
+    /// `sum_l P_l pdf_l` at the offset whose lobe selection is `sel` and unscattered
+    /// `D_l` are `d`.
+    fn at(&mut self, sel: &Selection, d: &[f64; 5]) -> f64 {
         let mut pdf = 0.0;
         for l in self.bsdf.lobes.iter() {
             let i = l.index();
-            if pr.probs[i] <= 0.0 {
+            if sel.probs[i] <= 0.0 {
                 continue;
             }
             let v = if l.is_scattered() {
@@ -731,14 +703,14 @@ impl<'a> PdfQuery<'a> {
                         let cm = *self
                             .cm
                             .get_or_insert_with(|| sm.pdf_cm(theta_o, theta, phi));
-                        sm.pdf_cn(pr.x_med, wrap_angle(phi - pr.phi_s[l.p() - 1])) * cm
+                        sm.pdf_cn(sel.x_med, wrap_angle(phi - sel.phi_s[l.p() - 1])) * cm
                     }
                     None => 0.0,
                 }
             } else {
                 self.pt[i] * d[i]
             };
-            pdf += pr.probs[i] * v;
+            pdf += sel.probs[i] * v;
         }
         pdf
     }

@@ -25,7 +25,7 @@ pub const N_H: usize = 41;
 
 /// The sampler's state at one `(theta_o, h)`: lobe probabilities (by
 /// [`crate::model::Lobe::index`]) and the scattered lobes' frame.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Selection {
     pub probs: [f64; 5],
     /// Medulla entry offset `x` of the `C^N` query.
