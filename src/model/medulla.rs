@@ -846,6 +846,11 @@ impl PlDensity {
     }
 }
 
+/// Domains of the sampled `psi` (of `C^N`) and `theta_r` (of `C^M`): where an empty
+/// mixture falls back to uniform sampling.
+const PSI_RANGE: (f64, f64) = (-PI, PI);
+const THETA_R_RANGE: (f64, f64) = (-FRAC_PI_2, FRAC_PI_2);
+
 /// Per-slice tabulated CDFs for importance sampling.
 ///
 /// The sampled density at an arbitrary `x` (or `theta_i`, `phi`) is the mixture of the
@@ -946,9 +951,25 @@ impl MedullaSampler {
         let (w, p) = comps[chosen];
         let local = ((target - acc) / w).clamp(0.0, p.mass());
         let v = p.invert(knots, local);
+        (v, Self::mixture_density(comps, knots, v, total))
+    }
+
+    /// Density of the mixture `comps` (total mass `total > 0`) at `v`: every component
+    /// shares the knots, so `v` is located once.
+    fn mixture_density(comps: &[(f64, &PlDensity)], knots: &[f64], v: f64, total: f64) -> f64 {
         let at = locate(knots, v);
-        let pdf: f64 = comps.iter().map(|(w, p)| w * p.eval_at(at)).sum::<f64>() / total;
-        (v, pdf)
+        comps.iter().map(|(w, p)| w * p.eval_at(at)).sum::<f64>() / total
+    }
+
+    /// The pdf [`Self::sample_mixture`] samples, at `v`: the normalised mixture, or the
+    /// uniform density of its fallback range when the mixture is empty.
+    fn mixture_pdf(comps: &[(f64, &PlDensity)], knots: &[f64], v: f64, range: (f64, f64)) -> f64 {
+        let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
+        if total > 0.0 {
+            Self::mixture_density(comps, knots, v, total)
+        } else {
+            1.0 / (range.1 - range.0)
+        }
     }
 
     /// Sample the exit azimuth `psi` of `C^N` at offset `x` from `u in [0, 1)`; returns
@@ -957,7 +978,7 @@ impl MedullaSampler {
         let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
         let (i, f) = locate(&self.x_axis, x.abs());
         let comps = [(1.0 - f, &self.cn[i]), (f, &self.cn[i + 1])];
-        let (psi, pdf) = Self::sample_mixture(&comps, &self.psi_knots, u, (-PI, PI));
+        let (psi, pdf) = Self::sample_mixture(&comps, &self.psi_knots, u, PSI_RANGE);
         (if x.is_sign_negative() { -psi } else { psi }, pdf)
     }
 
@@ -967,13 +988,7 @@ impl MedullaSampler {
         let psi = wrap_pi(if x.is_sign_negative() { -psi } else { psi });
         let (i, f) = locate(&self.x_axis, x.abs());
         let comps = [(1.0 - f, &self.cn[i]), (f, &self.cn[i + 1])];
-        let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
-        if total > 0.0 {
-            let at = locate(&self.psi_knots, psi);
-            comps.iter().map(|(w, p)| w * p.eval_at(at)).sum::<f64>() / total
-        } else {
-            1.0 / (2.0 * PI)
-        }
+        Self::mixture_pdf(&comps, &self.psi_knots, psi, PSI_RANGE)
     }
 
     fn cm_comps(&self, theta_i: f64, phi: f64) -> [(f64, &PlDensity); 4] {
@@ -996,7 +1011,7 @@ impl MedullaSampler {
     pub fn sample_cm(&self, theta_i: f64, phi: f64, u: f64) -> (f64, f64) {
         let ti = if theta_i.is_nan() { 0.0 } else { theta_i };
         let comps = self.cm_comps(ti, phi);
-        let (tr, pdf) = Self::sample_mixture(&comps, &self.tr_knots, u, (-FRAC_PI_2, FRAC_PI_2));
+        let (tr, pdf) = Self::sample_mixture(&comps, &self.tr_knots, u, THETA_R_RANGE);
         (if ti < 0.0 { -tr } else { tr }, pdf)
     }
 
@@ -1005,13 +1020,7 @@ impl MedullaSampler {
         let ti = if theta_i.is_nan() { 0.0 } else { theta_i };
         let tr = if ti < 0.0 { -theta_r } else { theta_r };
         let comps = self.cm_comps(ti, phi);
-        let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
-        if total > 0.0 {
-            let at = locate(&self.tr_knots, tr);
-            comps.iter().map(|(w, p)| w * p.eval_at(at)).sum::<f64>() / total
-        } else {
-            1.0 / PI
-        }
+        Self::mixture_pdf(&comps, &self.tr_knots, tr, THETA_R_RANGE)
     }
 }
 
