@@ -142,6 +142,27 @@ fn pieces(segs: &[Segment]) -> Vec<Piece> {
 }
 
 impl Tree {
+    /// The tree over the pieces of `segs` with their boxes in the orthonormal frame `to`
+    /// maps points into (the identity for world axes).
+    fn over_pieces(segs: &[Segment], to: impl Fn(V3) -> V3, area: fn(&Aabb) -> f64) -> Tree {
+        let ps = pieces(segs);
+        // A capsule of radius r about p0-p1 lies, in any orthonormal frame, in the box of
+        // its two ends grown by r.
+        let boxes: Vec<Aabb> = ps
+            .iter()
+            .map(|p| {
+                let (q0, q1) = (to(p.p0), to(p.p1));
+                let e = V3::new(p.r, p.r, p.r);
+                Aabb {
+                    lo: q0.min(q1) - e,
+                    hi: q0.max(q1) + e,
+                }
+            })
+            .collect();
+        let owner: Vec<u32> = ps.iter().map(|p| p.owner).collect();
+        Tree::build(&boxes, &owner, area)
+    }
+
     /// Binned-SAH binary tree over `boxes` (`area` weighs a box by how likely the rays
     /// of interest meet it), collapsed to four-wide nodes.
     fn build(boxes: &[Aabb], owner: &[u32], area: fn(&Aabb) -> f64) -> Tree {
@@ -236,20 +257,8 @@ impl Bvh {
     /// force loop (every hit lies within `r` of the axis point at its parameter, inside
     /// that piece's box). The tree is split by the binned surface-area heuristic.
     pub fn build(segs: Vec<Segment>) -> Bvh {
-        let ps = pieces(&segs);
-        let boxes: Vec<Aabb> = ps
-            .iter()
-            .map(|p| {
-                let e = V3::new(p.r, p.r, p.r);
-                Aabb {
-                    lo: p.p0.min(p.p1) - e,
-                    hi: p.p0.max(p.p1) + e,
-                }
-            })
-            .collect();
-        let owner: Vec<u32> = ps.iter().map(|p| p.owner).collect();
         Bvh {
-            tree: Tree::build(&boxes, &owner, Aabb::area),
+            tree: Tree::over_pieces(&segs, |p| p, Aabb::area),
             segs,
         }
     }
@@ -266,24 +275,10 @@ impl Bvh {
         let x = helper.cross(z).normalized();
         let axes = [x, z.cross(x), z];
         let to = |p: V3| V3::new(p.dot(axes[0]), p.dot(axes[1]), p.dot(axes[2]));
-        let ps = pieces(&self.segs);
-        // A capsule of radius r about p0-p1 lies in the box of its rotated ends grown by r.
-        let boxes: Vec<Aabb> = ps
-            .iter()
-            .map(|p| {
-                let (q0, q1) = (to(p.p0), to(p.p1));
-                let e = V3::new(p.r, p.r, p.r);
-                Aabb {
-                    lo: q0.min(q1) - e,
-                    hi: q0.max(q1) + e,
-                }
-            })
-            .collect();
-        let owner: Vec<u32> = ps.iter().map(|p| p.owner).collect();
         DirTree {
             dir,
             axes,
-            tree: Tree::build(&boxes, &owner, Aabb::projected_area),
+            tree: Tree::over_pieces(&self.segs, to, Aabb::projected_area),
         }
     }
 
@@ -324,20 +319,36 @@ impl Bvh {
                     continue;
                 }
                 let first = node.child[lane] as usize;
-                for &si in &tree.prims[first..first + count as usize] {
-                    if si == last {
-                        continue;
-                    }
-                    last = si;
-                    let s = &self.segs[si as usize];
-                    if Some(s.fiber) != skip && intersect_segment(s, o, t.dir, tmin, tmax).is_some()
-                    {
+                let leaf = &tree.prims[first..first + count as usize];
+                for (_, s) in self.leaf_segments(leaf, &mut last, skip) {
+                    if intersect_segment(s, o, t.dir, tmin, tmax).is_some() {
                         return true;
                     }
                 }
             }
         }
         false
+    }
+
+    /// The segments a leaf's pieces name, each with its index, to be tested against a
+    /// ray: neighbouring pieces of one segment share leaves, so a segment just tested
+    /// (`last`, carried across leaves) is skipped, and so is the fiber `skip` a path
+    /// leaves.
+    #[inline(always)]
+    fn leaf_segments<'a>(
+        &'a self,
+        leaf: &'a [u32],
+        last: &'a mut u32,
+        skip: Option<u32>,
+    ) -> impl Iterator<Item = (u32, &'a Segment)> + 'a {
+        leaf.iter().filter_map(move |&si| {
+            if si == *last {
+                return None;
+            }
+            *last = si;
+            let s = &self.segs[si as usize];
+            (Some(s.fiber) != skip).then_some((si, s))
+        })
     }
 
     pub fn segments(&self) -> &[Segment] {
@@ -420,15 +431,8 @@ impl Bvh {
                     continue;
                 }
                 let first = node.child[lane] as usize;
-                for &si in &prims[first..first + count as usize] {
-                    if si == last {
-                        continue;
-                    }
-                    last = si;
-                    let s = &self.segs[si as usize];
-                    if Some(s.fiber) == skip {
-                        continue;
-                    }
+                let leaf = &prims[first..first + count as usize];
+                for (si, s) in self.leaf_segments(leaf, &mut last, skip) {
                     if let Some(mut hit) = intersect_segment(s, o, d, tmin, tmax) {
                         hit.segment = si;
                         tmax = hit.t;
@@ -764,6 +768,14 @@ mod tests {
         (segs, bvh)
     }
 
+    /// A direction uniform on the unit sphere.
+    fn random_dir(rng: &mut impl Rng) -> V3 {
+        let z: f64 = rng.random::<f64>() * 2.0 - 1.0;
+        let a = rng.random::<f64>() * std::f64::consts::TAU;
+        let r = (1.0 - z * z).sqrt();
+        V3::new(r * a.cos(), r * a.sin(), z)
+    }
+
     /// Closest hit distance by testing every segment (infinite on a miss).
     fn brute_t(segs: &[Segment], o: V3, d: V3, tmin: f64, tmax: f64, skip: Option<u32>) -> f64 {
         segs.iter()
@@ -856,13 +868,7 @@ mod tests {
             let s = &segs[rng.random_range(0..segs.len())];
             let e = s.b - s.a;
             let sp: f64 = rng.random_range(0.05..0.95);
-            let z: f64 = rng.random::<f64>() * 2.0 - 1.0;
-            let az = rng.random::<f64>() * std::f64::consts::TAU;
-            let d = V3::new(
-                (1.0 - z * z).sqrt() * az.cos(),
-                z,
-                (1.0 - z * z).sqrt() * az.sin(),
-            );
+            let d = random_dir(&mut rng);
             let n = e.cross(d);
             if n.length() < 1e-3 * e.length() {
                 continue; // parallel: the ribbon has no width
@@ -916,10 +922,7 @@ mod tests {
                 v[k / 8 % 3] = if k % 16 == 0 { 1.0 } else { -1.0 };
                 V3::new(v[0], v[1], v[2])
             } else {
-                let z: f64 = rng.random::<f64>() * 2.0 - 1.0;
-                let a = rng.random::<f64>() * std::f64::consts::TAU;
-                let r = (1.0 - z * z).sqrt();
-                V3::new(r * a.cos(), r * a.sin(), z)
+                random_dir(&mut rng)
             };
             let got = check_ray(&segs, &bvh, o, d, (1e-9, 1e9), Some(s.fiber));
             hits += usize::from(got.is_finite());
@@ -941,10 +944,7 @@ mod tests {
             V3::new(0.0, 0.0, 1.0),
         ];
         for _ in 0..4 {
-            let z: f64 = rng.random::<f64>() * 2.0 - 1.0;
-            let a = rng.random::<f64>() * std::f64::consts::TAU;
-            let r = (1.0 - z * z).sqrt();
-            dirs.push(V3::new(r * a.cos(), r * a.sin(), z));
+            dirs.push(random_dir(&mut rng));
         }
         let (mut blocked, mut total) = (0, 0);
         for d in dirs {
