@@ -286,13 +286,9 @@ impl FiberBsdf {
     }
 
     /// Tabulate the far field / multi-scale term for fast [`Self::eval_span`] (run inside
-    /// the render's thread pool; uses the current `far_opts`).
-    pub fn build_far_table(&mut self) {
-        self.far_table = Some(Arc::new(FarTable::build(
-            &self.models,
-            self.lobes,
-            &self.far_opts,
-        )));
+    /// the render's thread pool; uses the current `far_opts`). Set it as `far_table`.
+    pub fn tabulate_far(&self) -> FarTable {
+        FarTable::build(&self.models, self.lobes, &self.far_opts)
     }
 
     /// The lobes this BCSDF evaluates (requested ∩ active: scattered lobes are left out

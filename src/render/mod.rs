@@ -38,6 +38,7 @@ use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
 use scene::{Camera, DirectionalLight, Environment, StrandSpec};
+use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
 /// A linear RGB image, row-major, top row first.
@@ -184,9 +185,9 @@ type TableKey = ([u64; 10], [u64; 3], LobeSet, bool);
 /// tables of the parameter sets rendered so far (a study renders one set many times).
 pub struct Scene {
     pub bvh: Bvh,
-    tables: std::sync::Mutex<Vec<(TableKey, std::sync::Arc<ntable::FarTable>)>>,
+    tables: Mutex<Vec<(TableKey, Arc<ntable::FarTable>)>>,
     /// Shadow-ray trees of the key light directions rendered so far.
-    light_trees: std::sync::Mutex<Vec<([u64; 3], std::sync::Arc<DirTree>)>>,
+    light_trees: Mutex<Vec<([u64; 3], Arc<DirTree>)>>,
 }
 
 impl Scene {
@@ -200,19 +201,13 @@ impl Scene {
 
     /// The tree for shadow rays toward a directional light along `dir` (built on first
     /// use; [`DirTree`]).
-    pub fn light_tree(&self, dir: V3) -> std::sync::Arc<DirTree> {
+    pub fn light_tree(&self, dir: V3) -> Arc<DirTree> {
         let key = [dir.x, dir.y, dir.z].map(f64::to_bits);
-        let mut cache = self.light_trees.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, t)) = cache.iter().find(|(k, _)| *k == key) {
-            return t.clone();
-        }
-        let t = std::sync::Arc::new(self.bvh.dir_tree(dir));
-        cache.push((key, t.clone()));
-        t
+        cached(&self.light_trees, key, || self.bvh.dir_tree(dir))
     }
 
-    /// The far-field table of `bsdf`, built on first use (returns whether it was built).
-    fn far_table(&self, bsdf: &mut FiberBsdf, params: &FurParams, s: &RenderSettings) -> bool {
+    /// Set the far-field table of `bsdf`, built on first use for its key.
+    fn far_table(&self, bsdf: &mut FiberBsdf, params: &FurParams, s: &RenderSettings) {
         let key: TableKey = (
             [
                 params.eta,
@@ -231,17 +226,25 @@ impl Scene {
             bsdf.lobes(),
             s.far_cull,
         );
-        let mut cache = self.tables.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((_, t)) = cache.iter().find(|(k, _)| *k == key) {
-            bsdf.far_table = Some(t.clone());
-            return false;
-        }
-        bsdf.build_far_table();
-        if let Some(t) = &bsdf.far_table {
-            cache.push((key, t.clone()));
-        }
-        true
+        let table = cached(&self.tables, key, || bsdf.tabulate_far());
+        bsdf.far_table = Some(table);
     }
+}
+
+/// The value of a scene cache under `key`, built by `build` on first use (under the lock,
+/// so concurrent renders build it once).
+fn cached<K: PartialEq, V>(
+    cache: &Mutex<Vec<(K, Arc<V>)>>,
+    key: K,
+    build: impl FnOnce() -> V,
+) -> Arc<V> {
+    let mut entries = cache.lock().unwrap_or_else(|e| e.into_inner());
+    if let Some((_, v)) = entries.iter().find(|(k, _)| *k == key) {
+        return v.clone();
+    }
+    let v = Arc::new(build());
+    entries.push((key, v.clone()));
+    v
 }
 
 fn pixel_seed(seed: u64, index: u64) -> u64 {
