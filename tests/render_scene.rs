@@ -42,7 +42,15 @@ fn white_furnace_scene_stays_at_or_below_one() {
     s.tint = Tint::GREY;
     s.spp = 16;
     let scene = Scene::build(&s.strand);
-    let r = render_scene(&scene, &p, &s).unwrap();
+    // Both estimators of the environment: BCSDF sampling alone (the default) and
+    // next-event estimation with MIS.
+    for env_nee in [false, true] {
+        s.env_nee = env_nee;
+        furnace_check(&render_scene(&scene, &p, &s).unwrap(), env_nee);
+    }
+}
+
+fn furnace_check(r: &furfit::render::RenderOutput, env_nee: bool) {
     let fiber: Vec<f64> = r
         .beauty
         .data
@@ -57,12 +65,50 @@ fn white_furnace_scene_stays_at_or_below_one() {
     let se = (var / fiber.len() as f64).sqrt();
     // Energy is lost (orders p > 2 are not in the model), never gained: the mean of the
     // fiber pixels is <= 1 within 4 standard errors ...
-    assert!(mean <= 1.0 + 4.0 * se, "mean {mean} se {se}");
+    assert!(
+        mean <= 1.0 + 4.0 * se,
+        "env NEE {env_nee}: mean {mean} se {se}"
+    );
     // ... and it is not trivially dark: most of the light survives.
-    assert!(mean > 0.5, "mean {mean}");
+    assert!(mean > 0.5, "env NEE {env_nee}: mean {mean}");
     // Per pixel, 16 spp of weights <= ~2 bound the noise: no pixel far above one.
     let max = fiber.iter().cloned().fold(0.0, f64::max);
-    assert!(max < 1.35, "max {max}");
+    assert!(max < 1.35, "env NEE {env_nee}: max {max}");
+}
+
+#[test]
+fn environment_estimators_agree() {
+    // BCSDF sampling alone and next-event estimation with MIS (weights summing to one)
+    // are both unbiased for the environment's light: over independent seeds their image
+    // means agree. Gradient environment, no key light, so only these estimators differ.
+    let scene = Scene::build(&small(Mode::Multiscale).strand);
+    let mut s = small(Mode::Multiscale);
+    s.light = None;
+    s.spp = 8;
+    let mut stats = Vec::new();
+    for env_nee in [false, true] {
+        s.env_nee = env_nee;
+        let means: Vec<f64> = (0..6)
+            .map(|k| {
+                s.seed = 100 + k;
+                let img = render_scene(&scene, &fur(), &s).unwrap().beauty;
+                img.data.iter().map(|c| c[1]).sum::<f64>() / img.data.len() as f64
+            })
+            .collect();
+        let m = means.iter().sum::<f64>() / 6.0;
+        let var = means.iter().map(|v| (v - m).powi(2)).sum::<f64>() / 5.0;
+        stats.push((m, var / 6.0));
+    }
+    let ((a, va), (b, vb)) = (stats[0], stats[1]);
+    let se = (va + vb).sqrt();
+    // 4 standard errors of the difference (estimated from 6 seeds each, so loose), plus
+    // a floor of 0.5 % against a degenerate spread: a dropped or doubled MIS weight moves
+    // the mean by tens of percent.
+    assert!(
+        (a - b).abs() <= 4.0 * se + 5e-3 * a,
+        "BCSDF sampling {a} vs NEE + MIS {b} (se {se})"
+    );
+    assert!(a > 0.02, "scene too dark to compare: {a}");
 }
 
 #[test]

@@ -78,6 +78,11 @@ pub struct Args {
     /// instead of the per-render table (exact, much slower).
     #[arg(long)]
     pub exact_far: bool,
+    /// Also sample the environment at every fiber vertex (next-event estimation, MIS with
+    /// BCSDF sampling). Off by default: on the test lock it costs more time than it removes
+    /// noise (see `render::integrator`).
+    #[arg(long)]
+    pub env_nee: bool,
     /// Skip the per-lobe AOV images.
     #[arg(long)]
     pub no_aovs: bool,
@@ -160,6 +165,7 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
         env,
         tint,
         far_table: !a.exact_far,
+        env_nee: a.env_nee,
         ..RenderSettings::default()
     };
     s.camera.dist = a.cam_dist;

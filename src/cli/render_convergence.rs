@@ -37,6 +37,9 @@ pub struct Args {
     pub repeats: usize,
     #[arg(long, default_value_t = 0)]
     pub threads: usize,
+    /// Render with next-event estimation of the environment (MIS with BCSDF sampling).
+    #[arg(long)]
+    pub env_nee: bool,
     /// Run the culling study instead (writes reports/render_culling.md).
     #[arg(long)]
     pub culling_study: bool,
@@ -65,6 +68,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         seed: a.seed,
         threads: a.threads,
         region: Some(((fw - pw) / 2, (fh - ph) / 2, pw, ph)),
+        env_nee: a.env_nee,
         ..RenderSettings::default()
     };
     let scene = Scene::build(&base.strand);
@@ -146,8 +150,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let command = format!(
         "furfit render-convergence --params {} --size {pw}x{ph} --frame {fw}x{fh} \
-         --max-spp {} --ref-spp {} --modes {} --seed {} --repeats {} --threads {}",
-        a.params, a.max_spp, a.ref_spp, a.modes, a.seed, a.repeats, a.threads
+         --max-spp {} --ref-spp {} --modes {} --seed {} --repeats {} --threads {}{}",
+        a.params,
+        a.max_spp,
+        a.ref_spp,
+        a.modes,
+        a.seed,
+        a.repeats,
+        a.threads,
+        if a.env_nee { " --env-nee" } else { "" }
     );
     let md = a.out.join("render_convergence.md");
     crate::io::write_atomic(&md, c.to_markdown(&command, 4).as_bytes())?;

@@ -125,6 +125,8 @@ pub struct RenderSettings {
     /// Serve far-field / multi-scale queries from a per-render table
     /// ([`ntable`]); `false` runs the analytic engine per query (exact, much slower).
     pub far_table: bool,
+    /// Next-event estimation of the environment with MIS ([`Integrator::env_nee`]).
+    pub env_nee: bool,
 }
 
 impl Default for RenderSettings {
@@ -154,6 +156,7 @@ impl Default for RenderSettings {
             region: None,
             far_cull: true,
             far_table: true,
+            env_nee: false,
         }
     }
 }
@@ -319,6 +322,7 @@ fn render_in_pool(
         max_depth: s.max_depth,
         footprint_scale: s.footprint_scale,
         secondary_spread: s.secondary_spread,
+        env_nee: s.env_nee,
     };
     let (x0, y0, w, h) = s.region.unwrap_or((0, 0, s.width, s.height));
     if x0 + w > s.width || y0 + h > s.height || w == 0 || h == 0 {
