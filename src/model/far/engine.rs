@@ -67,6 +67,22 @@ const RATIO_MIN: f64 = 0.5;
 /// A segment spanning at most this many `beta_p` in `Phi` may be integrated by GL.
 const GL_SPAN_SIGMAS: f64 = 2.0;
 const GL_NODES: usize = 16;
+/// In tolerance mode a GL piece spanning at most [`GL_FEW_SPAN_SIGMAS`] `beta_p` in `Phi`
+/// keeps [`GL_NODES_FEW`] nodes instead of [`GL_NODES`] when the two rules' sums of the
+/// lobe's Gaussian agree to [`GL_FEW_REL`] `* tol` of the piece's peak at the
+/// [`GL_FEW_PROBES`] (in `beta_p` from the piece's middle): every `phi` then pays for 8
+/// Gaussians instead of 16 per piece. For the Gaussian alone this holds by far (at
+/// `4.3 beta`, where the lobe is 1e-4 of its peak, its exponent changes by ~4.8 across a
+/// span of `beta`: an `exp(2.4 x)` on the rule's `[-1, 1]`, integrated by 8 nodes to
+/// ~1e-10 of itself); the probes catch a prefactor `A cos u` that is not smooth across
+/// the piece (TT at `eta -> 1` and grazing `theta_d`, inside the Fresnel layer, lost a
+/// factor 4 in the stability sweep without them).
+const GL_NODES_FEW: usize = 8;
+const GL_FEW_SPAN_SIGMAS: f64 = 1.0;
+const GL_FEW_REL: f64 = 1e-3;
+/// Probe offsets in `beta_p`: out to 4 (at 4.3 the lobe is 1e-4 of its peak); the
+/// powers in [`FarSlice::gl_piece`] follow this order.
+const GL_FEW_PROBES: [f64; 7] = [-4.0, -2.0, -1.0, 0.0, 1.0, 2.0, 4.0];
 /// At most this many pieces per initial scattered segment from the psi step (the step's
 /// whole range of `Phi^s`, under 2 pi, needs at most ~6300 at the strict step).
 const MAX_PSI_PIECES: f64 = 16384.0;
@@ -412,6 +428,12 @@ impl<'a> FarSlice<'a> {
 
     /// Node values at `u`.
     fn node(&self, u: f64) -> Node {
+        self.node_with(u, true)
+    }
+
+    /// [`Self::node`], leaving the scattered lobes' values at 0 unless `scattered` (the
+    /// quadrature nodes of an unscattered piece read only their own lobe).
+    fn node_with(&self, u: f64, scattered: bool) -> Node {
         let az = &self.az;
         let h = u.sin();
         let geo = az.geometry(h);
@@ -442,7 +464,7 @@ impl<'a> FarSlice<'a> {
             let pf = p as f64;
             n.lam[p] = -2.0 * pf * (geo.s_c * ab.sigma_c_a + geo.s_m * ab.sigma_m_t) * ab.inv_cos_d;
         }
-        if self.lobes.intersect(LobeSet::SCATTERED) != LobeSet::NONE {
+        if scattered && self.lobes.intersect(LobeSet::SCATTERED) != LobeSet::NONE {
             let meets = geo.meets_medulla();
             let tb = ab.kappa * ab.sigma_m_a + (1.0 - ab.kappa) * ab.sigma_c_a;
             for p in 1..3 {
@@ -611,7 +633,7 @@ impl<'a> FarSlice<'a> {
                 let (q1, q3) = quarter(self);
                 self.build_narrow(p, n0, nm, n1, q1, q3, depth, rf, out);
             } else {
-                out.push(self.gl_piece(p, n0, n1, lo, hi));
+                out.push(self.gl_piece(p, n0, n1, lo, hi, false));
             }
             return;
         }
@@ -621,7 +643,7 @@ impl<'a> FarSlice<'a> {
                 self.build_unsc(p, n0, q1, nm, depth, rf, out);
                 self.build_unsc(p, nm, q3, n1, depth, rf, out);
             }
-            None => out.push(self.gl_piece(p, n0, n1, lo, hi)),
+            None => out.push(self.gl_piece(p, n0, n1, lo, hi, false)),
         }
     }
 
@@ -673,27 +695,79 @@ impl<'a> FarSlice<'a> {
         let ph = [n0.phi[p], nm.phi[p], n1.phi[p]];
         let lo = ph.iter().cloned().fold(f64::INFINITY, f64::min);
         let hi = ph.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        out.push(self.gl_piece(p, n0, n1, lo, hi));
+        out.push(self.gl_piece(p, n0, n1, lo, hi, true));
     }
 
-    /// [`GL_NODES`]-point Gauss-Legendre piece of lobe `p` over `[n0.u, n1.u]`.
-    fn gl_piece(&self, p: usize, n0: Node, n1: Node, lo: f64, hi: f64) -> Piece {
-        let gl = GaussLegendre::cached(GL_NODES);
-        let (c, r) = (0.5 * (n0.u + n1.u), 0.5 * (n1.u - n0.u));
-        let mut nodes = Vec::with_capacity(GL_NODES);
-        let (mut plo, mut phi_hi) = (f64::INFINITY, f64::NEG_INFINITY);
-        for (x, w) in gl.nodes.iter().zip(&gl.weights) {
-            let n = self.node(c + r * x);
-            let ph = n.phi[p];
-            plo = plo.min(ph);
-            phi_hi = phi_hi.max(ph);
-            nodes.push((ph, w * r * n.pre[p] * n.lam[p].exp()));
-        }
+    /// Gauss-Legendre piece of lobe `p` over `[n0.u, n1.u]` whose nodes' `Phi` span
+    /// `[lo, hi]`, with [`GL_NODES`] nodes, or in tolerance mode with `few_ok` with
+    /// [`GL_NODES_FEW`] where those give the same lobe (see there).
+    fn gl_piece(&self, p: usize, n0: Node, n1: Node, lo: f64, hi: f64, few_ok: bool) -> Piece {
+        let full = self.gl_nodes(p, n0.u, n1.u, GL_NODES);
+        let beta = self.betas[p];
+        let range = |nodes: &[(f64, f64)]| {
+            nodes
+                .iter()
+                .fold((lo, hi), |(a, b), &(ph, _)| (a.min(ph), b.max(ph)))
+        };
+        let (flo, fhi) = range(&full);
+        let nodes = match self.tol {
+            Some(tol) if few_ok && fhi - flo <= GL_FEW_SPAN_SIGMAS * beta => {
+                let few = self.gl_nodes(p, n0.u, n1.u, GL_NODES_FEW);
+                // The two rules' Gaussian sums at the probes, `mid + k beta`:
+                // exp(-(y - k)^2 / 2) = exp(-y^2 / 2) exp(y)^k exp(-k^2 / 2) with
+                // y = (ph - mid) / beta (|y| <= 1/2 here), two exponentials per node.
+                let mid = 0.5 * (flo + fhi);
+                let sums = |nodes: &[(f64, f64)]| -> [f64; GL_FEW_PROBES.len()] {
+                    let mut out = [0.0; GL_FEW_PROBES.len()];
+                    for &(ph, w) in nodes {
+                        let y = (ph - mid) / beta;
+                        let base = w * (-0.5 * y * y).exp();
+                        let e1 = y.exp();
+                        let (e2, i1) = (e1 * e1, 1.0 / e1);
+                        let (e4, i2) = (e2 * e2, i1 * i1);
+                        let pow = [i2 * i2, i2, i1, 1.0, e1, e2, e4];
+                        for (o, ek) in out.iter_mut().zip(pow) {
+                            *o += base * ek;
+                        }
+                    }
+                    out
+                };
+                let (a, b) = (sums(&full), sums(&few));
+                let (mut diff, mut peak) = (0.0f64, 0.0f64);
+                for ((x, y), k) in a.iter().zip(&b).zip(GL_FEW_PROBES) {
+                    let c = (-0.5 * k * k).exp();
+                    diff = diff.max(c * (x - y).abs());
+                    peak = peak.max(c * x.abs());
+                }
+                if diff <= GL_FEW_REL * tol * peak {
+                    few
+                } else {
+                    full
+                }
+            }
+            _ => full,
+        };
+        let (plo, phi_hi) = range(&nodes);
         Piece::Gl {
-            lo: plo.min(lo),
-            hi: phi_hi.max(hi),
+            lo: plo,
+            hi: phi_hi,
             nodes,
         }
+    }
+
+    /// `count`-point Gauss-Legendre nodes `(Phi_p, weight * A cos u)` of lobe `p` on
+    /// `[u0, u1]`.
+    fn gl_nodes(&self, p: usize, u0: f64, u1: f64, count: usize) -> Vec<(f64, f64)> {
+        let gl = GaussLegendre::cached(count);
+        let (c, r) = (0.5 * (u0 + u1), 0.5 * (u1 - u0));
+        gl.nodes
+            .iter()
+            .zip(&gl.weights)
+            .map(|(x, w)| {
+                let n = self.node_with(c + r * x, false);
+                (n.phi[p], w * r * n.pre[p] * n.lam[p].exp())
+            })
+            .collect()
     }
 
     /// Largest change of `Phi^s_p` across a scattered segment in tolerance mode
@@ -1156,10 +1230,13 @@ fn clamp_dips(mut v: LobeValues) -> LobeValues {
 /// coarser grid puts at most a couple of `phi` in a node's window anyway.
 const SWEEP_MAX_STEP: f64 = 4.0;
 
-/// Points per run of the Gaussian recurrence before it restarts from exponentials: the
-/// drift is ~`SWEEP_RUN^2 eps / 2` = 6e-14 relative, and the restart costs two
-/// exponentials per 32 points instead of 32.
-const SWEEP_RUN: usize = 32;
+/// Points per run of the Gaussian recurrence before it restarts from exponentials: each
+/// of its [`SWEEP_CHAINS`] chains takes `SWEEP_RUN / SWEEP_CHAINS` = 32 steps, whose drift
+/// is ~`32^2 eps / 2` = 6e-14 relative, and the restart costs two exponentials per 128
+/// points instead of 128.
+const SWEEP_RUN: usize = 128;
+/// Interleaved recurrence chains of a sweep run (see [`UniformGrid::gaussian_sweep`]).
+const SWEEP_CHAINS: usize = 4;
 
 /// Sorted `phi` that are evenly spaced: `first + q * step` within [`UNIFORM_SLACK`].
 struct UniformGrid {
@@ -1225,16 +1302,43 @@ impl UniformGrid {
             }
             let q1 = q1 as usize;
             // Restarted from the exact grid position every SWEEP_RUN points: `damp`'s
-            // rounding compounds quadratically along a run (n^2 eps / 2).
+            // rounding compounds quadratically along a chain (n^2 eps / 2).
             for start in (q0..q1).step_by(SWEEP_RUN) {
+                let end = (start + SWEEP_RUN).min(q1);
                 let mu = at.sign * (self.first + start as f64 * self.step) + at.shift;
                 let y = ph - mu;
                 let mut g = wt * norm * (-y * y * c).exp();
                 let mut r = ((2.0 * y * d - self.step * self.step) * c).exp();
-                for x in &mut s[start..(start + SWEEP_RUN).min(q1)] {
-                    *x += g;
-                    g *= r;
+                // SWEEP_CHAINS interleaved chains, chain k on points start + k + j S
+                // (S = SWEEP_CHAINS): its multiplier is the product of S consecutive
+                // ratios, and moves by damp^(S^2) per step. Independent chains keep the
+                // multiplier latency off the critical path.
+                let mut gs = [0.0; SWEEP_CHAINS];
+                let mut ratios = [0.0; 2 * SWEEP_CHAINS - 1];
+                for (k, rk) in ratios.iter_mut().enumerate() {
+                    if k < SWEEP_CHAINS {
+                        gs[k] = g;
+                        g *= r;
+                    }
+                    *rk = r;
                     r *= damp;
+                }
+                // ratios[k] = r_{start + k}; chain k's multiplier is
+                // r_{start + k} ... r_{start + k + S - 1}.
+                let mut ps: [f64; SWEEP_CHAINS] =
+                    std::array::from_fn(|k| ratios[k..k + SWEEP_CHAINS].iter().product());
+                let damp_s2 = damp.powi((SWEEP_CHAINS * SWEEP_CHAINS) as i32);
+                let run = &mut s[start..end];
+                let mut chunks = run.chunks_exact_mut(SWEEP_CHAINS);
+                for chunk in &mut chunks {
+                    for k in 0..SWEEP_CHAINS {
+                        chunk[k] += gs[k];
+                        gs[k] *= ps[k];
+                        ps[k] *= damp_s2;
+                    }
+                }
+                for (x, gk) in chunks.into_remainder().iter_mut().zip(gs) {
+                    *x += gk;
                 }
             }
         }
