@@ -176,24 +176,30 @@ fn gl_reaching(set: &Set, target: f64) -> Option<(usize, f64)> {
 
 /// Max error over the set of `n`-point Gauss-Legendre.
 fn gl_error(set: &Set, n: usize) -> f64 {
+    let vals = per_sample(&set.models, &set.phis, |az, p| {
+        az.far_gl(p, n, LobeSet::ALL)
+    });
+    errors(set, &vals).0
+}
+
+/// `f` at every (model, theta_d, phi) of the set, models in parallel.
+fn per_sample<F>(models: &[FurModel], phis: &[f64], f: F) -> Vec<Vec<Vec<LobeValues>>>
+where
+    F: Fn(&AzimuthalSlice, f64) -> LobeValues + Sync,
+{
     use rayon::prelude::*;
-    let vals: Vec<Vec<Vec<LobeValues>>> = set
-        .models
+    models
         .par_iter()
         .map(|m| {
             THETA_D
                 .iter()
                 .map(|td| {
                     let az = m.azimuthal(td.to_radians());
-                    set.phis
-                        .iter()
-                        .map(|&p| az.far_gl(p, n, LobeSet::ALL))
-                        .collect()
+                    phis.iter().map(|&p| f(&az, p)).collect()
                 })
                 .collect()
         })
-        .collect();
-    errors(set, &vals).0
+        .collect()
 }
 
 /// Rounds of [`head_to_head`]: an odd count, so the median is one round's ratio.
@@ -238,23 +244,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
         N_PHI
     ));
     let t0 = Instant::now();
-    let reference = {
-        use rayon::prelude::*;
-        models
-            .par_iter()
-            .map(|m| {
-                THETA_D
-                    .iter()
-                    .map(|td| {
-                        let az = m.azimuthal(td.to_radians());
-                        phis.iter()
-                            .map(|&p| az.far_reference(p, LobeSet::ALL))
-                            .collect()
-                    })
-                    .collect()
-            })
-            .collect()
-    };
+    let reference = per_sample(&models, &phis, |az, p| az.far_reference(p, LobeSet::ALL));
     log(&format!("  done in {:.1} s", t0.elapsed().as_secs_f64()));
     let set = Set {
         models,
