@@ -12,7 +12,7 @@ use crate::model::azimuthal::wrap_angle;
 use crate::model::far::FarOptions;
 use crate::model::geometry::theta_d;
 use crate::model::medulla::front_back_lerp;
-use crate::model::{FurModel, Lobe, LobeSet, LobeValues};
+use crate::model::{AzimuthalSlice, FurModel, Lobe, LobeSet, LobeValues};
 use crate::params::FurParams;
 use crate::profile::{Profile, Sample};
 use rayon::prelude::*;
@@ -23,6 +23,22 @@ use std::path::Path;
 /// `phi`: a node's profile (one rank dot product per psi bin) costs about as much as 60
 /// rank-sum queries, and each `phi` makes about five queries per node.
 const TABULATE_MIN_PHI: usize = 12;
+
+/// The far field of one `theta_d` at many `phi`, as grid prediction computes it: one
+/// slice (segmentation and fits), its scattered nodes' `C^N` tabulated when there are
+/// [`TABULATE_MIN_PHI`] or more `phi`, evaluated at all of them.
+pub fn far_many(
+    az: &AzimuthalSlice,
+    lobes: LobeSet,
+    opts: &FarOptions,
+    phis: &[f64],
+) -> Vec<LobeValues> {
+    let mut slice = az.far_slice(lobes, opts);
+    if phis.len() >= TABULATE_MIN_PHI {
+        slice.tabulate_scattered();
+    }
+    slice.eval_many(phis)
+}
 
 /// Which azimuthal integral a synthesized profile uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -173,13 +189,7 @@ impl GridPlan {
                 match kind {
                     // The slice (segmentation and fits) depends only on theta_d: build it
                     // once and evaluate the closed forms at every phi of the group.
-                    ModelKind::Far => {
-                        let mut slice = az.far_slice(lobes, opts);
-                        if phis.len() >= TABULATE_MIN_PHI {
-                            slice.tabulate_scattered();
-                        }
-                        slice.eval_many(phis)
-                    }
+                    ModelKind::Far => far_many(&az, lobes, opts, phis),
                     ModelKind::NearQuadrature => phis
                         .par_iter()
                         .with_min_len(4)

@@ -72,9 +72,10 @@ fn far_single(opts: &FarOptions) -> impl Fn(&AzimuthalSlice, f64) -> LobeValues 
     move |az: &AzimuthalSlice, phi: f64| az.far(phi, LobeSet::ALL, opts)
 }
 
-/// The far field with `opts`, one `far_slice` per theta_d evaluated at all its `phi`.
+/// The far field with `opts`, one slice per theta_d evaluated at all its `phi`, exactly
+/// as grid prediction (`synth`, the fitter) does it ([`crate::synth::far_many`]).
 fn far_amortised(opts: &FarOptions) -> impl Fn(&AzimuthalSlice, &[f64]) -> Vec<LobeValues> + '_ {
-    move |az: &AzimuthalSlice, phis: &[f64]| az.far_slice(LobeSet::ALL, opts).eval_many(phis)
+    move |az: &AzimuthalSlice, phis: &[f64]| crate::synth::far_many(az, LobeSet::ALL, opts, phis)
 }
 
 /// [`measure`] for the far field with `opts`.
