@@ -156,9 +156,14 @@ const GL_POINTS_SEARCH: [usize; 10] = [192, 256, 384, 512, 768, 1024, 1536, 2048
 /// the previous rule, so the rule found, and so the speedup, is within ~3 % of the
 /// smallest (GL's cost is linear in `N`). With its error.
 fn gl_reaching(set: &Set, target: f64) -> Option<(usize, f64)> {
-    let k = GL_POINTS_SEARCH
+    let passes = |n: usize| {
+        let e = gl_error(set, n);
+        (e <= target).then_some((n, e))
+    };
+    let (k, found) = GL_POINTS_SEARCH
         .iter()
-        .position(|&n| gl_error(set, n) <= target)?;
+        .enumerate()
+        .find_map(|(k, &n)| Some((k, passes(n)?)))?;
     let hi = GL_POINTS_SEARCH[k];
     let lo = if k == 0 {
         *GL_POINTS.last().expect("non-empty")
@@ -166,13 +171,11 @@ fn gl_reaching(set: &Set, target: f64) -> Option<(usize, f64)> {
         GL_POINTS_SEARCH[k - 1]
     };
     let step = (hi / 32).max(1);
-    (lo + step..=hi)
+    // Rungs below `hi` only: `hi`'s error is already known.
+    (lo + step..hi)
         .step_by(step)
-        .chain(std::iter::once(hi))
-        .find_map(|n| {
-            let e = gl_error(set, n);
-            (e <= target).then_some((n, e))
-        })
+        .find_map(passes)
+        .or(Some(found))
 }
 
 /// Max error over the set of `n`-point Gauss-Legendre.
