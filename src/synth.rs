@@ -94,12 +94,12 @@ pub fn predict_with(
 
 /// The grid structure of a list of goniometer points, found once and reused for every
 /// parameter set (the fitter evaluates the same points hundreds of times): the distinct
-/// `theta_d` values with their distinct `|phi|` (wrapped to `[0, pi]`), and the distinct
+/// `|theta_d|` values with their distinct `|phi|` (wrapped to `[0, pi]`), and the distinct
 /// `(theta_i, theta_r)` pairs.
 #[derive(Clone, Debug, Default)]
 pub struct GridPlan {
     points: Vec<(f64, f64, f64)>,
-    /// Per distinct `theta_d`: the value and its distinct `|phi|` values.
+    /// Per distinct `|theta_d|`: the value and its distinct `|phi|` values.
     groups: Vec<(f64, Vec<f64>)>,
     /// Per point: (group, index of its `phi` in the group).
     where_n: Vec<(usize, usize)>,
@@ -118,7 +118,10 @@ impl GridPlan {
             ..GridPlan::default()
         };
         for &(ti, tr, phi) in points {
-            let td = theta_d(ti, tr);
+            // The azimuthal model depends on theta_d only through cos theta_d
+            // (`FurModel::azimuthal`), so theta_d and -theta_d share one slice: a grid
+            // symmetric about theta_i = theta_r costs up to half.
+            let td = theta_d(ti, tr).abs();
             let g = *td_index.entry(td.to_bits()).or_insert_with(|| {
                 plan.groups.push((td, Vec::new()));
                 phi_index.push(HashMap::new());

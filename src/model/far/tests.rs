@@ -640,3 +640,37 @@ fn far_field_is_even_in_phi() {
         }
     }
 }
+
+/// The far field depends on `theta_d` only through `cos theta_d`, so it is even in
+/// `theta_d`: grid prediction (`synth::GridPlan`) builds one slice per `|theta_d|` and
+/// relies on this. Exact equality: `cos` is even in IEEE arithmetic, and everything after
+/// it is the same computation.
+#[test]
+fn far_field_is_even_in_theta_d() {
+    for name in ["red-fox", "human", "mouse"] {
+        let m = FurModel::new(&FurParams::preset(name).unwrap());
+        let opts = FarOptions::default();
+        for td_deg in [0.5f64, 17.0, 44.5, 60.0, 89.0] {
+            let td = td_deg.to_radians();
+            let phis: Vec<f64> = (0..=36).map(|k| (k as f64 * 5.0).to_radians()).collect();
+            let pos = m
+                .azimuthal(td)
+                .far_slice(LobeSet::ALL, &opts)
+                .eval_many(&phis);
+            let neg = m
+                .azimuthal(-td)
+                .far_slice(LobeSet::ALL, &opts)
+                .eval_many(&phis);
+            for (k, (a, b)) in pos.iter().zip(&neg).enumerate() {
+                for l in Lobe::ALL {
+                    assert_eq!(
+                        a.get(l).to_bits(),
+                        b.get(l).to_bits(),
+                        "{name} theta_d +-{td_deg} deg, phi {} deg, {l:?}",
+                        5 * k
+                    );
+                }
+            }
+        }
+    }
+}
