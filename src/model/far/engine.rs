@@ -67,6 +67,11 @@ const RATIO_MIN: f64 = 0.5;
 /// A segment spanning at most this many `beta_p` in `Phi` may be integrated by GL.
 const GL_SPAN_SIGMAS: f64 = 2.0;
 const GL_NODES: usize = 16;
+/// Largest deviation (nats) of a narrow piece's log-attenuation from its chord at the
+/// quarter points before the fit check stops trusting those points (see
+/// [`FarSlice::build_narrow`]): a factor e, far beyond the curvature of an ordinary
+/// absorption profile across a piece that passes the fit check.
+const LAM_DEV_MAX: f64 = 1.0;
 /// In tolerance mode a GL piece spanning at most [`GL_FEW_SPAN_SIGMAS`] `beta_p` in `Phi`
 /// keeps [`GL_NODES_FEW`] nodes instead of [`GL_NODES`] when the two rules' sums of the
 /// lobe's Gaussian agree to [`GL_FEW_REL`] `* tol` of the piece's peak at the
@@ -440,7 +445,6 @@ impl<'a> FarSlice<'a> {
         let f = az.cuticle(&geo);
         let cu = u.cos().max(0.0);
         let ab = &az.absorption;
-        let st = geo.sin_gamma_t;
         let ct = geo.cos_gamma_t.max(1e-300);
         let mut n = Node {
             u,
@@ -456,7 +460,6 @@ impl<'a> FarSlice<'a> {
             n.phi[p] = azimuthal::phi_p(p, &geo);
             n.dphi[p] = 2.0 * p as f64 * cu / (az.eta_prime * ct) - 2.0;
         }
-        let _ = st;
         n.pre[0] = f * cu;
         n.pre[1] = (1.0 - f) * (1.0 - f) * cu;
         n.pre[2] = (1.0 - f) * (1.0 - f) * f * cu;
@@ -608,10 +611,21 @@ impl<'a> FarSlice<'a> {
             };
             let (q1, q3) = quarter(self);
             let mut e = 0.0f64;
+            let mut dev = 0.0f64;
             for q in [q1, q3] {
                 let x = q.phi[p] - lo;
                 let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + l * x).exp();
                 e = e.max((fit - Self::g_exact(&q, p)).abs());
+                dev = dev.max((l0 + l * x - q.lam[p]).abs());
+            }
+            // As in `build_narrow`: a log-attenuation far from its chord can hide the
+            // mass between the check points.
+            if dev > LAM_DEV_MAX {
+                e = e.max(
+                    [n0, nm, n1, q1, q3]
+                        .iter()
+                        .fold(0.0f64, |a, n| a.max(Self::g_exact(n, p))),
+                );
             }
             if e <= b {
                 out.push(piece);
@@ -672,10 +686,23 @@ impl<'a> FarSlice<'a> {
         let lin = (l1 - l0) / len.max(1e-300);
         let c = quadratic_through([0.0, 0.5 * len, len], [n0.pre[p], nm.pre[p], n1.pre[p]]);
         let mut e = 0.0f64;
+        let mut dev = 0.0f64;
         for q in [q1, q3] {
             let x = q.u - n0.u;
             let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + lin * x).exp();
             e = e.max((fit - q.pre[p] * q.lam[p].exp()).abs());
+            dev = dev.max((l0 + lin * x - q.lam[p]).abs());
+        }
+        // A log-attenuation far from linear can hide its mass between the check points
+        // (TT at kappa -> 1 and grazing theta_d: `exp(-c sqrt(u_edge - u))` with c in the
+        // hundreds puts nearly all of it within 1e-5 of the medulla edge, while the quarter
+        // points see ~e^-100 in both fit and integrand): then the largest node value bounds
+        // the error instead.
+        if dev > LAM_DEV_MAX {
+            let peak = [n0, nm, n1, q1, q3]
+                .iter()
+                .fold(0.0f64, |a, n| a.max((n.pre[p] * n.lam[p].exp()).abs()));
+            e = e.max(peak);
         }
         if e * len * norm > b {
             if let Some(depth) = rf.split(depth) {
