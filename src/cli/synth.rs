@@ -38,10 +38,10 @@ pub struct Args {
     /// segmentation. Default 1e-4.
     #[arg(long)]
     pub tol: Option<String>,
-    /// Tolerance mode: largest change of the scattered direction per scattered segment,
-    /// in radians, or `strict` (0.001: TTs/TRTs within the tolerance's 1e-4 of their
-    /// peak except at adversarial corners such as kappa -> 0 or 1, at several times the
-    /// scattered cost). Default 0.15 (a few 1e-4 to 1e-3 of the peak).
+    /// Tolerance mode: largest change of the scattered direction per node-quadrature
+    /// segment, in radians, or `strict` (0.001). Only the one-bin TRTs segments at a
+    /// caustic of the scattered direction use node quadrature (elsewhere the medulla
+    /// table is integrated exactly), so the default 0.15 leaves them whole.
     #[arg(long)]
     pub scattered_step: Option<String>,
     /// Output file (.csv).

@@ -33,24 +33,22 @@ pub struct FarOptions {
     pub cull: bool,
     /// Refine segments until the fit error is at most `tol` of the lobe's peak scale.
     pub tol: Option<f64>,
-    /// Tolerance mode, scattered lobes: the largest change of the scattered direction
-    /// `Phi^s_p` (radians) across one segment, at `tol = 1e-4` (scaled by
-    /// `(tol / 1e-4)^(1/3)` for other tolerances). `C^N` is piecewise linear in `psi` on
-    /// 2 degree bins, and a segment's quadratic cannot follow those kinks: this step, not
-    /// the prefactor fit, bounds the scattered lobes' error. The default
-    /// [`SCATTERED_STEP`] keeps it at a few 1e-4 of the peak;
-    /// [`SCATTERED_STEP_STRICT`] reaches 1e-4 (but for adversarial corners, see there) at
-    /// several times the scattered cost
-    /// (`furfit bench-model` prints both).
+    /// Tolerance mode, scattered lobes near a caustic of `Phi^s_p` (TRTs, where
+    /// `dPhi^s/du` changes sign): the largest change of the scattered direction across one
+    /// node-quadrature segment, at `tol = 1e-4` (scaled by `(tol / 1e-4)^(1/3)` for other
+    /// tolerances). Elsewhere the tolerance mode integrates `C^N`'s piecewise-linear `psi`
+    /// structure exactly, and only segments spanning at most one `psi` bin (2 degrees) are
+    /// left to node quadrature, whose quadratic cannot follow the table's kinks. The
+    /// default [`SCATTERED_STEP`] is wider than those segments (no effect);
+    /// [`SCATTERED_STEP_STRICT`] subdivides them.
     pub scattered_step: f64,
 }
 
 /// Default [`FarOptions::scattered_step`] (radians).
 pub const SCATTERED_STEP: f64 = 0.15;
-/// [`FarOptions::scattered_step`] at which the scattered lobes meet the tolerance mode's
-/// 1e-4 of the peak on the tests' random set, presets and stiff cases
-/// (`tol_mode_strict_step_meets_1e_4`). Not everywhere: in the stability sweep kappa -> 1
-/// keeps 3.0e-4 (`reports/stability.md`, strict column).
+/// A fine [`FarOptions::scattered_step`] for the node-quadrature segments at `Phi^s`
+/// caustics (`tol_mode_meets_1e_4_on_stiff_cases_and_presets`; `reports/stability.md`, strict
+/// column).
 pub const SCATTERED_STEP_STRICT: f64 = 0.001;
 
 impl Default for FarOptions {

@@ -600,16 +600,15 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
          the paper's segmentation, not a failure.\n\
          * **Tolerance mode** aims at 1e-4 of each lobe's peak. Cases with samples above \
          1e-4 in this run (worst sample located):\n\n{}\n\n\
-         * Why the scattered lobes exceed 1e-4: the shipped `C^N` medulla table is \
-         piecewise linear in psi (2 deg bins) and in the entry offset. The reference \
-         integrator resolves those kinks adaptively; the far field's per-segment smooth \
-         (quadratic) fits of the queried table do not: at the default scattered step \
-         (each segment's scattered direction moves at most 0.15 rad) the error is a few \
-         1e-4 to a few 1e-3 of the peak (the unit tests hold it to 5e-3 at their \
-         parameters; single samples of this adversarial sweep go higher, listed above). \
-         It falls linearly with the step: the strict step's columns show what it reaches. \
-         Compare the tables' own 5-7 % error against fresh Monte Carlo (`furfit tables \
-         info`).\n\
+         * Scattered lobes (TTs, TRTs): the shipped `C^N` medulla table is piecewise \
+         linear in psi (2 deg bins) and in the entry offset. The tolerance mode cuts its \
+         segments at the table's offset nodes and, where the scattered direction `Phi^s` \
+         is monotone, integrates a quadratic density in `Phi^s` against the table's rows \
+         exactly, kinks included; only segments spanning at most one psi bin next to a \
+         `Phi^s` caustic (TRTs) are left to a three-node quadrature, which the strict step \
+         subdivides further (its column). The paper mode's three-node quadrature does not \
+         follow the kinks. Compare the tables' own 5-7 % error against fresh Monte Carlo \
+         (`furfit tables info`).\n\
          * Paper-mode errors above 1 occur where a lobe is vanishingly small (e.g. TRTs at \
          eta -> 1 and grazing theta_d, peak ~1e-40): 5 fixed segments misfit its steep \
          attenuation by a large factor of a negligible value.\n",

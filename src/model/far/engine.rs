@@ -27,9 +27,20 @@
 //!   with a bounded slope ratio or the segment spans at most `2 beta_p` in `Phi`; such
 //!   short segments are integrated by a 16-point Gauss-Legendre rule of the exact integrand
 //!   (the Gaussian is resolved there).
-//! * Scattered lobes: prefactor `(1 - F) F^(p-1) cos u` times the queried `C^N` is
-//!   interpolated by a quadratic per segment and the log-attenuation `ln(T_a T_b)` by a
-//!   line: the Appendix's `C exp(L)` form ([`closed_form::poly_exp`](super::closed_form::poly_exp)).
+//! * Scattered lobes, paper mode: prefactor `(1 - F) F^(p-1) cos u` times the queried
+//!   `C^N` is interpolated by a quadratic per segment and the log-attenuation `ln(T_a T_b)`
+//!   by a line: the Appendix's `C exp(L)` form
+//!   ([`closed_form::poly_exp`](super::closed_form::poly_exp)), i.e. a three-node quadrature
+//!   per segment whose `C^N` values are read per `phi`.
+//! * Scattered lobes, tolerance mode: `C^N` is piecewise bilinear in the table's offset
+//!   `x` and azimuth `psi` (2 degree bins), and a quadratic through three node values
+//!   cannot follow its kinks (that limited the node quadrature to ~1e-3 of the peak).
+//!   Segments are cut at the table's `x` nodes, where `C^N` is linear in `x` between two
+//!   rows, and integrated in the variable `Phi^s` itself where it is monotone: the density
+//!   `A^s P_s / |dPhi^s/du|` and its share of the upper row are quadratics in `Phi^s`, and
+//!   their integral against the rows' piecewise-linear interpolant is exact
+//!   ([`CnRows::integrate`]). Near a `Phi^s` caustic (TRTs) segments are bisected down to
+//!   one `psi` bin and left to the node quadrature.
 //! * Culling (Sec. 5.1 "Acceleration"): a segment covering `Phi` in `[lo, hi]` is skipped
 //!   for every image `phi + 2 pi k` outside `[lo - 8.5 beta_p, hi + 8.5 beta_p]` (the
 //!   paper's 3 beta would lose up to 0.3 % of the mass; 8.5 sigma loses < 1e-16).
@@ -41,7 +52,7 @@
 use super::closed_form::{poly_exp, poly_gauss, quadratic_through};
 use super::FarOptions;
 use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian};
-use crate::model::medulla::CnProfile;
+use crate::model::medulla::{CnProfile, CnRows};
 use crate::model::quadrature::GaussLegendre;
 use crate::model::{AzimuthalSlice, Lobe, LobeSet, LobeValues};
 use std::collections::HashMap;
@@ -95,6 +106,13 @@ const MAX_PSI_PIECES: f64 = 16384.0;
 /// default step needs at most ~21).
 const BISECT_PSI_PIECES: usize = 64;
 
+/// A scattered segment over which `Phi^s` moves less than this (radians) is left to node
+/// quadrature instead of a [`PsiPiece`]: `Phi^s = gamma_t - gamma_i + ...` carries an
+/// absolute rounding error of ~1e-15, which would dominate a fit in `Phi^s` over a tiny
+/// span (TTs at `eta -> 1`, where `gamma_t -> gamma_i`, or a medulla of radius 1e-6); over
+/// such a span `C^N` meets at most one kink, a 3e-5 part of a bin.
+const PSI_MIN_SPAN: f64 = 1e-6;
+
 /// Values at one offset `u = asin h`, for all lobes at once.
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -109,6 +127,8 @@ struct Node {
     /// Medulla-table offset `x = sin gamma_t / kappa` and segment directions `Phi^s_p`.
     x_med: f64,
     phis: [f64; 2],
+    /// `dPhi^s_p/du`.
+    dphis: [f64; 2],
     /// Scattered fraction at `x_med` (for the scattered-lobe error check).
     frac: f64,
 }
@@ -147,11 +167,29 @@ struct ScatNode {
     prof: Option<Arc<CnProfile>>,
 }
 
-/// The scattered segments of one lobe of one part, as their merged nodes.
+/// A scattered segment integrated against the medulla table's `psi` structure exactly
+/// (tolerance mode): `Phi^s` is monotone across it, covering `[phi_hi - len, phi_hi]`, and
+/// in `s = phi_hi - Phi^s` the density `w = A^s P_s / |dPhi^s/du|` (`A^s` the prefactor
+/// times the attenuation) and `w t` (`t` the offset's weight of row `row + 1`) are
+/// quadratics `g`. At `phi` the piece adds
+/// `integral_0^len [g_0 R_row + g_1 (R_row+1 - R_row)](phi - phi_hi + s) ds`
+/// ([`CnRows::integrate`]); fitting `w` and `w t` rather than the two rows' weights keeps
+/// their misfits from adding where neighbouring rows nearly agree.
+#[derive(Clone, Debug)]
+struct PsiPiece {
+    phi_hi: f64,
+    len: f64,
+    row: usize,
+    g: [[f64; 3]; 2],
+}
+
+/// The scattered segments of one lobe of one part: node-quadrature segments as their merged
+/// nodes, and exact `psi` pieces.
 #[derive(Clone, Debug, Default)]
 struct ScatNodes {
     nodes: Vec<ScatNode>,
     segments: usize,
+    psi: Vec<PsiPiece>,
 }
 
 impl ScatNodes {
@@ -336,6 +374,11 @@ impl<'a> FarSlice<'a> {
                     .collect();
                 hs.push(ha);
                 hs.push(hb.min(hmax));
+                // Tolerance mode integrates along psi between the table's offset nodes
+                // (`x = h / (kappa eta')`), where `C^N` is linear in `x`.
+                if let (Some(rows), true) = (fs.cn_rows(), opts.tol.is_some()) {
+                    hs.extend(rows.x_nodes().iter().map(|&x| x * edge));
+                }
                 us_s = to_u(&hs, ha, hb.min(hmax));
                 sort_dedup(&mut us_s, ha.asin(), hb.min(hmax).asin());
             }
@@ -416,7 +459,9 @@ impl<'a> FarSlice<'a> {
                 };
                 for seg in (0..nodes.len().saturating_sub(2)).step_by(2) {
                     let (n0, nm, n1) = (nodes[seg], nodes[seg + 1], nodes[seg + 2]);
-                    if l.is_scattered() {
+                    if l.is_scattered() && rf.budget.is_some() {
+                        fs.build_psi(l, n0, nm, n1, 0, &mut rf, &mut part.scat[l.p() - 1]);
+                    } else if l.is_scattered() {
                         fs.build_scat(l, n0, nm, n1, 0, &mut rf, &mut part.scat[l.p() - 1]);
                     } else {
                         fs.build_unsc(l.p(), n0, nm, n1, 0, &mut rf, &mut part.unsc[l.p()]);
@@ -454,6 +499,7 @@ impl<'a> FarSlice<'a> {
             lam: [0.0; 5],
             x_med: 0.0,
             phis: [0.0; 2],
+            dphis: [0.0; 2],
             frac: 0.0,
         };
         for p in 0..3 {
@@ -482,6 +528,8 @@ impl<'a> FarSlice<'a> {
                 };
                 n.lam[l] = -(ta + tb) * ab.inv_cos_d;
                 n.phis[p - 1] = azimuthal::phi_s_p(p, &geo);
+                // Phi^s_p = (gamma_t - u) + (p - 1)(pi + 2 gamma_t), dgamma_t/du as above.
+                n.dphis[p - 1] = (2.0 * pf - 1.0) * cu / (az.eta_prime * ct) - 1.0;
             }
             n.x_med = azimuthal::medulla_offset(&geo, self.az.model.params.kappa);
             n.frac = self
@@ -806,6 +854,101 @@ impl<'a> FarSlice<'a> {
         self.scattered_step * ratio.cbrt().clamp(0.01f64.cbrt(), 4.0)
     }
 
+    /// The slice's medulla table rows, if the fiber has a medulla.
+    fn cn_rows(&self) -> Option<CnRows<'a>> {
+        self.az.model.medulla().map(|m| m.cn_rows())
+    }
+
+    /// A scattered segment in tolerance mode: a [`PsiPiece`] where `Phi^s` is monotone
+    /// with a bounded slope ratio (bisected until the densities' quadratics are within
+    /// budget), else bisected until it spans at most one `psi` bin, where the node
+    /// quadrature of [`Self::build_scat`] takes over (near a `Phi^s` caustic of TRTs).
+    #[allow(clippy::too_many_arguments)]
+    fn build_psi(
+        &self,
+        l: Lobe,
+        n0: Node,
+        nm: Node,
+        n1: Node,
+        depth: u32,
+        rf: &mut Refine,
+        out: &mut ScatNodes,
+    ) {
+        let Some(rows) = self.cn_rows() else {
+            return;
+        };
+        let (i, k) = (l.index(), l.p() - 1);
+        let len_u = n1.u - n0.u;
+        if len_u <= 0.0 {
+            return;
+        }
+        let q1 = self.node(0.5 * (n0.u + nm.u));
+        let q3 = self.node(0.5 * (nm.u + n1.u));
+        let all = [n0, q1, nm, q3, n1];
+        let d = all.map(|n| n.dphis[k]);
+        let monotone = d.iter().all(|&v| v > 0.0) || d.iter().all(|&v| v < 0.0);
+        let (dmin, dmax) = d.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &v| {
+            (a.min(v.abs()), b.max(v.abs()))
+        });
+        let span = (n1.phis[k] - n0.phis[k]).abs();
+        if !(monotone && dmin >= RATIO_MIN * dmax && span > 0.0) {
+            if span <= rows.bin_width() {
+                self.build_scat(l, n0, nm, n1, depth, rf, out);
+            } else if let Some(depth) = rf.split(depth) {
+                self.build_psi(l, n0, q1, nm, depth, rf, out);
+                self.build_psi(l, nm, q3, n1, depth, rf, out);
+            } else {
+                self.build_scat(l, n0, nm, n1, depth, rf, out);
+            }
+            return;
+        }
+        let med = self.az.model.medulla().expect("rows come from the medulla");
+        let row = rows.row_at(nm.x_med);
+        let phi_hi = n0.phis[k].max(n1.phis[k]);
+        let dens = |n: &Node| -> (f64, [f64; 2]) {
+            let w =
+                n.pre[i] * med.scattered_probability(n.x_med) * n.lam[i].exp() / n.dphis[k].abs();
+            let t = rows.weight(row, n.x_med);
+            (phi_hi - n.phis[k], [w, w * t])
+        };
+        let [a, b, c] = [dens(&n0), dens(&nm), dens(&n1)];
+        if span < PSI_MIN_SPAN || (b.0 - a.0) * (c.0 - b.0) <= 0.0 {
+            // Phi^s constant to rounding across the segment: no quadratic in Phi^s through
+            // the nodes (see PSI_MIN_SPAN).
+            self.build_scat(l, n0, nm, n1, depth, rf, out);
+            return;
+        }
+        let g = [0, 1].map(|j| quadratic_through([a.0, b.0, c.0], [a.1[j], b.1[j], c.1[j]]));
+        if let Some(bud) = rf.budget {
+            // Error of the piece at any phi: each density's misfit times the mass of what
+            // it multiplies over `len`: row i (at most `len * peak`, and 1.1, a row's mass
+            // plus its floor) and the gap to row i + 1 (at most `len * gap`).
+            let mut e = [0.0f64; 2];
+            for q in [q1, q3] {
+                let (s, v) = dens(&q);
+                for j in 0..2 {
+                    let c = &g[j];
+                    e[j] = e[j].max((c[0] + s * (c[1] + s * c[2]) - v[j]).abs());
+                }
+            }
+            let err = e[0] * (span * rows.peak).min(1.1) + e[1] * span * rows.gap(row);
+            if err > bud * len_u && err > rf.small {
+                if let Some(depth) = rf.split(depth) {
+                    self.build_psi(l, n0, q1, nm, depth, rf, out);
+                    self.build_psi(l, nm, q3, n1, depth, rf, out);
+                    return;
+                }
+            }
+        }
+        out.segments += 1;
+        out.psi.push(PsiPiece {
+            phi_hi,
+            len: span,
+            row,
+            g,
+        });
+    }
+
     #[allow(clippy::too_many_arguments)]
     fn build_scat(
         &self,
@@ -1079,7 +1222,10 @@ impl<'a> FarSlice<'a> {
             }
             match &grid {
                 Some(g) if self.scattered_tabulated(part) => {
-                    self.add_scattered_sweep(part, g, &order, &mut s, &mut out)
+                    self.add_scattered_sweep(part, g, &order, &mut s, &mut out);
+                    for (o, &phi) in out.iter_mut().zip(&wrapped) {
+                        self.add_psi_pieces(part, phi, o);
+                    }
                 }
                 _ => {
                     for (o, &phi) in out.iter_mut().zip(&wrapped) {
@@ -1174,6 +1320,32 @@ impl<'a> FarSlice<'a> {
                     }
                 }
                 s += node.w * sh;
+            }
+            out.0[3 + k] += self.weight * s;
+        }
+        self.add_psi_pieces(part, phi, out);
+    }
+
+    /// Add the [`PsiPiece`]s of `part`'s scattered lobes at wrapped `phi` to `out`: the
+    /// direct side reads the rows at `phi - Phi^s`, the mirrored side `C^N(-x, phi + Phi^s)`
+    /// = `C^N(x, -phi - Phi^s)`.
+    fn add_psi_pieces(&self, part: &Part, phi: f64, out: &mut LobeValues) {
+        let Some(rows) = self.cn_rows() else {
+            return;
+        };
+        for k in 0..2 {
+            let pieces = &part.scat[k].psi;
+            if pieces.is_empty() {
+                continue;
+            }
+            let mut s = 0.0;
+            for pc in pieces {
+                if part.direct {
+                    s += rows.integrate(pc.row, phi - pc.phi_hi, pc.len, &pc.g);
+                }
+                if part.mirror {
+                    s += rows.integrate(pc.row, -phi - pc.phi_hi, pc.len, &pc.g);
+                }
             }
             out.0[3 + k] += self.weight * s;
         }
