@@ -805,6 +805,50 @@ impl CnRows<'_> {
             &self.v[i * n..(i + 1) * n],
             &self.v[(i + 1) * n..(i + 2) * n],
         );
+        let mut acc = 0.0;
+        self.gl_nodes(psi0, len, g, |_, k, fr, w0, w1| {
+            let k1 = if k + 1 == n { 0 } else { k + 1 };
+            acc += w0 * (r0[k] + fr * (r0[k1] - r0[k])) + w1 * (r1[k] + fr * (r1[k1] - r1[k]));
+        });
+        acc
+    }
+
+    /// [`Self::integrate`] as weights on the row nodes, for a `psi0` that moves by whole
+    /// bins (an evenly spaced `phi` grid whose step is a multiple of the bin width): the
+    /// integral at a start `k` bins further is [`PsiWeights::dot`] at `shift = k`.
+    pub fn weights(&self, psi0: f64, len: f64, g: &[[f64; 3]; 2]) -> PsiWeights {
+        let mut w = PsiWeights {
+            first: 0,
+            w0: Vec::new(),
+            w1: Vec::new(),
+        };
+        self.gl_nodes(psi0, len, g, |j, k, fr, a, b| {
+            if j == 0 {
+                w.first = k;
+            }
+            if w.w0.len() < j + 2 {
+                w.w0.resize(j + 2, 0.0);
+                w.w1.resize(j + 2, 0.0);
+            }
+            w.w0[j] += a * (1.0 - fr);
+            w.w0[j + 1] += a * fr;
+            w.w1[j] += b * (1.0 - fr);
+            w.w1[j + 1] += b * fr;
+        });
+        w
+    }
+
+    /// The Gauss-Legendre nodes of [`Self::integrate`]: per stretch `j` (in bin `k`, from
+    /// centre `k` towards `k + 1`) and node, `f(j, k, fr, w0, w1)` with `fr` the node's
+    /// fraction of the bin and `w0`, `w1` the weights of `R_i` and `R_{i+1}` there.
+    fn gl_nodes(
+        &self,
+        psi0: f64,
+        len: f64,
+        g: &[[f64; 3]; 2],
+        mut f: impl FnMut(usize, usize, f64, f64, f64),
+    ) {
+        let n = self.n;
         // Positions in bins from the first centre; the stretches between centres that
         // [u0, u1] meets are kb..=ke. Floors by truncation and a correction (this runs per
         // piece and phi; a libm floor call was a tenth of its time).
@@ -828,27 +872,45 @@ impl CnRows<'_> {
         let poly = |c: &[f64; 3], s: f64| c[0] + s * (c[1] + s * c[2]);
         // Two-point Gauss-Legendre nodes on [0, 1].
         const GL2: [f64; 2] = [0.211_324_865_405_187_1, 0.788_675_134_594_812_9];
-        let mut acc = 0.0;
-        for lo in kb..=ke {
-            let k1 = if k + 1 == n { 0 } else { k + 1 };
+        for (j, lo) in (kb..=ke).enumerate() {
             let lo = lo as f64;
             let (a, b) = (u0.max(lo), u1.min(lo + 1.0));
             if b > a {
-                let (a0, b0) = (r0[k], r0[k1] - r0[k]);
-                let (a1, b1) = (r1[k], r1[k1] - r1[k]);
                 let half = 0.5 * (b - a) * self.d;
                 for t in GL2 {
                     let pos = a + t * (b - a);
                     let (fr, s) = (pos - lo, (pos - u0) * self.d);
-                    let v0 = a0 + fr * b0;
-                    let v1 = a1 + fr * b1;
-                    acc += half * (poly(&g[0], s) * v0 + poly(&g[1], s) * (v1 - v0));
+                    let p1 = poly(&g[1], s);
+                    f(j, k, fr, half * (poly(&g[0], s) - p1), half * p1);
                 }
             }
-            k = k1;
+            k = if k + 1 == n { 0 } else { k + 1 };
+        }
+    }
+
+    /// `sum_m w0[m] R_i[first + shift + m] + w1[m] R_{i+1}[...]` (indices modulo the bins).
+    pub fn dot(&self, i: usize, w: &PsiWeights, shift: i64) -> f64 {
+        let n = self.n;
+        let (r0, r1) = (
+            &self.v[i * n..(i + 1) * n],
+            &self.v[(i + 1) * n..(i + 2) * n],
+        );
+        let mut k = (w.first as i64 + shift).rem_euclid(n as i64) as usize;
+        let mut acc = 0.0;
+        for (a, b) in w.w0.iter().zip(&w.w1) {
+            acc += a * r0[k] + b * r1[k];
+            k = if k + 1 == n { 0 } else { k + 1 };
         }
         acc
     }
+}
+
+/// [`CnRows::integrate`] as weights on row nodes ([`CnRows::weights`]).
+#[derive(Clone, Debug)]
+pub struct PsiWeights {
+    first: usize,
+    w0: Vec<f64>,
+    w1: Vec<f64>,
 }
 
 /// `C^N(x, .)` at one offset `x`: the unclamped shape at the `psi` bin centres and the
@@ -1321,6 +1383,30 @@ mod tests {
                 (v - reference).abs() <= 1e-12 * scale,
                 "row {i} psi0 {psi0} len {len}: {v} vs {reference}"
             );
+        }
+    }
+
+    /// The node weights of `CnRows::weights`, moved by whole bins, give `integrate` at the
+    /// start moved by as many bin widths (1e-12 of the scale: the same nodes, summed in
+    /// another order), across the period and both ways.
+    #[test]
+    fn cn_rows_weights_match_integrate_shifted() {
+        let s = MedullaTables::builtin().slice(1.5, -0.3);
+        let rows = s.cn_rows();
+        let d = rows.bin_width();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(43);
+        for _ in 0..100 {
+            let i = rng.random_range(0..rows.x_nodes().len() - 1);
+            let psi0: f64 = rng.random_range(-4.0..4.0);
+            let len: f64 = 10f64.powf(rng.random_range(-4.0..0.9));
+            let g = [0, 1].map(|_| std::array::from_fn(|_| rng.random_range(-2.0..2.0)));
+            let w = rows.weights(psi0, len, &g);
+            let scale = len * rows.peak * 10.0;
+            for shift in [-400i64, -181, -7, -1, 0, 1, 3, 179, 180, 361] {
+                let a = rows.dot(i, &w, shift);
+                let b = rows.integrate(i, psi0 + shift as f64 * d, len, &g);
+                assert!((a - b).abs() <= 1e-12 * scale, "shift {shift}: {a} vs {b}");
+            }
         }
     }
 

@@ -1223,8 +1223,10 @@ impl<'a> FarSlice<'a> {
             match &grid {
                 Some(g) if self.scattered_tabulated(part) => {
                     self.add_scattered_sweep(part, g, &order, &mut s, &mut out);
-                    for (o, &phi) in out.iter_mut().zip(&wrapped) {
-                        self.add_psi_pieces(part, phi, o);
+                    if !self.add_psi_sweep(part, g, &order, &mut s, &mut out) {
+                        for (o, &phi) in out.iter_mut().zip(&wrapped) {
+                            self.add_psi_pieces(part, phi, o);
+                        }
                     }
                 }
                 _ => {
@@ -1349,6 +1351,51 @@ impl<'a> FarSlice<'a> {
             }
             out.0[3 + k] += self.weight * s;
         }
+    }
+
+    /// [`Self::add_psi_pieces`] along an evenly spaced sorted grid whose step is a whole
+    /// number of `psi` bins (`out` indexed through `order`, `s` scratch of the grid's
+    /// length): a piece's integral is then one weighting of the row nodes, moved by that
+    /// number of bins per point ([`CnRows::weights`]), built once per piece and side.
+    /// Returns `false` (nothing added) when the step is not such a multiple.
+    fn add_psi_sweep(
+        &self,
+        part: &Part,
+        g: &UniformGrid,
+        order: &[usize],
+        s: &mut [f64],
+        out: &mut [LobeValues],
+    ) -> bool {
+        let Some(rows) = self.cn_rows() else {
+            return true;
+        };
+        let m = g.step / rows.bin_width();
+        if m.round() < 1.0 || (m - m.round()).abs() > PSI_SWEEP_SLACK {
+            return false;
+        }
+        let m = m.round() as i64;
+        for k in 0..2 {
+            let pieces = &part.scat[k].psi;
+            if pieces.is_empty() {
+                continue;
+            }
+            s.iter_mut().for_each(|x| *x = 0.0);
+            for pc in pieces {
+                // Direct side at psi0 = phi_q - phi_hi, mirrored at -phi_q - phi_hi.
+                for (on, sign) in [(part.direct, 1.0), (part.mirror, -1.0)] {
+                    if on {
+                        let w = rows.weights(sign * g.first - pc.phi_hi, pc.len, &pc.g);
+                        for (q, x) in s.iter_mut().enumerate() {
+                            *x += rows.dot(pc.row, &w, sign as i64 * m * q as i64);
+                        }
+                    }
+                }
+            }
+            for (q, &i) in order.iter().enumerate() {
+                out[i].0[3 + k] += self.weight * s[q];
+            }
+        }
+        true
     }
 
     /// Whether every scattered node of `part` has its `C^N` profile tabulated.
@@ -1543,6 +1590,11 @@ impl UniformGrid {
         }
     }
 }
+
+/// How far (in bins) a grid step may be from a whole number of `psi` bins for
+/// [`FarSlice::add_psi_sweep`]: over 360 points the positions then drift by under 4e-7 of
+/// a bin, which moves a piece's integral by that fraction of its value at most.
+const PSI_SWEEP_SLACK: f64 = 1e-9;
 
 /// Slack (radians) of [`FarSlice::eval_many`]'s candidate windows: far above the rounding
 /// of `lo - w - mu` (~1e-15) and far below any window width, so it only adds candidates
