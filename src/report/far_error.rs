@@ -149,7 +149,9 @@ fn time_amortised<G: Fn(&AzimuthalSlice, &[f64]) -> Vec<LobeValues>>(
 
 /// Larger Gauss-Legendre rules tried (errors only, not plotted) when none of
 /// [`GL_POINTS`] reaches a far-field setting's error.
-const GL_POINTS_SEARCH: [usize; 10] = [192, 256, 384, 512, 768, 1024, 1536, 2048, 3072, 4096];
+const GL_POINTS_SEARCH: [usize; 16] = [
+    192, 256, 384, 512, 768, 1024, 1536, 2048, 3072, 4096, 6144, 8192, 12288, 16384, 24576, 32768,
+];
 
 /// The first rule of [`GL_POINTS_SEARCH`] whose max error over the set is at most
 /// `target`, then the first passing one on a finer ladder (steps of 1/32 of it) up from

@@ -949,6 +949,8 @@ impl<'a> FarSlice<'a> {
         });
     }
 
+    /// A scattered segment by three-node quadrature of the queried `C^N` (paper mode, and
+    /// the tolerance mode's one-bin segments at a `Phi^s` caustic).
     #[allow(clippy::too_many_arguments)]
     fn build_scat(
         &self,
