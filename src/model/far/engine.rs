@@ -80,7 +80,7 @@ const GL_SPAN_SIGMAS: f64 = 2.0;
 const GL_NODES: usize = 16;
 /// Largest deviation (nats) of a narrow piece's log-attenuation from its chord at the
 /// quarter points before the fit check stops trusting those points (see
-/// [`FarSlice::build_narrow`]): a factor e, far beyond the curvature of an ordinary
+/// [`hidden_mass_bound`]): a factor e, far beyond the curvature of an ordinary
 /// absorption profile across a piece that passes the fit check.
 const LAM_DEV_MAX: f64 = 1.0;
 /// In tolerance mode a GL piece spanning at most [`GL_FEW_SPAN_SIGMAS`] `beta_p` in `Phi`
@@ -666,15 +666,9 @@ impl<'a> FarSlice<'a> {
                 e = e.max((fit - Self::g_exact(&q, p)).abs());
                 dev = dev.max((l0 + l * x - q.lam[p]).abs());
             }
-            // As in `build_narrow`: a log-attenuation far from its chord can hide the
-            // mass between the check points.
-            if dev > LAM_DEV_MAX {
-                e = e.max(
-                    [n0, nm, n1, q1, q3]
-                        .iter()
-                        .fold(0.0f64, |a, n| a.max(Self::g_exact(n, p))),
-                );
-            }
+            e = e.max(hidden_mass_bound(dev, [n0, nm, n1, q1, q3], |n| {
+                Self::g_exact(n, p)
+            }));
             if e <= b {
                 out.push(piece);
             } else if narrow {
@@ -741,17 +735,9 @@ impl<'a> FarSlice<'a> {
             e = e.max((fit - q.pre[p] * q.lam[p].exp()).abs());
             dev = dev.max((l0 + lin * x - q.lam[p]).abs());
         }
-        // A log-attenuation far from linear can hide its mass between the check points
-        // (TT at kappa -> 1 and grazing theta_d: `exp(-c sqrt(u_edge - u))` with c in the
-        // hundreds puts nearly all of it within 1e-5 of the medulla edge, while the quarter
-        // points see ~e^-100 in both fit and integrand): then the largest node value bounds
-        // the error instead.
-        if dev > LAM_DEV_MAX {
-            let peak = [n0, nm, n1, q1, q3]
-                .iter()
-                .fold(0.0f64, |a, n| a.max((n.pre[p] * n.lam[p].exp()).abs()));
-            e = e.max(peak);
-        }
+        e = e.max(hidden_mass_bound(dev, [n0, nm, n1, q1, q3], |n| {
+            (n.pre[p] * n.lam[p].exp()).abs()
+        }));
         if e * len * norm > b {
             if let Some(depth) = rf.split(depth) {
                 let (a1, a3) = (
@@ -1459,6 +1445,20 @@ impl<'a> FarSlice<'a> {
             }
         }
         v
+    }
+}
+
+/// A bound on a segment's fit error that its quarter-point checks cannot see: when the
+/// log-attenuation departs from its chord by more than [`LAM_DEV_MAX`] there (`dev`), the
+/// mass can hide between the check points (TT at kappa -> 1 and grazing theta_d:
+/// `exp(-c sqrt(u_edge - u))` with c in the hundreds puts nearly all of it within 1e-5 of
+/// the medulla edge, while the quarter points see ~e^-100 in both fit and integrand), and
+/// the largest `value` over the five nodes bounds the error instead; else 0.
+fn hidden_mass_bound(dev: f64, nodes: [Node; 5], value: impl Fn(&Node) -> f64) -> f64 {
+    if dev > LAM_DEV_MAX {
+        nodes.iter().fold(0.0f64, |a, n| a.max(value(n)))
+    } else {
+        0.0
     }
 }
 
