@@ -154,10 +154,7 @@ fn locate_periodic_u(u: f64, n: usize) -> (usize, usize, f64) {
     // a period of the table (wrapped angles, or grid positions a little beyond), else by
     // a remainder: this runs per (node, phi) in the far field's scattered sum, where a
     // libm floor call and two integer divisions were a tenth of the synthesis time.
-    let mut k = u as i64;
-    if k as f64 > u {
-        k -= 1;
-    }
+    let k = floor_i64(u);
     let f = u - k as f64;
     let n = n as i64;
     let k0 = if (0..n).contains(&k) {
@@ -171,6 +168,18 @@ fn locate_periodic_u(u: f64, n: usize) -> (usize, usize, f64) {
     };
     let k1 = if k0 + 1 == n { 0 } else { k0 + 1 };
     (k0 as usize, k1 as usize, f)
+}
+
+/// `floor(u)` by truncation and a correction: cheaper than a libm `floor` call on the
+/// baseline target, and the table lookups run it per (node, phi).
+#[inline]
+fn floor_i64(u: f64) -> i64 {
+    let k = u as i64;
+    if k as f64 > u {
+        k - 1
+    } else {
+        k
+    }
 }
 
 /// Location of `t` among `n` uniform bin centres, constant beyond the end centres.
@@ -783,6 +792,15 @@ impl CnRows<'_> {
         locate(self.x, x.abs()).0
     }
 
+    /// Rows `R_i` and `R_{i+1}`.
+    fn pair(&self, i: usize) -> (&[f64], &[f64]) {
+        let n = self.n;
+        (
+            &self.v[i * n..(i + 1) * n],
+            &self.v[(i + 1) * n..(i + 2) * n],
+        )
+    }
+
     /// Largest `|R_{i+1} - R_i|` over `psi`.
     pub fn gap(&self, i: usize) -> f64 {
         self.gap[i]
@@ -801,10 +819,7 @@ impl CnRows<'_> {
     /// two-point Gauss-Legendre rule is exact.
     pub fn integrate(&self, i: usize, psi0: f64, len: f64, g: &[[f64; 3]; 2]) -> f64 {
         let n = self.n;
-        let (r0, r1) = (
-            &self.v[i * n..(i + 1) * n],
-            &self.v[(i + 1) * n..(i + 2) * n],
-        );
+        let (r0, r1) = self.pair(i);
         let mut acc = 0.0;
         self.gl_nodes(psi0, len, g, |_, k, fr, w0, w1| {
             let k1 = if k + 1 == n { 0 } else { k + 1 };
@@ -850,25 +865,12 @@ impl CnRows<'_> {
     ) {
         let n = self.n;
         // Positions in bins from the first centre; the stretches between centres that
-        // [u0, u1] meets are kb..=ke. Floors by truncation and a correction (this runs per
-        // piece and phi; a libm floor call was a tenth of its time).
+        // [u0, u1] meets are kb..=ke (this runs per piece and phi; a libm floor call was a
+        // tenth of its time).
         let u0 = (psi0 - self.c0) / self.d;
         let u1 = u0 + len / self.d;
-        let floor = |u: f64| {
-            let k = u as i64;
-            if k as f64 > u {
-                k - 1
-            } else {
-                k
-            }
-        };
-        let (kb, ke) = (floor(u0), floor(u1));
-        let nn = n as i64;
-        let mut k = kb % nn;
-        if k < 0 {
-            k += nn;
-        }
-        let mut k = k as usize;
+        let (kb, ke) = (floor_i64(u0), floor_i64(u1));
+        let mut k = kb.rem_euclid(n as i64) as usize;
         let poly = |c: &[f64; 3], s: f64| c[0] + s * (c[1] + s * c[2]);
         // Two-point Gauss-Legendre nodes on [0, 1].
         const GL2: [f64; 2] = [0.211_324_865_405_187_1, 0.788_675_134_594_812_9];
@@ -891,10 +893,7 @@ impl CnRows<'_> {
     /// `sum_m w0[m] R_i[first + shift + m] + w1[m] R_{i+1}[...]` (indices modulo the bins).
     pub fn dot(&self, i: usize, w: &PsiWeights, shift: i64) -> f64 {
         let n = self.n;
-        let (r0, r1) = (
-            &self.v[i * n..(i + 1) * n],
-            &self.v[(i + 1) * n..(i + 2) * n],
-        );
+        let (r0, r1) = self.pair(i);
         let mut k = (w.first as i64 + shift).rem_euclid(n as i64) as usize;
         let mut acc = 0.0;
         for (a, b) in w.w0.iter().zip(&w.w1) {

@@ -20,8 +20,9 @@ use std::f64::consts::PI;
 /// The integrand is dropped where it is below `e^-TRUNC` of its maximum on the interval.
 const TRUNC: f64 = 40.0;
 
+/// `c0 + c1 x + c2 x^2`.
 #[inline]
-fn poly(c: &[f64; 3], x: f64) -> f64 {
+pub(super) fn poly(c: &[f64; 3], x: f64) -> f64 {
     c[0] + x * (c[1] + x * c[2])
 }
 

@@ -49,7 +49,7 @@
 //!   over `phi` (a lower bound of its peak).
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
-use super::closed_form::{poly_exp, poly_gauss, quadratic_through};
+use super::closed_form::{poly, poly_exp, poly_gauss, quadratic_through};
 use super::FarOptions;
 use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian};
 use crate::model::medulla::{CnProfile, CnRows};
@@ -227,6 +227,16 @@ struct Part {
     mirror: bool,
     unsc: [Vec<Piece>; 3],
     scat: [ScatNodes; 2],
+}
+
+impl Part {
+    /// The sides that contribute, as the sign of `phi` each reads: `1` for the direct side,
+    /// `-1` for the mirrored one (`D(-h, phi) = D(h, -phi)`; `C^N(-x, psi) = C^N(x, -psi)`).
+    fn signs(&self) -> impl Iterator<Item = f64> {
+        [(self.direct, 1.0), (self.mirror, -1.0)]
+            .into_iter()
+            .filter_map(|(on, sign)| on.then_some(sign))
+    }
 }
 
 /// The far field (or a multi-scale range) at one `theta_d`, ready to evaluate at any `phi`.
@@ -662,7 +672,7 @@ impl<'a> FarSlice<'a> {
             let mut dev = 0.0f64;
             for q in [q1, q3] {
                 let x = q.phi[p] - lo;
-                let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + l * x).exp();
+                let fit = poly(&c, x) * (l0 + l * x).exp();
                 e = e.max((fit - Self::g_exact(&q, p)).abs());
                 dev = dev.max((l0 + l * x - q.lam[p]).abs());
             }
@@ -731,7 +741,7 @@ impl<'a> FarSlice<'a> {
         let mut dev = 0.0f64;
         for q in [q1, q3] {
             let x = q.u - n0.u;
-            let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + lin * x).exp();
+            let fit = poly(&c, x) * (l0 + lin * x).exp();
             e = e.max((fit - q.pre[p] * q.lam[p].exp()).abs());
             dev = dev.max((l0 + lin * x - q.lam[p]).abs());
         }
@@ -913,8 +923,7 @@ impl<'a> FarSlice<'a> {
             for q in [q1, q3] {
                 let (s, v) = dens(&q);
                 for j in 0..2 {
-                    let c = &g[j];
-                    e[j] = e[j].max((c[0] + s * (c[1] + s * c[2]) - v[j]).abs());
+                    e[j] = e[j].max((poly(&g[j], s) - v[j]).abs());
                 }
             }
             let err = e[0] * (span * rows.peak).min(1.1) + e[1] * span * rows.gap(row);
@@ -995,7 +1004,7 @@ impl<'a> FarSlice<'a> {
                 let mut e = 0.0f64;
                 for q in [q1, q3] {
                     let x = q.u - n0.u;
-                    let fit = (c[0] + x * (c[1] + x * c[2])) * (l0 + lin * x).exp();
+                    let fit = poly(&c, x) * (l0 + lin * x).exp();
                     e = e.max((fit - q.pre[i] * q.frac * q.lam[i].exp()).abs());
                 }
                 let fit_poor = e > b && e * len > rf.small;
@@ -1092,11 +1101,8 @@ impl<'a> FarSlice<'a> {
                 let (beta, w) = self.image_window(p);
                 let mut s = 0.0;
                 for pc in &part.unsc[p] {
-                    if part.direct {
-                        self.add_piece(pc, phi, beta, w, &mut s);
-                    }
-                    if part.mirror {
-                        self.add_piece(pc, -phi, beta, w, &mut s);
+                    for sign in part.signs() {
+                        self.add_piece(pc, sign * phi, beta, w, &mut s);
                     }
                 }
                 if s != 0.0 {
@@ -1131,10 +1137,7 @@ impl<'a> FarSlice<'a> {
                 s.iter_mut().for_each(|x| *x = 0.0);
                 for pc in &part.unsc[p] {
                     let (lo, hi) = pc.range();
-                    for (on, sign) in [(part.direct, 1.0), (part.mirror, -1.0)] {
-                        if !on {
-                            continue;
-                        }
+                    for sign in part.signs() {
                         // Candidates: mu = sign phi within the window of some image k,
                         // widened by WINDOW_SLACK so rounding cannot drop a phi that
                         // add_piece's own test keeps. If the windows of neighbouring images
@@ -1330,11 +1333,8 @@ impl<'a> FarSlice<'a> {
             }
             let mut s = 0.0;
             for pc in pieces {
-                if part.direct {
-                    s += rows.integrate(pc.row, phi - pc.phi_hi, pc.len, &pc.g);
-                }
-                if part.mirror {
-                    s += rows.integrate(pc.row, -phi - pc.phi_hi, pc.len, &pc.g);
+                for sign in part.signs() {
+                    s += rows.integrate(pc.row, sign * phi - pc.phi_hi, pc.len, &pc.g);
                 }
             }
             out.0[3 + k] += self.weight * s;
@@ -1370,12 +1370,10 @@ impl<'a> FarSlice<'a> {
             s.iter_mut().for_each(|x| *x = 0.0);
             for pc in pieces {
                 // Direct side at psi0 = phi_q - phi_hi, mirrored at -phi_q - phi_hi.
-                for (on, sign) in [(part.direct, 1.0), (part.mirror, -1.0)] {
-                    if on {
-                        let w = rows.weights(sign * g.first - pc.phi_hi, pc.len, &pc.g);
-                        for (q, x) in s.iter_mut().enumerate() {
-                            *x += rows.dot(pc.row, &w, sign as i64 * m * q as i64);
-                        }
+                for sign in part.signs() {
+                    let w = rows.weights(sign * g.first - pc.phi_hi, pc.len, &pc.g);
+                    for (q, x) in s.iter_mut().enumerate() {
+                        *x += rows.dot(pc.row, &w, sign as i64 * m * q as i64);
                     }
                 }
             }
