@@ -88,14 +88,15 @@ impl FarOptions {
 
 impl<'a> AzimuthalSlice<'a> {
     /// Precompute the far field at this `theta_d` for evaluation at many `phi`
-    /// ([`FarSlice::eval`]); [`AzimuthalSlice::far`] is `far_slice(..).eval(phi)`.
+    /// ([`FarSlice::eval`]); [`AzimuthalSlice::far`] equals `far_slice(..).eval(phi)`
+    /// (building only what reaches `phi`).
     pub fn far_slice(&self, lobes: LobeSet, opts: &FarOptions) -> FarSlice<'a> {
         FarSlice::far(self, lobes, opts)
     }
 
     /// Far-field azimuthal scattering `N_p(phi)` (seed Eq. 22) for the lobes in `lobes`.
     pub fn far(&self, phi: f64, lobes: LobeSet, opts: &FarOptions) -> LobeValues {
-        FarSlice::far(self, lobes, opts).eval(phi)
+        FarSlice::far_at(self, lobes, opts, phi)
     }
 
     /// Multi-scale azimuthal scattering over `[h1, h2]` (seed Eq. 26).
@@ -113,7 +114,7 @@ impl<'a> AzimuthalSlice<'a> {
             // The limit of Eq. 26 for a vanishing range is the near field (Sec. 5.2).
             return self.near(0.5 * (h1 + h2), phi, lobes);
         }
-        FarSlice::range(self, h1, h2, lobes, opts).eval(phi)
+        FarSlice::range_at(self, (h1, h2), lobes, opts, phi)
     }
 
     /// Plain Gauss-Legendre quadrature of the near field with `n` points in

@@ -281,6 +281,9 @@ struct Refine {
     splits_left: usize,
     /// A wanted split was refused ([`MAX_SPLITS`] or [`MAX_DEPTH`]).
     capped: bool,
+    /// The azimuths `mu` (`phi`, `-phi` for the mirrored side) at which the part will be
+    /// evaluated, when the slice serves one `phi` ([`FarSlice::far_at`]); empty: all.
+    reach: Vec<f64>,
 }
 
 impl Refine {
@@ -300,7 +303,21 @@ impl Refine {
 impl<'a> FarSlice<'a> {
     /// The far field `1/2 integral_{-1}^{1}` (Eq. 22).
     pub fn far(az: &AzimuthalSlice<'a>, lobes: LobeSet, opts: &FarOptions) -> Self {
-        Self::build(az, lobes, opts, &[(0.0, 1.0, true, true)], 0.5)
+        Self::build(az, lobes, opts, &[(0.0, 1.0, true, true)], 0.5, None)
+    }
+
+    /// [`FarSlice::far`] evaluated at one `phi` only (a single call). With culling on,
+    /// unscattered segments whose `Phi_p` cannot come within the culling window of `phi`
+    /// are not built at all: every piece refined from them would be culled at `phi`, so
+    /// the value is the same as `FarSlice::far(..).eval(phi)` bit for bit (unless the
+    /// full build hit [`MAX_SPLITS`], which the saved splits can then avoid).
+    pub fn far_at(
+        az: &AzimuthalSlice<'a>,
+        lobes: LobeSet,
+        opts: &FarOptions,
+        phi: f64,
+    ) -> LobeValues {
+        Self::build(az, lobes, opts, &[(0.0, 1.0, true, true)], 0.5, Some(phi)).eval(phi)
     }
 
     /// The multi-scale range `1/(h2 - h1) integral_{h1}^{h2}` (Eq. 26), `h1 < h2` in [-1, 1].
@@ -310,6 +327,29 @@ impl<'a> FarSlice<'a> {
         h2: f64,
         lobes: LobeSet,
         opts: &FarOptions,
+    ) -> Self {
+        Self::range_with(az, h1, h2, lobes, opts, None)
+    }
+
+    /// [`FarSlice::range`] evaluated at one `phi` only, building only what can reach it
+    /// (as [`FarSlice::far_at`]).
+    pub fn range_at(
+        az: &AzimuthalSlice<'a>,
+        (h1, h2): (f64, f64),
+        lobes: LobeSet,
+        opts: &FarOptions,
+        phi: f64,
+    ) -> LobeValues {
+        Self::range_with(az, h1, h2, lobes, opts, Some(phi)).eval(phi)
+    }
+
+    fn range_with(
+        az: &AzimuthalSlice<'a>,
+        h1: f64,
+        h2: f64,
+        lobes: LobeSet,
+        opts: &FarOptions,
+        target: Option<f64>,
     ) -> Self {
         let mut ranges = Vec::new();
         if h2 > 0.0 {
@@ -322,15 +362,18 @@ impl<'a> FarSlice<'a> {
         if ranges.len() == 2 && ranges[0].0 == ranges[1].0 && ranges[0].1 == ranges[1].1 {
             ranges = vec![(ranges[0].0, ranges[0].1, true, true)];
         }
-        Self::build(az, lobes, opts, &ranges, 1.0 / (h2 - h1))
+        Self::build(az, lobes, opts, &ranges, 1.0 / (h2 - h1), target)
     }
 
+    /// `target`: the one `phi` the slice will be evaluated at, if known (see
+    /// [`FarSlice::far_at`]).
     fn build(
         az: &AzimuthalSlice<'a>,
         lobes: LobeSet,
         opts: &FarOptions,
         ranges: &[(f64, f64, bool, bool)],
         weight: f64,
+        target: Option<f64>,
     ) -> Self {
         let lobes = lobes.intersect(az.model.active_lobes());
         let bn = az.model.params.beta_n;
@@ -466,6 +509,12 @@ impl<'a> FarSlice<'a> {
                     small: budget.map_or(0.0, |b| b[l.index()] / (mult * SMALL_SEGMENTS)),
                     splits_left: MAX_SPLITS,
                     capped: false,
+                    reach: match target {
+                        Some(phi) if opts.cull => {
+                            part.signs().map(|sign| sign * wrap_angle(phi)).collect()
+                        }
+                        _ => Vec::new(),
+                    },
                 };
                 for seg in (0..nodes.len().saturating_sub(2)).step_by(2) {
                     let (n0, nm, n1) = (nodes[seg], nodes[seg + 1], nodes[seg + 2]);
@@ -629,6 +678,9 @@ impl<'a> FarSlice<'a> {
         rf: &mut Refine,
         out: &mut Vec<Piece>,
     ) {
+        if !self.reaches(p, &n0, &n1, rf) {
+            return;
+        }
         let beta = self.betas[p];
         let d = [n0.dphi[p], nm.dphi[p], n1.dphi[p]];
         let (dmin, dmax) = (
@@ -713,6 +765,37 @@ impl<'a> FarSlice<'a> {
         }
     }
 
+    /// Bounds of `Phi_p` over `[n0.u, n1.u]`. `dPhi_p/du = 2p cos u / (eta' cos gamma_t) - 2`
+    /// is monotone in `u` on `[0, pi/2]` (`cos u / cos gamma_t` falls from 1 to 0 for
+    /// `eta' >= 1`) and lies in `[-2, 2p/eta' - 2]`, so inside the segment it lies between
+    /// its end values clamped to that range (the computed ones leave it only by rounding,
+    /// or at `h = 1`, where `cos u / cos gamma_t` is 0/0).
+    fn phi_bounds(&self, p: usize, n0: &Node, n1: &Node) -> (f64, f64) {
+        let top = (2.0 * p as f64 / self.az.eta_prime - 2.0).max(-2.0);
+        let (d0, d1) = (n0.dphi[p].clamp(-2.0, top), n1.dphi[p].clamp(-2.0, top));
+        let (dlo, dhi) = (d0.min(d1).min(0.0), d0.max(d1).max(0.0));
+        let len = n1.u - n0.u;
+        let (f0, f1) = (n0.phi[p], n1.phi[p]);
+        (
+            (f0 + dlo * len).max(f1 - dhi * len),
+            (f0 + dhi * len).min(f1 - dlo * len),
+        )
+    }
+
+    /// Can a piece of lobe `p` refined from `[n0, n1]` reach an azimuth of `rf.reach`?
+    /// The same image test as [`FarSlice::add_piece`] on a range holding every such
+    /// piece's range, widened by [`WINDOW_SLACK`] against rounding.
+    fn reaches(&self, p: usize, n0: &Node, n1: &Node, rf: &Refine) -> bool {
+        if rf.reach.is_empty() {
+            return true;
+        }
+        let (lo, hi) = self.phi_bounds(p, n0, n1);
+        let w = self.image_window(p).1 + WINDOW_SLACK;
+        rf.reach
+            .iter()
+            .any(|&mu| ((lo - w - mu) / TAU).ceil() <= ((hi + w - mu) / TAU).floor())
+    }
+
     /// A segment narrow in `Phi` (at most [`GL_SPAN_SIGMAS`] `beta_p`): Gauss-Legendre in
     /// `u` of the exact integrand, once the attenuation `A cos u` itself is resolved — its
     /// quadratic-times-exp-linear fit in `u` is within budget when weighted by the
@@ -731,6 +814,9 @@ impl<'a> FarSlice<'a> {
         rf: &mut Refine,
         out: &mut Vec<Piece>,
     ) {
+        if !self.reaches(p, &n0, &n1, rf) {
+            return;
+        }
         let len = n1.u - n0.u;
         let b = rf.budget.unwrap_or(f64::INFINITY);
         let norm = 1.0 / (self.betas[p] * TAU.sqrt());
