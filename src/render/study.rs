@@ -6,6 +6,10 @@ use super::bsdf::Mode;
 use super::{render_scene, Image, RenderSettings, Scene};
 use crate::params::FurParams;
 
+/// Resamples and seed of the bootstrap interval of the speedup in the report.
+const BOOTSTRAP_RESAMPLES: usize = 2000;
+const BOOTSTRAP_SEED: u64 = 0x5eed_b007;
+
 /// One point of a convergence curve.
 #[derive(Clone, Debug)]
 pub struct ConvergencePoint {
@@ -31,24 +35,33 @@ impl Convergence {
     /// The curve of a mode: per spp, the mean over the repeats in `which` (all when
     /// `None`) of the squared RMSE and of the seconds, as `(spp, seconds, rmse)`.
     pub fn curve(&self, mode: Mode, which: Option<usize>) -> Vec<(usize, f64, f64)> {
-        let mut out: Vec<(usize, f64, f64, usize)> = Vec::new();
+        self.curve_weighted(mode, |r| which.map_or(1.0, |w| f64::from(u8::from(w == r))))
+    }
+
+    /// [`Self::curve`] with repeat `r` counted `weight(r)` times (a bootstrap resample).
+    fn curve_weighted(&self, mode: Mode, weight: impl Fn(usize) -> f64) -> Vec<(usize, f64, f64)> {
+        let mut out: Vec<(usize, f64, f64, f64)> = Vec::new();
         for p in self
             .points
             .iter()
-            .filter(|p| p.mode == mode && p.rmse > 0.0 && which.map_or(true, |r| r == p.repeat))
+            .filter(|p| p.mode == mode && p.rmse > 0.0)
         {
+            let w = weight(p.repeat);
+            if w <= 0.0 {
+                continue;
+            }
             match out.iter_mut().find(|c| c.0 == p.spp) {
                 Some(c) => {
-                    c.1 += p.seconds;
-                    c.2 += p.rmse * p.rmse;
-                    c.3 += 1;
+                    c.1 += w * p.seconds;
+                    c.2 += w * p.rmse * p.rmse;
+                    c.3 += w;
                 }
-                None => out.push((p.spp, p.seconds, p.rmse * p.rmse, 1)),
+                None => out.push((p.spp, w * p.seconds, w * p.rmse * p.rmse, w)),
             }
         }
         out.sort_by_key(|c| c.0);
         out.iter()
-            .map(|&(spp, t, e2, n)| (spp, t / n as f64, (e2 / n as f64).sqrt()))
+            .map(|&(spp, t, e2, n)| (spp, t / n, (e2 / n).sqrt()))
             .collect()
     }
 
@@ -56,12 +69,17 @@ impl Convergence {
     /// this is constant once in the asymptotic regime): the median over the spp >= `min_spp`
     /// of the [`Self::curve`] pooled over all repeats.
     pub fn inefficiency(&self, mode: Mode, min_spp: usize) -> Option<f64> {
-        self.inefficiency_of(mode, min_spp, None)
+        self.inefficiency_weighted(mode, min_spp, |_| 1.0)
     }
 
-    fn inefficiency_of(&self, mode: Mode, min_spp: usize, which: Option<usize>) -> Option<f64> {
+    fn inefficiency_weighted(
+        &self,
+        mode: Mode,
+        min_spp: usize,
+        weight: impl Fn(usize) -> f64,
+    ) -> Option<f64> {
         let mut v: Vec<f64> = self
-            .curve(mode, which)
+            .curve_weighted(mode, weight)
             .into_iter()
             .filter(|c| c.0 >= min_spp)
             .map(|(_, t, e)| e * e * t)
@@ -76,20 +94,72 @@ impl Convergence {
     /// Equal-quality speedup of `fast` over `slow`: ratio of their pooled inefficiencies
     /// (time needed to reach the same RMSE).
     pub fn speedup(&self, slow: Mode, fast: Mode, min_spp: usize) -> Option<f64> {
-        Some(self.inefficiency(slow, min_spp)? / self.inefficiency(fast, min_spp)?)
+        self.speedup_weighted(slow, fast, min_spp, |_| 1.0)
+    }
+
+    fn speedup_weighted(
+        &self,
+        slow: Mode,
+        fast: Mode,
+        min_spp: usize,
+        weight: impl Fn(usize) -> f64 + Copy,
+    ) -> Option<f64> {
+        Some(
+            self.inefficiency_weighted(slow, min_spp, weight)?
+                / self.inefficiency_weighted(fast, min_spp, weight)?,
+        )
+    }
+
+    fn repeats(&self) -> usize {
+        self.points.iter().map(|p| p.repeat + 1).max().unwrap_or(0)
     }
 
     /// The speedup of each repeat on its own: its spread is the measurement's noise.
     pub fn speedup_per_repeat(&self, slow: Mode, fast: Mode, min_spp: usize) -> Vec<f64> {
-        let repeats = self.points.iter().map(|p| p.repeat + 1).max().unwrap_or(0);
-        (0..repeats)
+        (0..self.repeats())
             .filter_map(|r| {
-                Some(
-                    self.inefficiency_of(slow, min_spp, Some(r))?
-                        / self.inefficiency_of(fast, min_spp, Some(r))?,
-                )
+                self.speedup_weighted(slow, fast, min_spp, |q| f64::from(u8::from(q == r)))
             })
             .collect()
+    }
+
+    /// Percentile bootstrap interval of the pooled [`Self::speedup`] at `level` (e.g. 0.9):
+    /// the repeats are resampled with replacement, `resamples` times from a fixed seed,
+    /// each resample weighting both modes' repeats alike (repeat `r` of each mode shares
+    /// its seed). `None` with fewer than two repeats.
+    pub fn speedup_interval(
+        &self,
+        slow: Mode,
+        fast: Mode,
+        min_spp: usize,
+        level: f64,
+        resamples: usize,
+    ) -> Option<(f64, f64)> {
+        use rand::{Rng, SeedableRng};
+        let n = self.repeats();
+        if n < 2 || resamples == 0 {
+            return None;
+        }
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(BOOTSTRAP_SEED);
+        let mut stats = Vec::with_capacity(resamples);
+        let mut counts = vec![0.0f64; n];
+        for _ in 0..resamples {
+            counts.iter_mut().for_each(|c| *c = 0.0);
+            for _ in 0..n {
+                counts[rng.random_range(0..n)] += 1.0;
+            }
+            if let Some(x) = self.speedup_weighted(slow, fast, min_spp, |r| counts[r]) {
+                stats.push(x);
+            }
+        }
+        if stats.is_empty() {
+            return None;
+        }
+        stats.sort_by(f64::total_cmp);
+        let q =
+            |f: f64| stats[((f * (stats.len() - 1) as f64).round() as usize).min(stats.len() - 1)];
+        let tail = 0.5 * (1.0 - level);
+        Some((q(tail), q(1.0 - tail)))
     }
 
     /// Markdown report: the points, the per-mode inefficiency and the speedups.
@@ -127,9 +197,14 @@ impl Convergence {
         for (slow, fast) in [(Mode::Near, Mode::Multiscale), (Mode::Near, Mode::Far)] {
             if let Some(x) = self.speedup(slow, fast, min_spp) {
                 let each = self.speedup_per_repeat(slow, fast, min_spp);
+                let interval = self
+                    .speedup_interval(slow, fast, min_spp, 0.9, BOOTSTRAP_RESAMPLES)
+                    .map_or(String::new(), |(a, b)| {
+                        format!(" (90 % bootstrap interval over the repeats {a:.2}-{b:.2}x)")
+                    });
                 s += &format!(
                     "- equal-quality speedup of {} over {}: **{x:.2}x** pooled over {} \
-                     repeats; per repeat {}\n",
+                     repeats{interval}; per repeat {}\n",
                     fast.name(),
                     slow.name(),
                     each.len(),
@@ -437,5 +512,19 @@ mod tests {
         assert!((each[0] - 4.0).abs() < 1e-9 && (each[1] - 16.0).abs() < 1e-9);
         // spp below the threshold are ignored.
         assert!(c.speedup(Mode::Near, Mode::Multiscale, 16).is_none());
+        // Bootstrap: a resample holds repeat 0 k times and repeat 1 (2 - k) times, so the
+        // pooled speedup is 4 (k = 2), 10 (k = 1) or 16 (k = 0), with probabilities 1/4,
+        // 1/2, 1/4: the 90 % interval spans 4..16, the 40 % interval is 10..10.
+        let (a, b) = c
+            .speedup_interval(Mode::Near, Mode::Multiscale, 4, 0.9, 2000)
+            .unwrap();
+        assert!((a - 4.0).abs() < 1e-9 && (b - 16.0).abs() < 1e-9, "{a} {b}");
+        let (a, b) = c
+            .speedup_interval(Mode::Near, Mode::Multiscale, 4, 0.4, 2000)
+            .unwrap();
+        assert!(
+            (a - 10.0).abs() < 1e-9 && (b - 10.0).abs() < 1e-9,
+            "{a} {b}"
+        );
     }
 }
