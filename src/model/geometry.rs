@@ -43,8 +43,18 @@ impl PathGeometry {
     /// Geometry of the path entering at offset `h` (MODEL.md "Azimuthal geometry").
     pub fn new(h: f64, eta_prime: f64, kappa: f64) -> Self {
         let h = h.clamp(-1.0, 1.0);
-        let gamma_i = h.asin();
-        let cos_gamma_i = (1.0 - h * h).max(0.0).sqrt();
+        Self::from_incidence(h, h.asin(), (1.0 - h * h).max(0.0).sqrt(), eta_prime, kappa)
+    }
+
+    /// [`PathGeometry::new`] at `gamma_i = u` in `[-pi/2, pi/2]` (the far field's variable
+    /// of integration): no `asin`, and `cos gamma_i = cos u` keeps its full relative
+    /// precision as `h -> 1`, where `sqrt(1 - h^2)` cancels.
+    pub fn at_gamma_i(u: f64, eta_prime: f64, kappa: f64) -> Self {
+        let (h, c) = u.sin_cos();
+        Self::from_incidence(h.clamp(-1.0, 1.0), u, c.max(0.0), eta_prime, kappa)
+    }
+
+    fn from_incidence(h: f64, gamma_i: f64, cos_gamma_i: f64, eta_prime: f64, kappa: f64) -> Self {
         let sin_gamma_t = h / eta_prime;
         let gamma_t = sin_gamma_t.asin();
         let cos_gamma_t = (1.0 - sin_gamma_t * sin_gamma_t).max(0.0).sqrt();
@@ -78,6 +88,37 @@ mod tests {
         // Grows with theta_d (Bravais): eta' > eta for theta_d != 0.
         assert!(eta_prime(1.55, 30f64.to_radians().cos()) > 1.55);
         assert!(eta_prime(1.55, 0.0).is_finite());
+    }
+
+    #[test]
+    fn at_gamma_i_matches_new() {
+        // Same path to rounding (1e-14: a few ulps of asin and of sqrt(1 - h^2)), and
+        // cos gamma_i exact where sqrt(1 - h^2) has lost digits.
+        for u in [-1.2, -0.3, 0.0, 0.4, 1.0, 1.5] {
+            let (a, b) = (
+                PathGeometry::at_gamma_i(u, 1.6, 0.4),
+                PathGeometry::new(u.sin(), 1.6, 0.4),
+            );
+            for (x, y) in [
+                (a.h, b.h),
+                (a.gamma_i, b.gamma_i),
+                (a.cos_gamma_i, b.cos_gamma_i),
+                (a.gamma_t, b.gamma_t),
+                (a.s_m, b.s_m),
+                (a.s_c, b.s_c),
+            ] {
+                assert!((x - y).abs() < 1e-14, "u {u}: {x} vs {y}");
+            }
+        }
+        let u = std::f64::consts::FRAC_PI_2 - 1e-7;
+        let g = PathGeometry::at_gamma_i(u, 1.6, 0.4);
+        // u carries ~1e-16 of absolute rounding, 1e-9 of cos u here; sqrt(1 - h^2) is off
+        // by ~1e-2 (h = 1 - 5e-15 holds 1e-16 of absolute rounding).
+        assert!(
+            (g.cos_gamma_i / 1e-7 - 1.0).abs() < 1e-8,
+            "{}",
+            g.cos_gamma_i
+        );
     }
 
     #[test]

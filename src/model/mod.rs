@@ -322,6 +322,11 @@ impl AzimuthalSlice<'_> {
         PathGeometry::new(h, self.eta_prime, self.model.params.kappa)
     }
 
+    /// [`Self::geometry`] at `gamma_i = u` ([`PathGeometry::at_gamma_i`]).
+    pub fn geometry_at_gamma_i(&self, u: f64) -> PathGeometry {
+        PathGeometry::at_gamma_i(u, self.eta_prime, self.model.params.kappa)
+    }
+
     /// Layered cuticle reflectance `F(eta', gamma_i, l)` at this path.
     pub fn cuticle(&self, geo: &PathGeometry) -> f64 {
         fresnel::cuticle_reflectance(self.eta_prime, geo.cos_gamma_i, self.model.params.l)

@@ -544,10 +544,9 @@ impl<'a> FarSlice<'a> {
     /// quadrature nodes of an unscattered piece read only their own lobe).
     fn node_with(&self, u: f64, scattered: bool) -> Node {
         let az = &self.az;
-        let h = u.sin();
-        let geo = az.geometry(h);
+        let geo = az.geometry_at_gamma_i(u);
         let f = az.cuticle(&geo);
-        let cu = u.cos().max(0.0);
+        let cu = geo.cos_gamma_i;
         let ab = &az.absorption;
         let ct = geo.cos_gamma_t.max(1e-300);
         let mut n = Node {
