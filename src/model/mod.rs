@@ -383,11 +383,15 @@ impl AzimuthalSlice<'_> {
     /// Near-field azimuthal scattering `N_p(h, phi) = A_p(h) D_p(h, phi)` (Eqs. 6, 9) for
     /// the lobes in `lobes`.
     pub fn near(&self, h: f64, phi: f64, lobes: LobeSet) -> LobeValues {
-        let geo = self.geometry(h);
-        let mut n = self.attenuation(&geo, lobes);
+        self.near_at(&self.geometry(h), phi, lobes)
+    }
+
+    /// [`Self::near`] on a path given by its geometry (e.g. [`Self::geometry_at_gamma_i`]).
+    pub fn near_at(&self, geo: &PathGeometry, phi: f64, lobes: LobeSet) -> LobeValues {
+        let mut n = self.attenuation(geo, lobes);
         for l in Lobe::ALL {
             if n.get(l) != 0.0 {
-                n.set(l, n.get(l) * self.distribution(l, &geo, phi));
+                n.set(l, n.get(l) * self.distribution(l, geo, phi));
             }
         }
         n

@@ -44,6 +44,10 @@
 //! * Culling (Sec. 5.1 "Acceleration"): a segment covering `Phi` in `[lo, hi]` is skipped
 //!   for every image `phi + 2 pi k` outside `[lo - 8.5 beta_p, hi + 8.5 beta_p]` (the
 //!   paper's 3 beta would lose up to 0.3 % of the mass; 8.5 sigma loses < 1e-16).
+//!   A slice built for one `phi` only ([`FarSlice::far_at`], [`FarSlice::range_at`]: a
+//!   single call) applies the same test before refining: an unscattered segment whose
+//!   `Phi_p` range (bounded through the monotone `dPhi_p/du`) cannot reach the window is
+//!   not built at all, which leaves the value unchanged bit for bit.
 //! * Tolerance mode: each fitted segment is checked at its quarter points against the exact
 //!   integrand and bisected while its error exceeds `tol` of the lobe's mean
 //!   over `phi` (a lower bound of its peak).

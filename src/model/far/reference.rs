@@ -86,16 +86,19 @@ impl AzimuthalSlice<'_> {
         pts.sort_by(|a, b| a.partial_cmp(b).unwrap());
         pts.dedup();
         let set = LobeSet::only(lobe);
+        // The path from gamma_i = u itself, as the far field's nodes: cos gamma_i = cos u
+        // stays exact where h = sin u rounds to 1 (within ~1e-8 of grazing, where
+        // sqrt(1 - h^2) = 0 would put a spurious F = 1 layer at eta -> 1, l -> 0).
         let f = |u: f64| {
-            let h = u.sin();
-            self.near(h, phi, set).get(lobe) * u.cos()
+            let geo = self.geometry_at_gamma_i(u);
+            self.near_at(&geo, phi, set).get(lobe) * geo.cos_gamma_i
         };
         // Absolute floor: 1e-12 of the lobe's mean over phi, (integral A dh) / (2 pi), which
         // is a lower bound of its peak; so tails far below the peak do not stall the
         // refinement.
         let mean = crate::model::quadrature::GaussLegendre::cached(128).integrate(u1, u2, |u| {
-            let geo = self.geometry(u.sin());
-            self.attenuation(&geo, set).get(lobe) * u.cos()
+            let geo = self.geometry_at_gamma_i(u);
+            self.attenuation(&geo, set).get(lobe) * geo.cos_gamma_i
         }) / TAU;
         adaptive_gk(f, &pts, REFERENCE_REL_TOL, 1e-12 * mean, 100_000).value
     }

@@ -284,8 +284,8 @@ fn far_integrates_over_phi_to_mean_attenuation() {
             for (i, l) in [Lobe::R, Lobe::TT, Lobe::TRT].into_iter().enumerate() {
                 let a = crate::model::quadrature::adaptive_gk(
                     |u| {
-                        let geo = az.geometry(u.sin());
-                        0.5 * az.attenuation(&geo, LobeSet::only(l)).get(l) * u.cos()
+                        let geo = az.geometry_at_gamma_i(u);
+                        0.5 * az.attenuation(&geo, LobeSet::only(l)).get(l) * geo.cos_gamma_i
                     },
                     &pts,
                     1e-12,
