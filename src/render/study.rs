@@ -169,7 +169,8 @@ impl Convergence {
              against a high-spp reference of the SAME mode (another seed). `seconds` is \
              path-tracing time on the machine as shared at run time (2 cores, other jobs \
              running: absolute figures are inflated and noisy; the ratios are what \
-             matter). With several repeats (independent seeds) the table shows the mean \
+             matter; the modes take turns at each spp and repeat, so a change of load \
+             hits them alike). With several repeats (independent seeds) the table shows the mean \
              seconds and the root-mean-square RMSE per spp.\n\n\
              | mode | spp | seconds | RMSE |\n|---|---|---|---|\n"
         );
@@ -237,7 +238,7 @@ impl Convergence {
 
 /// Render each mode at spp 1, 2, 4, ... `max_spp`, `repeats` times with independent seeds,
 /// and a `ref_spp` reference with yet another seed; RMSE against the reference of the same
-/// mode. `progress` is called per render.
+/// mode; the modes take turns at each `(repeat, spp)`. `progress` is called per render.
 pub fn convergence(
     scene: &Scene,
     params: &FurParams,
@@ -254,6 +255,7 @@ pub fn convergence(
     if let Some(l) = base.light {
         scene.light_tree(l.dir);
     }
+    let mut references = Vec::new();
     for &mode in modes {
         let mut s = base.clone();
         s.mode = mode;
@@ -268,16 +270,20 @@ pub fn convergence(
         ));
         reference_seconds.push((mode, r.seconds));
         setup_seconds.push((mode, r.setup_seconds));
-        let reference: Image = r.beauty;
-        for repeat in 0..repeats {
-            let mut spp = 1;
-            while spp <= max_spp {
+        references.push(r.beauty);
+    }
+    // The modes take turns at each (repeat, spp), so a change of the machine's load during
+    // the run (it is shared) lands on all modes alike instead of on whichever ran then.
+    for repeat in 0..repeats {
+        let mut spp = 1;
+        while spp <= max_spp {
+            for (&mode, reference) in modes.iter().zip(&references) {
                 let mut s = base.clone();
                 s.mode = mode;
                 s.spp = spp;
                 s.seed = base.seed.wrapping_add(7919 * repeat as u64);
                 let r = render_scene(scene, params, &s)?;
-                let rmse = r.beauty.rmse(&reference);
+                let rmse = r.beauty.rmse(reference);
                 progress(&format!(
                     "{} {spp} spp (repeat {repeat}): {:.3} s, RMSE {rmse:.4e}",
                     mode.name(),
@@ -290,10 +296,13 @@ pub fn convergence(
                     seconds: r.seconds,
                     rmse,
                 });
-                spp *= 2;
             }
+            spp *= 2;
         }
     }
+    // Listed mode by mode (the order of `modes`), as the CSV reads best.
+    let rank = |m: Mode| modes.iter().position(|&q| q == m).unwrap_or(usize::MAX);
+    points.sort_by_key(|p| (rank(p.mode), p.repeat, p.spp));
     Ok(Convergence {
         points,
         reference_seconds,
