@@ -846,6 +846,8 @@ impl<'a> FarSlice<'a> {
         let ph = [n0.phi[p], nm.phi[p], n1.phi[p]];
         let lo = ph.iter().cloned().fold(f64::INFINITY, f64::min);
         let hi = ph.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+        // The piece built for the agreement check, kept in case no split is allowed.
+        let mut checked = None;
         if e * len * norm > b {
             // The prefactor's quadratic is a sufficient test, not a necessary one: the
             // 16-point rule also stands when it agrees with the 8-point rule to within the
@@ -853,11 +855,12 @@ impl<'a> FarSlice<'a> {
             // one). Not where the log-attenuation bends sharply (`hidden_mass_bound`):
             // there both rules may miss the same spike.
             if dev <= LAM_DEV_MAX {
-                let (piece, err) = self.gl_piece_est(p, n0, n1, lo, hi, true);
+                let (piece, err) = self.gl_piece_with(p, n0, n1, lo, hi, true, true);
                 if err <= b {
                     out.push(piece);
                     return;
                 }
+                checked = Some(piece);
             }
             if let Some(depth) = rf.split(depth) {
                 let (a1, a3) = (
@@ -873,19 +876,22 @@ impl<'a> FarSlice<'a> {
                 return;
             }
         }
-        out.push(self.gl_piece(p, n0, n1, lo, hi, true));
+        out.push(checked.unwrap_or_else(|| self.gl_piece(p, n0, n1, lo, hi, true)));
     }
 
     /// Gauss-Legendre piece of lobe `p` over `[n0.u, n1.u]` whose nodes' `Phi` span
     /// `[lo, hi]`, with [`GL_NODES`] nodes, or in tolerance mode with `few_ok` with
     /// [`GL_NODES_FEW`] where those give the same lobe (see there).
     fn gl_piece(&self, p: usize, n0: Node, n1: Node, lo: f64, hi: f64, few_ok: bool) -> Piece {
-        self.gl_piece_est(p, n0, n1, lo, hi, few_ok).0
+        self.gl_piece_with(p, n0, n1, lo, hi, few_ok, false).0
     }
 
-    /// [`Self::gl_piece`] and, in tolerance mode, the largest difference of the lobe's
-    /// Gaussian between the 16- and 8-point rules at the probes (infinite otherwise).
-    fn gl_piece_est(
+    /// [`Self::gl_piece`] and, in tolerance mode with `estimate`, the largest difference of
+    /// the lobe's Gaussian between the 16- and 8-point rules at the probes (infinite
+    /// otherwise). Without `estimate` the 8-point rule is only built where it may replace
+    /// the 16-point one.
+    #[allow(clippy::too_many_arguments)]
+    fn gl_piece_with(
         &self,
         p: usize,
         n0: Node,
@@ -893,6 +899,7 @@ impl<'a> FarSlice<'a> {
         lo: f64,
         hi: f64,
         few_ok: bool,
+        estimate: bool,
     ) -> (Piece, f64) {
         let full = self.gl_nodes(p, n0.u, n1.u, GL_NODES);
         let beta = self.betas[p];
@@ -902,9 +909,10 @@ impl<'a> FarSlice<'a> {
                 .fold((lo, hi), |(a, b), &(ph, _)| (a.min(ph), b.max(ph)))
         };
         let (flo, fhi) = range(&full);
+        let few_fits = few_ok && fhi - flo <= GL_FEW_SPAN_SIGMAS * beta;
         let mut err = f64::INFINITY;
         let nodes = match self.tol {
-            Some(tol) => {
+            Some(tol) if estimate || few_fits => {
                 let few = self.gl_nodes(p, n0.u, n1.u, GL_NODES_FEW);
                 // The two rules' Gaussian sums at the probes, `mid + k beta`:
                 // exp(-(y - k)^2 / 2) = exp(-y^2 / 2) exp(y)^k exp(-k^2 / 2) with
@@ -933,10 +941,7 @@ impl<'a> FarSlice<'a> {
                     peak = peak.max(c * x.abs());
                 }
                 err = diff / (beta * TAU.sqrt());
-                if few_ok
-                    && fhi - flo <= GL_FEW_SPAN_SIGMAS * beta
-                    && diff <= GL_FEW_REL * tol * peak
-                {
+                if few_fits && diff <= GL_FEW_REL * tol * peak {
                     few
                 } else {
                     full
@@ -1776,7 +1781,7 @@ mod tests {
     use crate::model::FurModel;
     use crate::params::FurParams;
 
-    /// [`FarSlice::gl_piece_est`]'s estimate (the 16- and 8-point rules' difference at the
+    /// [`FarSlice::gl_piece_with`]'s estimate (the 16- and 8-point rules' difference at the
     /// probes) must bound the 16-point rule's actual error at the probes, measured against
     /// adaptive Gauss-Kronrod to 1e-12, on pieces up to the [`GL_SPAN_SIGMAS`] span that
     /// narrow pieces have (2.5 beta, a margin for the end nodes), and must not claim 1e-4
@@ -1797,7 +1802,7 @@ mod tests {
                 let (u0, u1) = (0.3, 0.3 + du);
                 let (n0, n1) = (fs.node(u0), fs.node(u1));
                 let (lo, hi) = (n0.phi[p].min(n1.phi[p]), n0.phi[p].max(n1.phi[p]));
-                let (piece, err) = fs.gl_piece_est(p, n0, n1, lo, hi, false);
+                let (piece, err) = fs.gl_piece_with(p, n0, n1, lo, hi, false, true);
                 let Piece::Gl { nodes, .. } = &piece else {
                     panic!("not a GL piece")
                 };
