@@ -326,9 +326,6 @@ pub fn synthesize(
     prof
 }
 
-/// Write a profile as DATA.md CSV (metadata comments, header `theta_i,theta_r,phi,value`),
-/// atomically. Stand-in until `crate::profile::save` lands; values use Rust's shortest
-/// round-trip formatting so a read back is bit-exact.
 /// Save a synthesized profile (`.csv` or `.npz`, atomically) with the shared profile
 /// writers.
 pub fn save(path: &Path, prof: &Profile) -> crate::Result<()> {
