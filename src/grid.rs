@@ -50,15 +50,41 @@ pub fn parse_grid(what: &str, text: &str) -> Result<Vec<f64>> {
 /// dropped and the result is sorted, so `-180:180:4` yields 90 distinct directions ending at 180, not 91 with
 /// -180 and 180 both present (the same direction, which a profile may hold only once).
 pub fn parse_phi_grid(what: &str, text: &str) -> Result<Vec<f64>> {
-    let mut out: Vec<f64> = Vec::new();
-    for v in parse_grid(what, text)? {
-        let w = wrap_deg(v);
-        if !out.iter().any(|&o| (o - w).abs() < 1e-9) {
-            out.push(w);
-        }
-    }
+    let mut out: Vec<f64> = parse_grid(what, text)?.into_iter().map(wrap_deg).collect();
+    // Sorted first, so repeats are neighbours (linear in the grid's length).
     out.sort_by(f64::total_cmp);
+    out.dedup_by(|b, a| (*b - *a).abs() < 1e-9);
     Ok(out)
+}
+
+/// Parse an inclination grid and drop exact repeats (first occurrence kept, order
+/// otherwise unchanged): a profile holds each direction once, and `0,0` would otherwise
+/// write every sample twice.
+pub fn parse_theta_grid(what: &str, text: &str) -> Result<Vec<f64>> {
+    let mut seen = std::collections::HashSet::new();
+    Ok(parse_grid(what, text)?
+        .into_iter()
+        // + 0.0 turns -0.0 into 0.0, the same angle.
+        .filter(|v| seen.insert((v + 0.0).to_bits()))
+        .collect())
+}
+
+/// Most samples a grid command (`synth`, `simulate`) will hold in memory (about 100 bytes
+/// each, so ~2 GB): beyond, it refuses instead of failing an allocation mid-run.
+pub const MAX_GRID_SAMPLES: usize = 20_000_000;
+
+/// Refuse a grid `theta_i x theta_r x phi` of more than [`MAX_GRID_SAMPLES`] samples.
+pub fn check_grid_size(theta_i: usize, theta_r: usize, phi: usize) -> Result<()> {
+    let n = (theta_i as u128)
+        .saturating_mul(theta_r as u128)
+        .saturating_mul(phi as u128);
+    if n > MAX_GRID_SAMPLES as u128 {
+        return Err(Error::Invalid(format!(
+            "the grid has {theta_i} x {theta_r} x {phi} = {n} samples, more than the limit of \
+             {MAX_GRID_SAMPLES}; use coarser steps or split it into several runs"
+        )));
+    }
+    Ok(())
 }
 
 /// Wrap degrees to (-180, 180].
@@ -74,6 +100,29 @@ pub fn wrap_deg(v: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn theta_grid_drops_repeats_in_order() {
+        assert_eq!(
+            parse_theta_grid("x", "30,0,-0,30,15").unwrap(),
+            vec![30.0, 0.0, 15.0]
+        );
+    }
+
+    #[test]
+    fn phi_grid_merges_the_same_direction() {
+        let g = parse_phi_grid("x", "-180:180:90").unwrap();
+        assert_eq!(g, vec![-90.0, 0.0, 90.0, 180.0]);
+    }
+
+    #[test]
+    fn grid_size_limit() {
+        assert!(check_grid_size(4, 61, 181).is_ok());
+        let e = check_grid_size(91, 1801, 3601).unwrap_err().to_string();
+        assert!(e.contains("590") && e.contains("limit"), "{e}");
+        // No overflow on absurd axis lengths.
+        assert!(check_grid_size(usize::MAX, usize::MAX, 2).is_err());
+    }
 
     #[test]
     fn ranges_and_lists() {

@@ -48,10 +48,16 @@ where
 /// Read and parse a JSON file; a syntax error names the file, line and column.
 pub fn read_json(path: &Path) -> Result<serde_json::Value> {
     let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
-    serde_json::from_str(&text).map_err(|e| Error::Parse {
+    parse_json(&text, path)
+}
+
+/// Parse JSON text read from `path`; a syntax error names the file, line and column.
+pub fn parse_json(text: &str, path: &Path) -> Result<serde_json::Value> {
+    serde_json::from_str(text).map_err(|e| Error::Parse {
         file: path.into(),
         line: e.line(),
-        column: format!("column {}", e.column()),
+        // serde_json counts columns from 1 but reports 0 at the start of a line.
+        column: format!("column {}", e.column().max(1)),
         msg: format!("invalid JSON: {e}"),
     })
 }

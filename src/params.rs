@@ -92,6 +92,15 @@ impl ParamSpec {
     }
 
     /// The bound as interval notation, e.g. `(1, 3]`.
+    /// [`Self::bound_text`] followed by the unit, if the parameter has one.
+    pub fn bound_with_unit(&self) -> String {
+        if self.unit == "-" {
+            self.bound_text()
+        } else {
+            format!("{} {}", self.bound_text(), self.unit)
+        }
+    }
+
     pub fn bound_text(&self) -> String {
         let up = if self.upper.is_infinite() {
             "inf".to_string()
@@ -437,21 +446,19 @@ impl FurParams {
         }
         let path = Path::new(spec);
         let text = std::fs::read_to_string(path).map_err(|e| {
-            if e.kind() == std::io::ErrorKind::NotFound {
+            let looks_like_path = spec.contains(['/', '\\']) || path.extension().is_some();
+            if e.kind() == std::io::ErrorKind::NotFound && looks_like_path {
+                Error::file(path, "no such parameter or fit file")
+            } else if e.kind() == std::io::ErrorKind::NotFound {
                 Error::Invalid(format!(
-                    "'{spec}' is neither a parameter/fit file nor a preset (presets: {})",
+                    "'{spec}' is neither a preset nor an existing parameter/fit file (presets: {})",
                     PRESETS.map(|p| p.name).join(", ")
                 ))
             } else {
                 Error::io(path, e)
             }
         })?;
-        let v: Value = serde_json::from_str(&text).map_err(|e| Error::Parse {
-            file: path.into(),
-            line: e.line(),
-            column: format!("column {}", e.column()),
-            msg: format!("invalid JSON: {e}"),
-        })?;
+        let v = crate::io::parse_json(&text, path)?;
         FurParams::from_json_value(&v).map_err(|e| match e {
             Error::Param { key, msg } => Error::Param {
                 key,
@@ -484,9 +491,8 @@ fn check_bound(id: ParamId, v: f64) -> Result<()> {
         Err(Error::Param {
             key: s.name.into(),
             msg: format!(
-                "value {v} is outside its hard bound {} {}",
-                s.bound_text(),
-                s.unit
+                "value {v} is outside its hard bound {}",
+                s.bound_with_unit()
             ),
         })
     }

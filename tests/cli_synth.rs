@@ -168,3 +168,58 @@ fn synth_scattered_step_strict_and_bad_values() {
         assert!(!out.exists());
     }
 }
+
+/// Repeated inclinations are written once (a profile holds each direction once), a grid
+/// beyond the sample limit is refused before any allocation, and g beyond the medulla
+/// tables' range is flagged on stderr.
+#[test]
+fn synth_dedups_grids_limits_size_and_notes_table_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("d.csv");
+    let st = furfit()
+        .args(["synth", "--params", "red-fox", "--theta-i", "0,0,-0"])
+        .args(["--theta-r", "10,10", "--phi", "-180:180:90", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let p = furfit::profile::load(&out, &Default::default()).unwrap();
+    assert_eq!(p.samples.len(), 4, "1 theta_i x 1 theta_r x 4 phi");
+
+    let big = dir.path().join("big.csv");
+    let st = furfit()
+        .args(["synth", "--params", "red-fox", "--theta-i", "0:90:1"])
+        .args(["--theta-r", "-90:90:0.1", "--phi", "-180:180:0.1", "--out"])
+        .arg(&big)
+        .output()
+        .unwrap();
+    assert!(!st.status.success());
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("samples") && err.contains("limit"), "{err}");
+    assert!(!big.exists());
+
+    let mut v = furfit::FurParams::preset("red-fox")
+        .unwrap()
+        .to_json_value();
+    v["g"] = serde_json::json!(0.97);
+    let pf = dir.path().join("g.json");
+    std::fs::write(&pf, v.to_string()).unwrap();
+    let st = furfit()
+        .args(["synth", "--params"])
+        .arg(&pf)
+        .args(["--theta-i", "0", "--theta-r", "0", "--phi", "0", "--out"])
+        .arg(dir.path().join("g.csv"))
+        .output()
+        .unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("g = 0.97") && err.contains("range"), "{err}");
+}

@@ -211,3 +211,44 @@ fn cli_render_writes_png_exr_and_aovs() {
     assert!(!st.status.success());
     assert!(String::from_utf8_lossy(&st.stderr).contains("--size"));
 }
+
+/// `--out` must be a .png (the .exr and AOVs are named after it): another extension would
+/// overwrite an unrelated file with PNG bytes. `--fit` takes a file, presets go with
+/// `--params`; each bad camera value is named.
+#[test]
+fn cli_render_refuses_bad_out_fit_and_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    let keep = dir.path().join("keep.csv");
+    std::fs::write(&keep, "theta_i,theta_r,phi,value\n0,0,0,1\n").unwrap();
+    let run = |extra: &[&str], out: &std::path::Path| {
+        std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
+            .args(["render", "--size", "8x8", "--spp", "1", "--fibers", "20"])
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let st = run(&["--params", "red-fox"], &keep);
+    assert!(!st.status.success());
+    assert!(String::from_utf8_lossy(&st.stderr).contains(".png"));
+    assert_eq!(
+        std::fs::read_to_string(&keep).unwrap(),
+        "theta_i,theta_r,phi,value\n0,0,0,1\n"
+    );
+    let png = dir.path().join("a.png");
+    let st = run(&["--fit", "red-fox"], &png);
+    assert!(!st.status.success());
+    assert!(String::from_utf8_lossy(&st.stderr).contains("--params"));
+    for (flag, val) in [
+        ("--fov", "0"),
+        ("--cam-dist", "0"),
+        ("--light-intensity", "-1"),
+    ] {
+        let st = run(&["--params", "red-fox", &format!("{flag}={val}")], &png);
+        assert!(!st.status.success());
+        let err = String::from_utf8_lossy(&st.stderr);
+        assert!(err.contains(flag) && !err.contains(", --"), "{flag}: {err}");
+    }
+    assert!(!png.exists());
+}

@@ -50,12 +50,14 @@ pub struct Args {
     /// Iteration cap per LM run.
     #[arg(long, default_value_t = 100)]
     pub max_iters: u64,
-    /// Weight residuals by sigma/value when every sample has a sigma.
+    /// Weight residuals by sigma/value (every valid sample needs a sigma > 0).
     #[arg(long)]
     pub weighted: bool,
     /// Print timing figures (evaluations/s, share of time in the model).
     #[arg(long)]
     pub bench: bool,
+    #[command(flatten)]
+    pub load: super::LoadArgs,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -91,6 +93,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .with_context(|| format!("--fix '{f}': '{v}' is not a number"))?;
         opts.fix(k.trim(), v)?;
     }
+    let load = a.load.to_options()?;
     let jobs = if a.all {
         jobs_for_all(&a.measurements, &a.fits)?
     } else {
@@ -116,7 +119,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         bar.enable_steady_tick(std::time::Duration::from_millis(200));
         let say = |m: &str| bar.set_message(m.to_string());
-        let res = run_job(job, &opts, Some(&say));
+        let res = run_job(job, &opts, &load, Some(&say));
         bar.finish_and_clear();
         let (_, sums) = res.with_context(|| format!("fitting {}", job.species))?;
         for s in &sums {
@@ -148,7 +151,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             if a.bench {
                 outln!(
-                    "  bench: {:.3e} sample evaluations/s, {:.1} model evaluations/s, model time share {:.0}% ({:.2} s model in {:.2} s wall, {} threads)",
+                    "  bench: {:.3e} sample evaluations/s, {:.1} model evaluations/s, estimated model time share {:.0}% ({:.2} s model in {:.2} s wall, {} threads)",
                     o.sample_evaluations as f64 / o.wall_time_s,
                     o.evaluations as f64 / o.wall_time_s,
                     100.0 * o.model_time_s / o.wall_time_s,

@@ -3,9 +3,8 @@
 //! loader notes. Every file is inspected even if an earlier one fails; each failure is
 //! printed to stderr and the command exits non-zero if any file failed.
 
-use crate::grid::parse_grid;
+use crate::profile;
 use crate::profile::summary::{AxisStats, Summary};
-use crate::profile::{self, LoadOptions};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -13,25 +12,8 @@ pub struct Args {
     /// Profile files (.csv, .npy, .npz, Yan-2015 .txt/.dat) or species directories.
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
-    /// Incident angle (deg) for Yan-2015 files without a `# theta_i:` line; for a lone .npy,
-    /// its theta_i axis grid (e.g. `0,15,30`).
-    #[arg(long, allow_hyphen_values = true)]
-    pub theta_i: Option<String>,
-    /// theta_r axis grid (deg) of a lone .npy, e.g. `-60:60:2`.
-    #[arg(long, allow_hyphen_values = true)]
-    pub theta_r: Option<String>,
-    /// phi axis grid (deg) of a lone .npy, e.g. `-180:180:2`.
-    #[arg(long, allow_hyphen_values = true)]
-    pub phi: Option<String>,
-    /// Yan-2015: degrees added to the file's phi (after --flip-phi) before wrapping.
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
-    pub phi_offset: f64,
-    /// Yan-2015: negate the file's phi.
-    #[arg(long)]
-    pub flip_phi: bool,
-    /// Yan-2015: negate the file's theta (theta_r).
-    #[arg(long)]
-    pub flip_theta_r: bool,
+    #[command(flatten)]
+    pub load: super::LoadArgs,
 }
 
 fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
@@ -50,23 +32,7 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if !args.phi_offset.is_finite() {
-        anyhow::bail!("--phi-offset must be finite");
-    }
-    let grid = |what: &str, g: &Option<String>| -> anyhow::Result<Option<Vec<f64>>> {
-        Ok(match g {
-            Some(t) => Some(parse_grid(what, t)?),
-            None => None,
-        })
-    };
-    let opts = LoadOptions {
-        theta_i: grid("--theta-i", &args.theta_i)?,
-        theta_r: grid("--theta-r", &args.theta_r)?,
-        phi: grid("--phi", &args.phi)?,
-        phi_offset: args.phi_offset,
-        flip_phi: args.flip_phi,
-        flip_theta_r: args.flip_theta_r,
-    };
+    let opts = args.load.to_options()?;
     let mut failed = 0;
     for (k, path) in args.files.iter().enumerate() {
         let loaded = if path.is_dir() {

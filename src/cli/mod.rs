@@ -34,6 +34,53 @@ pub(crate) fn out_line(args: std::fmt::Arguments) {
     }
 }
 
+/// Loader options of Yan-2015 files and lone `.npy` grids, shared by the commands that
+/// read profiles (`inspect`, `fit`).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct LoadArgs {
+    /// Incident angle (deg) for Yan-2015 files without a `# theta_i:` line; for a lone .npy,
+    /// its theta_i axis grid (e.g. `0,15,30`).
+    #[arg(long, allow_hyphen_values = true)]
+    pub theta_i: Option<String>,
+    /// theta_r axis grid (deg) of a lone .npy, e.g. `-60:60:2`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub theta_r: Option<String>,
+    /// phi axis grid (deg) of a lone .npy, e.g. `-180:180:2`.
+    #[arg(long, allow_hyphen_values = true)]
+    pub phi: Option<String>,
+    /// Yan-2015: degrees added to the file's phi (after --flip-phi) before wrapping.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub phi_offset: f64,
+    /// Yan-2015: negate the file's phi.
+    #[arg(long)]
+    pub flip_phi: bool,
+    /// Yan-2015: negate the file's theta (theta_r).
+    #[arg(long)]
+    pub flip_theta_r: bool,
+}
+
+impl LoadArgs {
+    pub fn to_options(&self) -> anyhow::Result<crate::profile::LoadOptions> {
+        if !self.phi_offset.is_finite() {
+            anyhow::bail!("--phi-offset must be finite");
+        }
+        let grid = |what: &str, g: &Option<String>| -> anyhow::Result<Option<Vec<f64>>> {
+            Ok(match g {
+                Some(t) => Some(crate::grid::parse_grid(what, t)?),
+                None => None,
+            })
+        };
+        Ok(crate::profile::LoadOptions {
+            theta_i: grid("--theta-i", &self.theta_i)?,
+            theta_r: grid("--theta-r", &self.theta_r)?,
+            phi: grid("--phi", &self.phi)?,
+            phi_offset: self.phi_offset,
+            flip_phi: self.flip_phi,
+            flip_theta_r: self.flip_theta_r,
+        })
+    }
+}
+
 pub mod bench_model;
 pub mod fit;
 pub mod inspect;

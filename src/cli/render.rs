@@ -145,9 +145,34 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
     if a.spp == 0 {
         bail!("--spp must be at least 1");
     }
-    let ok = a.light_intensity >= 0.0 && a.cam_dist > 0.0 && a.fov > 0.0 && a.fov < 170.0;
-    if !ok {
-        bail!("--light-intensity must be >= 0, --cam-dist > 0, --fov in (0, 170)");
+    // One message per flag, naming the value given (NaN fails every test).
+    if !(a.light_intensity >= 0.0 && a.light_intensity.is_finite()) {
+        bail!(
+            "--light-intensity must be a finite number >= 0, got {}",
+            a.light_intensity
+        );
+    }
+    if !(a.cam_dist > 0.0 && a.cam_dist.is_finite()) {
+        bail!("--cam-dist must be a finite number > 0, got {}", a.cam_dist);
+    }
+    if !(a.fov > 0.0 && a.fov < 170.0) {
+        bail!("--fov must be in (0, 170) degrees, got {}", a.fov);
+    }
+    if !(a.cam_elev.is_finite() && a.cam_azim.is_finite()) {
+        bail!("--cam-elev and --cam-azim must be finite");
+    }
+    let png = a
+        .out
+        .extension()
+        .and_then(|e| e.to_str())
+        .is_some_and(|e| e.eq_ignore_ascii_case("png"));
+    if !png {
+        // The linear .exr and the AOVs are named after it; any other name would put PNG
+        // bytes under a wrong extension or overwrite an unrelated file.
+        bail!(
+            "--out {}: must be a .png path (the .exr and per-lobe AOVs are written beside it)",
+            a.out.display()
+        );
     }
     if a.footprint_scale.is_nan() || a.footprint_scale < 0.0 {
         bail!("--footprint-scale must be >= 0");
@@ -219,6 +244,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             })
             .collect::<anyhow::Result<_>>()?
     } else {
+        if let Some(f) = &a.fit {
+            if !Path::new(f).is_file() {
+                bail!("--fit {f}: no such fit file (a preset name goes with --params)");
+            }
+        }
         let spec = a
             .fit
             .clone()
@@ -234,6 +264,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let mut tiles = Vec::new();
     for (name, p) in &jobs {
+        for n in crate::model::FurModel::table_notes(p) {
+            eprintln!("note: {name}: {n}");
+        }
         let r = render_scene(&scene, p, &s)?;
         outln!(
             "{name}: {:.2} s wall ({:.2} s setup + {:.2} s tracing), {} rays, \

@@ -23,5 +23,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for (s, why) in &sum.skipped {
         eprintln!("skipped {s}: {why}");
     }
+    if !sum.skipped.is_empty() {
+        // The other reports are written, but a missing plot or row must not pass as
+        // success (scripts check the exit status).
+        anyhow::bail!(
+            "{} report part(s) skipped (see above); the rest is written",
+            sum.skipped.len()
+        );
+    }
     Ok(())
 }

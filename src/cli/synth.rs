@@ -1,6 +1,6 @@
 //! `furfit synth`: synthesize a profile from parameters on an angle grid.
 
-use crate::grid::{parse_grid, parse_phi_grid};
+use crate::grid::{check_grid_size, parse_phi_grid, parse_theta_grid};
 use crate::model::far::{FarOptions, SCATTERED_STEP_STRICT};
 use crate::model::LobeSet;
 use crate::synth::{self, ModelKind};
@@ -51,9 +51,13 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let (params, file_k) = FurParams::load(&a.params)?;
-    let ti = parse_grid("--theta-i", &a.theta_i)?;
-    let tr = parse_grid("--theta-r", &a.theta_r)?;
+    for n in crate::model::FurModel::table_notes(&params) {
+        eprintln!("note: {n}");
+    }
+    let ti = parse_theta_grid("--theta-i", &a.theta_i)?;
+    let tr = parse_theta_grid("--theta-r", &a.theta_r)?;
     let phi = parse_phi_grid("--phi", &a.phi)?;
+    check_grid_size(ti.len(), tr.len(), phi.len())?;
     for (what, g, lim) in [
         ("--theta-i", &ti, 90.0),
         ("--theta-r", &tr, 90.0),

@@ -90,21 +90,72 @@ pub fn data_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
-/// Load and merge the inputs into one profile.
-pub fn load_inputs(inputs: &[PathBuf]) -> Result<Profile> {
-    let opts = LoadOptions::default();
+/// Load and merge the inputs into one profile with the loader options `opts`.
+pub fn load_inputs(inputs: &[PathBuf], opts: &LoadOptions) -> Result<Profile> {
     let mut parts = Vec::new();
     for p in inputs {
         if p.is_dir() {
-            parts.push(profile::load_dir(p, &opts)?.profile);
+            parts.push(profile::load_dir(p, opts)?.profile);
         } else {
-            parts.push(profile::load(p, &opts)?);
+            parts.push(profile::load(p, opts)?);
         }
     }
     if parts.len() == 1 {
         return Ok(parts.pop().expect("one part"));
     }
     Ok(profile::merge(parts)?.0)
+}
+
+/// The loader options as a fit file records them (`data.load`), so a report reads the
+/// data as the fit did.
+pub fn load_options_json(o: &LoadOptions) -> Value {
+    serde_json::json!({
+        "theta_i": o.theta_i,
+        "theta_r": o.theta_r,
+        "phi": o.phi,
+        "phi_offset": o.phi_offset,
+        "flip_phi": o.flip_phi,
+        "flip_theta_r": o.flip_theta_r,
+    })
+}
+
+/// [`load_options_json`] read back; absent keys (fit files written before they were
+/// recorded) are the defaults.
+pub fn load_options_from_json(v: &Value) -> LoadOptions {
+    let grid = |k: &str| {
+        v[k].as_array()
+            .map(|a| a.iter().filter_map(Value::as_f64).collect::<Vec<f64>>())
+    };
+    LoadOptions {
+        theta_i: grid("theta_i"),
+        theta_r: grid("theta_r"),
+        phi: grid("phi"),
+        phi_offset: v["phi_offset"].as_f64().unwrap_or(0.0),
+        flip_phi: v["flip_phi"].as_bool().unwrap_or(false),
+        flip_theta_r: v["flip_theta_r"].as_bool().unwrap_or(false),
+    }
+}
+
+/// Refuse an output path that is not a `.json` file or that is one of the input files:
+/// a fit must never overwrite the data it was fitted to.
+fn check_out(out: &Path, files: &[PathBuf]) -> Result<()> {
+    if out.extension().and_then(|e| e.to_str()) != Some("json") {
+        return Err(Error::file(out, "a fit file must end in .json"));
+    }
+    if out.is_dir() {
+        return Err(Error::file(out, "is a directory, not a fit file path"));
+    }
+    if let Ok(o) = out.canonicalize() {
+        for f in files {
+            if f.canonicalize().is_ok_and(|f| f == o) {
+                return Err(Error::file(
+                    out,
+                    "is one of the input profiles; refusing to overwrite it with the fit",
+                ));
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Summary of one channel's fit, for printing.
@@ -114,15 +165,18 @@ pub struct ChannelSummary {
     pub outcome: FitOutcome,
 }
 
-/// Fit one species and write its fit file. Returns the JSON written and per-channel
+/// Fit one species (its inputs read with the loader options `load`) and write its fit
+/// file. Returns the JSON written and per-channel
 /// summaries.
 pub fn run_job(
     job: &Job,
     opts: &FitOptions,
+    load: &LoadOptions,
     progress: Option<Progress>,
 ) -> Result<(Value, Vec<ChannelSummary>)> {
-    let prof = load_inputs(&job.inputs)?;
     let files = data_files(&job.inputs)?;
+    check_out(&job.out, &files)?;
+    let prof = load_inputs(&job.inputs, load)?;
     let mut file_info = Vec::new();
     for f in &files {
         let bytes = std::fs::read(f).map_err(|e| Error::io(f, e))?;
@@ -153,6 +207,7 @@ pub fn run_job(
             n_invalid: n_all - n_valid,
             synthetic: prof.is_synthetic(),
             channel: name_of(c),
+            load: load_options_json(load),
         };
         objs.push(fit_json(&out, opts, &info));
         sums.push(ChannelSummary {

@@ -71,7 +71,8 @@ pub struct FitOptions {
     pub init: Option<[f64; N_PARAMS]>,
     /// Fixed parameters (file units).
     pub layout: ParamLayout,
-    /// Weight residuals by the relative standard error `sigma/value` when present.
+    /// Weight residuals by the relative standard error `sigma/value` (every sample needs
+    /// one; [`channel_data`] refuses otherwise).
     pub weighted: bool,
     /// Relative cost change that ends the final LM run (default 1e-6, Ceres'
     /// `function_tolerance`).
@@ -113,10 +114,15 @@ impl FitOptions {
             return Err(Error::Param {
                 key: key.into(),
                 msg: format!(
-                    "--fix value {value} is outside its hard bound {} {}",
-                    id.spec().bound_text(),
-                    id.spec().unit
+                    "--fix value {value} is outside its hard bound {}",
+                    id.spec().bound_with_unit()
                 ),
+            });
+        }
+        if let Some(old) = self.layout.fixed[id.index()] {
+            return Err(Error::Param {
+                key: key.into(),
+                msg: format!("fixed twice (--fix {key}={old} and {key}={value})"),
             });
         }
         self.layout.fixed[id.index()] = Some(value);
@@ -153,7 +159,7 @@ pub struct FitOutcome {
     /// Model evaluations x samples (for throughput figures).
     pub sample_evaluations: u64,
     /// Estimated seconds inside the model: evaluations x the wall time of one evaluation
-    /// measured alone after the solve.
+    /// measured alone after the solve (fastest of three).
     pub model_time_s: f64,
     pub starts_global: usize,
     pub starts_lm: usize,
@@ -251,6 +257,14 @@ pub fn fit_data(
     let clock = Instant::now();
     let layout = &opts.layout;
     let n_free = layout.free().len();
+    // The free parameters and the exposure are the unknowns: with no more samples than
+    // that the fit interpolates the data and its NRMSE (0) and uncertainty mean nothing.
+    if data.len() <= n_free + 1 {
+        return Err(Error::Invalid(format!(
+            "{} valid sample(s) for {n_free} free parameter(s) + the exposure: a fit needs more samples than unknowns",
+            data.len()
+        )));
+    }
     let full = LogResidualProblem::new(data, layout.clone(), opts.far);
     if n_free == 0 {
         return finish(
@@ -417,6 +431,14 @@ fn finish(
     starts_lm: usize,
     clock: Instant,
 ) -> Result<FitOutcome> {
+    // The solve's evaluations; those below (residuals, Jacobian for the uncertainty,
+    // timing) are not part of it.
+    let full_evals = full.evals.load(Ordering::Relaxed);
+    let sub_evals = if std::ptr::eq(full, sub) {
+        0
+    } else {
+        sub.evals.load(Ordering::Relaxed)
+    };
     // Evaluated through the cache, so the Jacobian below reuses this evaluation.
     let (r, lk) = full.evaluate_at(&u);
     let jac = if u.is_empty() {
@@ -427,28 +449,25 @@ fn finish(
     let unc = uncertainty::estimate(&opts.layout, &u, &jac, &r);
     let params = opts.layout.params(u.as_slice());
     params.validate()?;
-    let t = Instant::now();
-    let m = full.model_values(u.as_slice());
-    let t_full = t.elapsed().as_secs_f64();
-    let (nrmse, _) = problem::nrmse(&m, &data.ln_y, data.range);
-    let same = std::ptr::eq(full, sub);
-    let sub_evals = if same {
-        0
-    } else {
-        sub.evals.load(Ordering::Relaxed)
+    // Time of one evaluation alone: the fastest of three, since a single timing of a
+    // millisecond-scale call (cold caches, a busy machine) overstated it enough to report
+    // a model time share above 100 %.
+    let time_min3 = |p: &LogResidualProblem| {
+        (0..3)
+            .map(|_| {
+                let t = Instant::now();
+                let m = p.model_values(u.as_slice());
+                (t.elapsed().as_secs_f64(), m)
+            })
+            .min_by(|a, b| a.0.total_cmp(&b.0))
+            .expect("three timings")
     };
-    // The final evaluation above is not part of the solve.
-    let full_evals = full.evals.load(Ordering::Relaxed) - 1;
+    let (t_full, m) = time_min3(full);
+    let (nrmse, _) = problem::nrmse(&m, &data.ln_y, data.range);
     let sample_evaluations = full_evals * data.len() as u64 + sub_evals * sub.data.len() as u64;
     // Time in the model, estimated as evaluations x the time of one evaluation measured
     // alone (concurrent evaluations during the solve make per-call timers overlap).
-    let t_sub = if sub_evals > 0 {
-        let t = Instant::now();
-        let _ = sub.model_values(u.as_slice());
-        t.elapsed().as_secs_f64()
-    } else {
-        0.0
-    };
+    let t_sub = if sub_evals > 0 { time_min3(sub).0 } else { 0.0 };
     let model_time_s = full_evals as f64 * t_full + sub_evals as f64 * t_sub;
     Ok(FitOutcome {
         params,
@@ -495,11 +514,26 @@ pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result
             profile.samples.iter().filter(|s| s.channel == channel).count()
         )));
     }
-    let use_w = weighted && rel.iter().all(|r| r.is_finite() && *r > 0.0);
+    if weighted {
+        // Weights 1/(sigma/value)^2 need a positive, finite sigma on every sample used;
+        // falling back to an unweighted fit would contradict the fit file's "weighted".
+        let bad = rel.iter().filter(|r| !(r.is_finite() && **r > 0.0)).count();
+        if bad > 0 {
+            let what = profile
+                .source
+                .as_ref()
+                .map(|p| p.display().to_string())
+                .unwrap_or_else(|| "profile".into());
+            return Err(Error::Invalid(format!(
+                "{what}: --weighted needs a sigma > 0 on every valid sample; {bad} of {} valid samples of channel {channel} have none (or 0)",
+                rel.len()
+            )));
+        }
+    }
     Ok(FitData::new(
         pts,
         &vals,
-        if use_w { Some(&rel) } else { None },
+        if weighted { Some(&rel) } else { None },
     ))
 }
 

@@ -20,6 +20,8 @@ pub struct DataInfo {
     pub synthetic: bool,
     /// Channel name (empty for a single unnamed channel).
     pub channel: String,
+    /// Loader options the data was read with ([`super::job::load_options_json`]).
+    pub load: Value,
 }
 
 /// Units of the ten keys, in file units.
@@ -109,6 +111,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "n_used": out.n_used,
             "synthetic": data.synthetic,
             "channel": data.channel,
+            "load": data.load,
         },
         "tool_version": concat!("furfit ", env!("CARGO_PKG_VERSION")),
         "seed": opts.seed,

@@ -12,7 +12,7 @@
 //! | `beta_m` | `60 sigmoid(u)` deg | (0, 60) |
 //! | `beta_n` | `90 sigmoid(u)` deg | (0, 90) |
 //! | `sigma_c_a`, `sigma_m_s`, `sigma_m_a` | `exp(u)` | (0, inf) |
-//! | `g` | `tanh(u)` | (-1, 1) |
+//! | `g` | `g0 + (g1 - g0) sigmoid(u)` | (-0.9, 0.95): the medulla tables' g range `[g0, g1]`, inside MODEL.md's (-1, 1); beyond it the model is flat in `g` |
 //! | `l` | `10 sigmoid(u)` | (0, 10) |
 //!
 //! `u` is clamped to [-`U_MAX`, `U_MAX`] before mapping so that floating-point rounding can
@@ -69,7 +69,15 @@ fn map_of(id: ParamId) -> Map {
             span: 90.0,
         },
         ParamId::SigmaCA | ParamId::SigmaMS | ParamId::SigmaMA => Map::Exp,
-        ParamId::G => Map::Tanh { scale: 1.0 },
+        ParamId::G => {
+            // The medulla tables' g range, not MODEL.md's (-1, 1): beyond it the model
+            // uses the table edge, so the fit would wander on a flat direction there.
+            let (_, [g0, g1]) = crate::model::medulla::MedullaTables::builtin().domain();
+            Map::Sigmoid {
+                lo: g0,
+                span: g1 - g0,
+            }
+        }
         ParamId::L => Map::Sigmoid {
             lo: 0.0,
             span: 10.0,
@@ -109,7 +117,8 @@ pub fn derivative(id: ParamId, u: f64) -> f64 {
 /// user's `--init`, e.g. `sigma_m_a = 0`) map to the clamp `±U_MAX`.
 pub fn to_u(id: ParamId, v: f64) -> f64 {
     let u = match map_of(id) {
-        Map::Sigmoid { lo, span } => logit((v - lo) / span),
+        // Clamped first: a value beyond the range maps to the clamp, not to NaN (-> 0).
+        Map::Sigmoid { lo, span } => logit(((v - lo) / span).clamp(0.0, 1.0)),
         Map::Tanh { scale } => (v / scale).clamp(-1.0, 1.0).atanh(),
         Map::Exp => v.ln(),
     };
@@ -142,6 +151,16 @@ mod tests {
                 "{id:?}"
             );
         }
+    }
+
+    #[test]
+    fn values_beyond_a_range_map_to_its_clamp() {
+        // A user's --init may lie outside the fitter's range (g = 0.97 beyond the tables,
+        // eta = 3 on its bound): the start is the nearest end, not the middle.
+        assert_eq!(to_u(ParamId::G, 0.97), U_MAX);
+        assert_eq!(to_u(ParamId::G, -0.99), -U_MAX);
+        assert_eq!(to_u(ParamId::Eta, 3.0), U_MAX);
+        assert!(to_value(ParamId::G, U_MAX) > 0.949);
     }
 
     #[test]

@@ -45,6 +45,17 @@ pub fn estimate(
     let (n, p) = (jac.nrows(), jac.ncols());
     let dof = n.saturating_sub(p).max(1) as f64;
     let s2 = r.norm_squared() / dof;
+    if p == 0 {
+        // Every parameter fixed: nothing to estimate (and nalgebra's SVD refuses an empty
+        // matrix).
+        return Uncertainty {
+            se: [None; N_PARAMS],
+            unconstrained: Vec::new(),
+            free,
+            correlation: DMatrix::zeros(0, 0),
+            s2,
+        };
+    }
     let jtj = jac.transpose() * jac;
     let svd = jtj.clone().svd(true, true);
     let smax = svd.singular_values.max();

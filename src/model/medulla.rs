@@ -454,6 +454,36 @@ impl MedullaTables {
         self
     }
 
+    /// The `(tau, g)` range the tables cover: `[tau_min, tau_max]`, `[g_min, g_max]`.
+    pub fn domain(&self) -> ([f64; 2], [f64; 2]) {
+        let ends = |a: &[f64]| [a[0], a[a.len() - 1]];
+        (ends(&self.cn.axes[0]), ends(&self.cn.axes[1]))
+    }
+
+    /// Messages for a `(tau, g)` outside [`Self::domain`], where [`Self::slice`] uses the
+    /// nearest table edge for the shape of the scattered lobes: the value is inside the
+    /// parameter's hard bounds, so it is no error, but the user must not take the
+    /// scattered lobes there for the model's (MODEL.md: never a silent clamp).
+    pub fn domain_notes(&self, tau: f64, g: f64) -> Vec<String> {
+        let ([t0, t1], [g0, g1]) = self.domain();
+        let mut notes = Vec::new();
+        if g < g0 || g > g1 {
+            notes.push(format!(
+                "g = {g} is outside the medulla tables' g range [{g0}, {g1}]: the scattered \
+                 lobes (TTs, TRTs) use the shape at g = {}",
+                g.clamp(g0, g1)
+            ));
+        }
+        if tau > t1 {
+            notes.push(format!(
+                "tau = sigma_m_s * kappa = {tau} is above the medulla tables' range [{t0}, {t1}]: \
+                 the scattered lobes' shape is the one at tau = {t1} (their strength still \
+                 follows tau)"
+            ));
+        }
+        notes
+    }
+
     /// Collapse the `tau` and `g` modes once per parameter set. `tau` and `g` are clamped
     /// to the table axes for the shape; `tau` itself (clamped to `>= 0`) sets the analytic
     /// scattered fraction of `C^N`.
@@ -1564,6 +1594,22 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn domain_notes_name_what_leaves_the_tables() {
+        let t = MedullaTables::builtin();
+        let ([_, t1], [g0, g1]) = t.domain();
+        assert!(t.domain_notes(1.0, 0.3).is_empty());
+        assert!(
+            t.domain_notes(t1, g1).is_empty(),
+            "the edges themselves are covered"
+        );
+        let n = t.domain_notes(1.0, 0.97);
+        assert!(n.len() == 1 && n[0].contains("g = 0.97"), "{n:?}");
+        assert_eq!(t.domain_notes(1.0, g0 - 0.05).len(), 1);
+        let n = t.domain_notes(t1 * 2.0, -0.99);
+        assert_eq!(n.len(), 2, "{n:?}");
     }
 
     #[test]

@@ -123,6 +123,11 @@ impl LobeSet {
         }
         let mut set = LobeSet::NONE;
         for part in s.split(',') {
+            if part.trim().eq_ignore_ascii_case("all") {
+                return Err(crate::Error::Invalid(format!(
+                    "lobes '{s}': 'all' stands alone (it already includes every lobe)"
+                )));
+            }
             let l = Lobe::from_name(part).ok_or_else(|| {
                 crate::Error::Invalid(format!(
                     "unknown lobe '{}' (expected R, TT, TRT, TTs, TRTs or all)",
@@ -196,6 +201,16 @@ impl FurModel {
         FurModel {
             params: *params,
             medulla,
+        }
+    }
+
+    /// Where these parameters leave the shipped medulla tables' `(tau, g)` range
+    /// ([`MedullaTables::domain_notes`]); empty when no scattered lobe exists.
+    pub fn table_notes(params: &FurParams) -> Vec<String> {
+        if params.kappa > 0.0 && params.sigma_m_s > 0.0 {
+            MedullaTables::builtin().domain_notes(params.sigma_m_s * params.kappa, params.g)
+        } else {
+            Vec::new()
         }
     }
 

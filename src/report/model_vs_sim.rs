@@ -7,7 +7,7 @@
 //! reports it as it comes out.
 
 use super::nrmse::FitFile;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use crate::fit::forward::{predict_points, Points};
 use crate::fit::problem::nrmse;
 use crate::model::far::FarOptions;
@@ -23,13 +23,7 @@ pub fn true_params(species_dir: &Path) -> Result<Option<FurParams>> {
     if !p.exists() {
         return Ok(None);
     }
-    let text = std::fs::read_to_string(&p).map_err(|e| Error::io(&p, e))?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| Error::Parse {
-        file: p.clone(),
-        line: e.line(),
-        column: format!("column {}", e.column()),
-        msg: format!("invalid JSON: {e}"),
-    })?;
+    let v = crate::io::read_json(&p)?;
     match v.get("params") {
         Some(obj) => Ok(Some(FurParams::from_json_value(obj)?.0)),
         None => Ok(None),

@@ -22,6 +22,8 @@ pub struct FitFile {
     pub synthetic: bool,
     /// Data files recorded in the fit (paths as given to `furfit fit`).
     pub files: Vec<PathBuf>,
+    /// Loader options the fit read them with (`data.load`).
+    pub load: crate::profile::LoadOptions,
     /// Channel name fitted at the top level ("" for a single channel).
     pub channel: String,
     /// Convergence trace: `(stage, iter, time_s, nrmse)`.
@@ -94,6 +96,7 @@ impl FitFile {
             nrmse,
             synthetic: v["data"]["synthetic"].as_bool().unwrap_or(false),
             files,
+            load: crate::fit::job::load_options_from_json(&v["data"]["load"]),
             channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
             trace,
             wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
@@ -318,9 +321,9 @@ pub fn write_fit_reports(
     for f in &fits {
         let dir = measurements.join(&f.species);
         let prof = if dir.is_dir() {
-            crate::fit::job::load_inputs(&[dir])
+            crate::fit::job::load_inputs(&[dir], &f.load)
         } else if !f.files.is_empty() {
-            crate::fit::job::load_inputs(&f.files)
+            crate::fit::job::load_inputs(&f.files, &f.load)
         } else {
             Err(Error::Invalid("no profile recorded".into()))
         };
@@ -349,7 +352,8 @@ pub fn write_fit_reports(
                 }
             };
             let fit = fits.iter().find(|f| f.species == species).cloned();
-            let prof = match crate::fit::job::load_inputs(std::slice::from_ref(&d)) {
+            let load = fit.as_ref().map(|f| f.load.clone()).unwrap_or_default();
+            let prof = match crate::fit::job::load_inputs(std::slice::from_ref(&d), &load) {
                 Ok(p) => p,
                 Err(e) => {
                     sum.skipped
