@@ -17,6 +17,49 @@ pub fn write_atomic_with<F>(path: &Path, fill: F) -> Result<()>
 where
     F: FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 {
+    let tmp = write_temp(path, fill)?;
+    commit(&tmp, path)
+}
+
+/// Write several files as one: every file goes to a temporary beside its target first, and
+/// only when all are written are they renamed into place, so a failure (a full disk, a
+/// directory in the way) leaves none of them new or half-written. A target that is an
+/// existing directory is refused before anything is written.
+pub fn write_atomic_all(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    for (path, _) in files {
+        if path.is_dir() {
+            return Err(Error::file(path, "is a directory; nothing was written"));
+        }
+    }
+    let mut temps = Vec::with_capacity(files.len());
+    for (path, bytes) in files {
+        match write_temp(path, |w| w.write_all(bytes)) {
+            Ok(t) => temps.push(t),
+            Err(e) => {
+                for t in &temps {
+                    let _ = std::fs::remove_file(t);
+                }
+                return Err(e);
+            }
+        }
+    }
+    for (i, (tmp, (path, _))) in temps.iter().zip(files).enumerate() {
+        if let Err(e) = commit(tmp, path) {
+            for t in &temps[i + 1..] {
+                let _ = std::fs::remove_file(t);
+            }
+            return Err(e);
+        }
+    }
+    Ok(())
+}
+
+/// Fill a synced temporary file beside `path` (its directory created if needed) and return
+/// its path; on failure it is removed.
+fn write_temp<F>(path: &Path, fill: F) -> Result<PathBuf>
+where
+    F: FnOnce(&mut std::fs::File) -> std::io::Result<()>,
+{
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -39,8 +82,13 @@ where
         let _ = std::fs::remove_file(&tmp);
         return Err(Error::io(path, e));
     }
-    std::fs::rename(&tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
+    Ok(tmp)
+}
+
+/// Rename a temporary from [`write_temp`] over `path` (atomic on POSIX file systems).
+fn commit(tmp: &Path, path: &Path) -> Result<()> {
+    std::fs::rename(tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(tmp);
         Error::io(path, e)
     })
 }
@@ -94,6 +142,39 @@ mod tests {
         let r = write_atomic_with(&p, |_| Err(std::io::Error::other("boom")));
         assert!(r.is_err());
         assert_eq!(std::fs::read(&p).unwrap(), b"precious");
+    }
+
+    #[test]
+    fn group_write_is_all_or_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let a = dir.path().join("a.png");
+        write_atomic(&a, b"old a").unwrap();
+        // A directory in the way of the second file: nothing is written, a keeps its
+        // content and no temporary is left.
+        std::fs::create_dir(dir.path().join("b.exr")).unwrap();
+        let files = vec![
+            (a.clone(), b"new a".to_vec()),
+            (dir.path().join("b.exr"), b"b".to_vec()),
+        ];
+        assert!(write_atomic_all(&files).is_err());
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+        // A file that cannot be created (its parent is a file): the others stay untouched.
+        let files = vec![
+            (a.clone(), b"new a".to_vec()),
+            (a.join("c.png"), b"c".to_vec()),
+        ];
+        assert!(write_atomic_all(&files).is_err());
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 2);
+        // Otherwise every file lands.
+        let files = vec![
+            (a.clone(), b"new a".to_vec()),
+            (dir.path().join("d/c.png"), b"c".to_vec()),
+        ];
+        write_atomic_all(&files).unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"new a");
+        assert_eq!(std::fs::read(dir.path().join("d/c.png")).unwrap(), b"c");
     }
 
     #[test]

@@ -251,4 +251,13 @@ fn cli_render_refuses_bad_out_fit_and_camera() {
         assert!(err.contains(flag) && !err.contains(", --"), "{flag}: {err}");
     }
     assert!(!png.exists());
+    // An AOV's name taken by a directory: the render fails and writes none of its files.
+    std::fs::create_dir(dir.path().join("e_TT.png")).unwrap();
+    let e = dir.path().join("e.png");
+    let st = run(&["--params", "red-fox"], &e);
+    assert!(!st.status.success());
+    assert!(String::from_utf8_lossy(&st.stderr).contains("e_TT.png"));
+    for f in ["e.png", "e.exr", "e_R.png"] {
+        assert!(!dir.path().join(f).exists(), "{f} was written");
+    }
 }

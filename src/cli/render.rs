@@ -282,20 +282,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         } else {
             a.out.clone()
         };
-        output::write_png(&r.beauty, a.exposure, &out)?;
-        output::write_exr(&r.beauty, &with_suffix(&out, "", "exr"))?;
+        // The PNG, the EXR and the AOVs are written as one: all or none.
+        let exr = with_suffix(&out, "", "exr");
+        let mut files = vec![
+            (out.clone(), output::png_bytes(&r.beauty, a.exposure, &out)?),
+            (exr.clone(), output::exr_bytes(&r.beauty, &exr)?),
+        ];
+        if !a.no_aovs {
+            for l in Lobe::ALL.into_iter().filter(|&l| s.lobes.contains(l)) {
+                let p = with_suffix(&out, &format!("_{}", l.name()), "png");
+                files.push((
+                    p.clone(),
+                    output::png_bytes(&r.lobes[l.index()], a.exposure, &p)?,
+                ));
+            }
+        }
+        crate::io::write_atomic_all(&files)?;
         outln!("wrote {} (+ .exr)", out.display());
         if !a.no_aovs {
-            for l in Lobe::ALL {
-                if s.lobes.contains(l) {
-                    let img = &r.lobes[l.index()];
-                    output::write_png(
-                        img,
-                        a.exposure,
-                        &with_suffix(&out, &format!("_{}", l.name()), "png"),
-                    )?;
-                }
-            }
             outln!(
                 "wrote per-lobe AOVs {}",
                 with_suffix(&out, "_<lobe>", "png").display()

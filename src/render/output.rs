@@ -48,22 +48,29 @@ pub fn tonemap(img: &Image, exposure_ev: f64) -> Vec<u8> {
         .collect()
 }
 
-fn encode(bytes: Vec<u8>, w: usize, h: usize, path: &Path) -> crate::Result<()> {
+/// PNG bytes of an 8-bit RGB buffer (`path` only names the target in errors).
+fn encode(bytes: Vec<u8>, w: usize, h: usize, path: &Path) -> crate::Result<Vec<u8>> {
     let img = image::RgbImage::from_raw(w as u32, h as u32, bytes)
         .ok_or_else(|| crate::Error::file(path, "image buffer has the wrong size"))?;
     let mut buf = Cursor::new(Vec::new());
     img.write_to(&mut buf, image::ImageFormat::Png)
         .map_err(|e| crate::Error::file(path, format!("PNG encoding failed: {e}")))?;
-    write_atomic(path, buf.get_ref())
+    Ok(buf.into_inner())
+}
+
+/// The tone-mapped sRGB PNG's bytes, for [`crate::io::write_atomic_all`] (`path` names
+/// the target in errors).
+pub fn png_bytes(img: &Image, exposure_ev: f64, path: &Path) -> crate::Result<Vec<u8>> {
+    encode(tonemap(img, exposure_ev), img.width, img.height, path)
 }
 
 /// Write the tone-mapped sRGB PNG.
 pub fn write_png(img: &Image, exposure_ev: f64, path: &Path) -> crate::Result<()> {
-    encode(tonemap(img, exposure_ev), img.width, img.height, path)
+    write_atomic(path, &png_bytes(img, exposure_ev, path)?)
 }
 
-/// Write the linear image as 32-bit float OpenEXR.
-pub fn write_exr(img: &Image, path: &Path) -> crate::Result<()> {
+/// The linear image as 32-bit float OpenEXR bytes (`path` names the target in errors).
+pub fn exr_bytes(img: &Image, path: &Path) -> crate::Result<Vec<u8>> {
     let data: Vec<f32> = img.data.iter().flat_map(|p| p.map(|v| v as f32)).collect();
     let buf = image::Rgb32FImage::from_raw(img.width as u32, img.height as u32, data)
         .ok_or_else(|| crate::Error::file(path, "image buffer has the wrong size"))?;
@@ -71,7 +78,12 @@ pub fn write_exr(img: &Image, path: &Path) -> crate::Result<()> {
     image::DynamicImage::ImageRgb32F(buf)
         .write_to(&mut out, image::ImageFormat::OpenExr)
         .map_err(|e| crate::Error::file(path, format!("EXR encoding failed: {e}")))?;
-    write_atomic(path, out.get_ref())
+    Ok(out.into_inner())
+}
+
+/// Write the linear image as 32-bit float OpenEXR.
+pub fn write_exr(img: &Image, path: &Path) -> crate::Result<()> {
+    write_atomic(path, &exr_bytes(img, path)?)
 }
 
 /// Read a linear EXR back (tests and comparisons).
@@ -132,7 +144,7 @@ pub fn write_contact_sheet(
         root.present()
             .map_err(|e| crate::Error::file(path, format!("drawing failed: {e}")))?;
     }
-    encode(buf, w, h, path)
+    write_atomic(path, &encode(buf, w, h, path)?)
 }
 
 #[cfg(test)]
