@@ -430,8 +430,16 @@ impl FurParams {
     /// The parameter JSON object (file units), keys in table order.
     pub fn to_json_value(&self) -> Value {
         let mut m = Map::new();
+        let internal = self.to_array();
         for (id, v) in ParamId::ALL.into_iter().zip(self.to_file_units()) {
-            m.insert(id.spec().name.into(), Value::from(v));
+            // An angle given as 3.75 deg comes back from radians as 3.7499999999999996:
+            // write the shortest 12-digit form when it reads back to the same internal value.
+            let short: f64 = format!("{v:.12e}").parse().unwrap_or(v);
+            let same = id.spec().to_internal(short) == internal[id.index()];
+            m.insert(
+                id.spec().name.into(),
+                Value::from(if same { short } else { v }),
+            );
         }
         Value::Object(m)
     }
@@ -598,6 +606,25 @@ pub fn preset_record(name: &str) -> Option<&'static Preset> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Parameter files show the values as typed (3.75, not 3.7499999999999996 from the
+    /// degree -> radian -> degree trip), and still read back to the same parameters.
+    #[test]
+    fn json_values_are_the_typed_decimals() {
+        for p in PRESETS {
+            let v = FurParams::preset(p.name).unwrap().to_json_value();
+            for id in ParamId::ALL {
+                assert_eq!(
+                    v[id.spec().name].as_f64().unwrap(),
+                    p.values[id.index()],
+                    "{}",
+                    p.name
+                );
+            }
+            let (back, _) = FurParams::from_json_value(&v).unwrap();
+            assert_eq!(back, FurParams::preset(p.name).unwrap());
+        }
+    }
 
     #[test]
     fn presets_load_and_are_in_bounds() {
