@@ -503,12 +503,12 @@ pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result
         vals.push(s.value);
         rel.push(s.sigma.map(|sg| sg / s.value).unwrap_or(f64::NAN));
     }
+    let what = profile
+        .source
+        .as_ref()
+        .map(|p| p.display().to_string())
+        .unwrap_or_else(|| "profile".into());
     if vals.is_empty() {
-        let what = profile
-            .source
-            .as_ref()
-            .map(|p| p.display().to_string())
-            .unwrap_or_else(|| "profile".into());
         return Err(Error::Invalid(format!(
             "{what}: channel {channel} has no valid sample (all {} samples are <= 0, NaN or missing)",
             profile.samples.iter().filter(|s| s.channel == channel).count()
@@ -519,11 +519,6 @@ pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result
         // falling back to an unweighted fit would contradict the fit file's "weighted".
         let bad = rel.iter().filter(|r| !(r.is_finite() && **r > 0.0)).count();
         if bad > 0 {
-            let what = profile
-                .source
-                .as_ref()
-                .map(|p| p.display().to_string())
-                .unwrap_or_else(|| "profile".into());
             return Err(Error::Invalid(format!(
                 "{what}: --weighted needs a sigma > 0 on every valid sample; {bad} of {} valid samples of channel {channel} have none (or 0)",
                 rel.len()
