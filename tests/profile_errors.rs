@@ -419,3 +419,76 @@ fn lone_npy_needs_axes_and_checks_them() {
         "{e}"
     );
 }
+
+/// An npz whose `value` is all 1.0 except `name` (an extra array when not `value`), which
+/// holds `bad` at cell [1, 2, 3] (theta_i 30, theta_r 30, phi -90).
+fn npz_with_bad_cell(name: &str, bad: f64) -> String {
+    let mut e = axes();
+    let mut v = ArrayD::<f64>::from_elem(IxDyn(&[2, 3, 4]), 1.0);
+    if name == "value" {
+        v[[1, 2, 3]] = bad;
+    } else {
+        let mut x = ArrayD::<f64>::from_elem(IxDyn(&[2, 3, 4]), 0.5);
+        x[[1, 2, 3]] = bad;
+        e.push((
+            if name == "sigma" {
+                "sigma.npy"
+            } else {
+                "phi_i.npy"
+            },
+            npy_bytes(&x),
+        ));
+    }
+    e.push(("value.npy", npy_bytes(&v)));
+    npz_err(&e)
+}
+
+#[test]
+fn npz_infinite_value_is_an_error_not_an_invalid_sample() {
+    for bad in [f64::INFINITY, f64::NEG_INFINITY] {
+        let msg = npz_with_bad_cell("value", bad);
+        assert!(
+            msg.contains("bad.npz: array 'value'")
+                && msg.contains("index [1, 2, 3]")
+                && msg.contains("infinite"),
+            "{msg}"
+        );
+    }
+}
+
+#[test]
+fn npz_sigma_and_phi_i_follow_the_csv_rules() {
+    for bad in [-5.0, f64::INFINITY] {
+        let msg = npz_with_bad_cell("sigma", bad);
+        assert!(
+            msg.contains("bad.npz: array 'sigma'")
+                && msg.contains("index [1, 2, 3]")
+                && msg.contains("sigma must be finite and >= 0"),
+            "{msg}"
+        );
+    }
+    let msg = npz_with_bad_cell("phi_i", f64::INFINITY);
+    assert!(
+        msg.contains("bad.npz: array 'phi_i'")
+            && msg.contains("index [1, 2, 3]")
+            && msg.contains("finite"),
+        "{msg}"
+    );
+}
+
+#[test]
+fn lone_npy_infinite_value() {
+    let mut v = ArrayD::<f64>::from_elem(IxDyn(&[1, 1, 2]), 1.0);
+    v[[0, 0, 1]] = f64::INFINITY;
+    let opts = LoadOptions {
+        theta_i: Some(vec![0.0]),
+        theta_r: Some(vec![0.0]),
+        phi: Some(vec![0.0, 10.0]),
+        ..Default::default()
+    };
+    let e = err_of("v.npy", &npy_bytes(&v), &opts);
+    assert!(
+        e.contains("v.npy: array 'value'") && e.contains("index [0, 0, 1]"),
+        "{e}"
+    );
+}

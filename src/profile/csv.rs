@@ -18,6 +18,7 @@
 //! - `sigma`: empty or `nan` means "no sigma"; otherwise finite and `>= 0`.
 //! - `phi_i`: empty means none; otherwise a finite number (degrees, not range-checked: it is
 //!   only carried for round trips).
+//! - The value/sigma/phi_i rules are [`super::check_measured`], shared with the npz reader.
 //! - `channel`: any text (trimmed); channels are numbered in order of first appearance.
 //!   Without a `channel` column the profile has one unnamed channel.
 //! - Two rows with the same `(theta_i, theta_r, phi, channel)`: if every other field is
@@ -38,7 +39,7 @@
 //! as `nan`, a missing sigma/phi_i as an empty cell. Metadata keys may not contain `:` or
 //! line breaks and values may not contain line breaks (an error, not a silent edit).
 
-use super::{canonical_phi, check_angle, dedupe_notes, Profile, Sample};
+use super::{canonical_phi, check_angle, check_measured, dedupe_notes, Field, Profile, Sample};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -165,44 +166,23 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
         let theta_r = angle(cols.theta_r, 90.0)?;
         let phi = canonical_phi(angle(cols.phi, 180.0)?);
         let value = number(cols.value)?.unwrap_or(f64::NAN);
-        if value.is_infinite() {
-            return Err(perr(
-                line,
-                label(cols.value),
-                format!(
-                    "value {value} is infinite (write nan or leave it empty for a missing sample)"
-                ),
-            ));
-        }
+        // CSV's spellings of "none": an empty cell, and `nan` for sigma.
         let sigma = match cols.sigma {
+            Some(i) => number(i)?.filter(|s| !s.is_nan()),
             None => None,
-            Some(i) => match number(i)? {
-                Some(s) if s.is_nan() => None,
-                Some(s) if s.is_finite() && s >= 0.0 => Some(s),
-                Some(s) => {
-                    return Err(perr(
-                        line,
-                        label(i),
-                        format!("sigma must be finite and >= 0, found {s}"),
-                    ))
-                }
-                None => None,
-            },
         };
         let phi_i = match cols.phi_i {
+            Some(i) => number(i)?.map(|p| p + 0.0),
             None => None,
-            Some(i) => match number(i)? {
-                Some(p) if p.is_finite() => Some(p + 0.0),
-                Some(p) => {
-                    return Err(perr(
-                        line,
-                        label(i),
-                        format!("phi_i must be a finite angle, found {p}"),
-                    ))
-                }
-                None => None,
-            },
         };
+        check_measured(value, sigma, phi_i).map_err(|(field, msg)| {
+            let i = match field {
+                Field::Value => Some(cols.value),
+                Field::Sigma => cols.sigma,
+                Field::PhiI => cols.phi_i,
+            };
+            perr(line, label(i.unwrap_or(cols.value)), msg)
+        })?;
         let channel = match cols.channel {
             None => 0,
             Some(i) => {

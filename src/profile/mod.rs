@@ -398,6 +398,65 @@ pub(crate) fn check_angle(name: &str, v: f64, limit: f64) -> std::result::Result
     Ok(v + 0.0)
 }
 
+/// A measured field of a sample, as named by [`check_measured`].
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Field {
+    Value,
+    Sigma,
+    PhiI,
+}
+
+impl Field {
+    /// The column / array name of the field.
+    pub(crate) fn name(self) -> &'static str {
+        match self {
+            Field::Value => "value",
+            Field::Sigma => "sigma",
+            Field::PhiI => "phi_i",
+        }
+    }
+}
+
+/// The rules every loader applies to a sample's measured fields, once the format's own
+/// spelling of "none" has been decoded (CSV: an empty cell, or `nan` for sigma; npz: NaN).
+/// One function, so the formats cannot drift apart:
+/// - `value`: NaN or `<= 0` is an *invalid* sample (DATA.md: no usable signal), kept;
+///   infinite is an error — no detector reports it, so it is corruption, not a gap;
+/// - `sigma`, if given: finite and `>= 0`;
+/// - `phi_i`, if given: finite (not range-checked: only carried for round trips).
+///
+/// Returns the field at fault and a message for the caller to place (file, line and
+/// column, or array and cell).
+pub(crate) fn check_measured(
+    value: f64,
+    sigma: Option<f64>,
+    phi_i: Option<f64>,
+) -> std::result::Result<(), (Field, String)> {
+    if value.is_infinite() {
+        return Err((
+            Field::Value,
+            format!("value {value} is infinite (mark a missing sample with NaN)"),
+        ));
+    }
+    if let Some(s) = sigma {
+        if !(s.is_finite() && s >= 0.0) {
+            return Err((
+                Field::Sigma,
+                format!("sigma must be finite and >= 0, found {s}"),
+            ));
+        }
+    }
+    if let Some(p) = phi_i {
+        if !p.is_finite() {
+            return Err((
+                Field::PhiI,
+                format!("phi_i must be a finite angle, found {p}"),
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// Same f64, treating NaN as equal to NaN (for duplicate checks and round-trip tests).
 pub fn same_f64(a: f64, b: f64) -> bool {
     (a.is_nan() && b.is_nan()) || a == b
@@ -490,4 +549,31 @@ where
         });
     }
     Ok(n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn measured_field_rules() {
+        let nan = f64::NAN;
+        let inf = f64::INFINITY;
+        // Invalid-but-kept values and absent optional fields pass.
+        for v in [1.0, 0.0, -2.0, nan] {
+            assert_eq!(check_measured(v, None, None), Ok(()));
+        }
+        assert_eq!(check_measured(1.0, Some(0.0), Some(-30.0)), Ok(()));
+        let field = |v, s, p| check_measured(v, s, p).unwrap_err().0;
+        assert_eq!(field(inf, None, None), Field::Value);
+        assert_eq!(field(-inf, None, None), Field::Value);
+        for s in [-5.0, inf, -inf, nan] {
+            assert_eq!(field(1.0, Some(s), None), Field::Sigma, "sigma {s}");
+        }
+        for p in [inf, nan] {
+            assert_eq!(field(1.0, None, Some(p)), Field::PhiI, "phi_i {p}");
+        }
+        let (_, msg) = check_measured(1.0, Some(-5.0), None).unwrap_err();
+        assert!(msg.contains("sigma must be finite and >= 0"), "{msg}");
+    }
 }

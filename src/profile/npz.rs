@@ -16,7 +16,10 @@
 //! float32 arrays are accepted too and widened to float64.
 //!
 //! A cell is a sample when `present` is non-zero; without `present`, when `value` is not
-//! NaN. The `present` mask is what lets a sparse CSV profile, including its invalid NaN
+//! NaN. A sample's value, sigma and phi_i (NaN decoded as "none" for the latter two) obey
+//! the CSV reader's rules ([`super::check_measured`]): an infinite `value`, a negative or
+//! infinite `sigma` or an infinite `phi_i` is an error naming the array and the cell's
+//! index; only cells that are samples are checked. The `present` mask is what lets a sparse CSV profile, including its invalid NaN
 //! samples, round trip exactly: the writer always writes it, and stores invalid values as
 //! they are (a negative value stays negative, NaN stays NaN). Channel names come from
 //! `meta_json` (`channels` must then have `C` entries for a 4-D `value`, at most one for a
@@ -43,9 +46,9 @@
 //! axes must be given as grids in [`LoadOptions`] (`--theta-i`, `--theta-r`, `--phi` on
 //! the command line) and their lengths must match the array's shape.
 
-use super::{canonical_phi, check_angle, dedupe, LoadOptions, Profile, Sample};
+use super::{canonical_phi, check_angle, check_measured, dedupe, LoadOptions, Profile, Sample};
 use crate::error::{Error, Result};
-use ndarray::{ArrayD, IxDyn};
+use ndarray::{ArrayD, Dimension, IxDyn};
 use ndarray_npy::{NpzWriter, ReadNpyExt};
 use std::io::{Cursor, Read};
 use std::path::Path;
@@ -435,14 +438,26 @@ fn grid_to_profile(
                     if !here {
                         continue;
                     }
+                    let sigma = opt(&extras.sigma, &ix);
+                    let phi_i = opt(&extras.phi_i, &ix);
+                    check_measured(v, sigma, phi_i).map_err(|(field, msg)| {
+                        arr_err(
+                            path,
+                            field.name(),
+                            format!(
+                                "index {:?} (theta_i {theta_i}, theta_r {theta_r}, phi {phi}): {msg}",
+                                ix.slice()
+                            ),
+                        )
+                    })?;
                     samples.push(Sample {
                         theta_i,
                         theta_r,
                         phi,
                         value: v,
-                        sigma: opt(&extras.sigma, &ix),
+                        sigma,
                         channel: c,
-                        phi_i: opt(&extras.phi_i, &ix),
+                        phi_i,
                     });
                     cells.push([i, r, p, c]);
                 }
