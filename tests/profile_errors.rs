@@ -492,3 +492,10 @@ fn lone_npy_infinite_value() {
         "{e}"
     );
 }
+
+#[test]
+fn csv_unterminated_quote() {
+    let e = csv_err(&format!("{HEAD}0,0,0,1\n0,0,0,\"1\n"));
+    assert_at(&e, "bad.csv", 4, "column 4 (value)");
+    assert!(e.contains("unterminated"), "{e}");
+}

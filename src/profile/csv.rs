@@ -1,7 +1,8 @@
 //! The DATA.md CSV profile format: reader and writer.
 //!
 //! # Reading
-//! - Each record is one line (a quoted field may not span lines).
+//! - Each record is one line: a quoted field may not span lines, and a quote left open is
+//!   an error naming its line and column.
 //! - Lines before the header that start with `#` are metadata `# key: value` (split at the
 //!   first `:`, both sides trimmed), kept in file order. A `#` line without a `:` or with
 //!   an empty key is a free comment and ignored. Blank lines and `#` lines are tolerated
@@ -98,10 +99,11 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
             .unwrap_or(header_line)
     };
 
+    // No `Trim` here: it would strip the line break an unterminated quote swallows, which
+    // is how one is detected below. Cells and names are trimmed where they are read.
     let mut rdr = ::csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
-        .trim(::csv::Trim::All)
         .from_reader(kept.as_slice());
 
     let mut header: Option<Vec<String>> = None;
@@ -122,6 +124,19 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
             break;
         }
         let line = line_of(record.position());
+        // Records are single lines, so a field holding a line break is a quote that was
+        // never closed (the csv crate reads on to the next quote or the end of the file).
+        if let Some(k) = record.iter().position(|f| f.contains(&b'\n')) {
+            let column = match &header {
+                Some(names) if k < names.len() => format!("column {} ({})", k + 1, names[k]),
+                _ => format!("column {}", k + 1),
+            };
+            return Err(perr(
+                line,
+                column,
+                "unterminated quoted field (a quote must close on the same line)".into(),
+            ));
+        }
         let Some(names) = &header else {
             let names: Vec<String> = record
                 .iter()
@@ -437,6 +452,35 @@ mod tests {
             ]
         );
         assert_eq!(pr.samples.len(), 1);
+    }
+
+    #[test]
+    fn unterminated_quote_is_an_error() {
+        // Alone on the last line the csv crate would read it as a plain `1`.
+        let e = p("theta_i,theta_r,phi,value\n0,0,0,\"1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:2: column 4 (value): unterminated"),
+            "{e}"
+        );
+        // Followed by more rows it would swallow them into one field.
+        let e = p("theta_i,theta_r,phi,value\n0,0,\"0,1\n\n# c\n0,0,1,2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:2: column 3 (phi): unterminated"),
+            "{e}"
+        );
+        let e = p("theta_i,theta_r,phi,\"value\n0,0,0,1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("t.csv:1: column 4: unterminated"), "{e}");
+        // Closed quotes, with doubled quotes and padding, still read.
+        let (pr, _) =
+            p("theta_i,theta_r,phi,value,note\n 0 ,\"0\", 0 ,\" 1 \",\"a \"\"b\"\", c\"\n")
+                .unwrap();
+        assert_eq!(pr.samples[0].value, 1.0);
     }
 
     #[test]
