@@ -499,3 +499,25 @@ fn csv_unterminated_quote() {
     assert_at(&e, "bad.csv", 4, "column 4 (value)");
     assert!(e.contains("unterminated"), "{e}");
 }
+
+#[test]
+fn csv_empty_channel() {
+    let e = csv_err("theta_i,theta_r,phi,value,channel\n0,0,0,1,r\n0,0,0,1,  \n");
+    assert_at(&e, "bad.csv", 3, "column 5 (channel)");
+    assert!(e.contains("empty channel name"), "{e}");
+}
+
+#[test]
+fn npz_empty_channel_name() {
+    let mut e = axes();
+    e.push(("value.npy", value(&[2, 3, 4, 2])));
+    let meta = br#"{"channels": ["r", ""]}"#.to_vec();
+    e.push(("meta_json.npy", npy_bytes(&Array1::from(meta))));
+    let msg = npz_err(&e);
+    assert!(
+        msg.contains("bad.npz: array 'meta_json'")
+            && msg.contains("channels[1]")
+            && msg.contains("empty channel name"),
+        "{msg}"
+    );
+}

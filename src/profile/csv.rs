@@ -20,7 +20,8 @@
 //! - `phi_i`: empty means none; otherwise a finite number (degrees, not range-checked: it is
 //!   only carried for round trips).
 //! - The value/sigma/phi_i rules are [`super::check_measured`], shared with the npz reader.
-//! - `channel`: any text (trimmed); channels are numbered in order of first appearance.
+//! - `channel`: any non-empty text (trimmed; an empty cell is an error); channels are
+//!   numbered in order of first appearance.
 //!   Without a `channel` column the profile has one unnamed channel.
 //! - Two rows with the same `(theta_i, theta_r, phi, channel)`: if every other field is
 //!   identical (NaN equal to NaN) the repeat is dropped and a note says how many were
@@ -40,7 +41,10 @@
 //! as `nan`, a missing sigma/phi_i as an empty cell. Metadata keys may not contain `:` or
 //! line breaks and values may not contain line breaks (an error, not a silent edit).
 
-use super::{canonical_phi, check_angle, check_measured, dedupe_notes, Field, Profile, Sample};
+use super::{
+    canonical_phi, check_angle, check_channel_name, check_measured, dedupe_notes, Field, Profile,
+    Sample,
+};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -202,6 +206,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
             None => 0,
             Some(i) => {
                 let name = text(i)?;
+                check_channel_name(name).map_err(|m| perr(line, label(i), m))?;
                 match channels.iter().position(|c| c == name) {
                     Some(k) => k,
                     None => {

@@ -457,6 +457,16 @@ pub(crate) fn check_measured(
     Ok(())
 }
 
+/// A channel name as read from a file (trimmed): it may not be empty, since an empty
+/// `channel` cell is a forgotten label, not a channel (DATA.md names channels such as `r`
+/// or `650nm`), and it would merge by name with every other unlabelled row.
+pub(crate) fn check_channel_name(name: &str) -> std::result::Result<(), String> {
+    if name.trim().is_empty() {
+        return Err("empty channel name (label every sample, e.g. r, g, b or 650nm)".into());
+    }
+    Ok(())
+}
+
 /// Same f64, treating NaN as equal to NaN (for duplicate checks and round-trip tests).
 pub fn same_f64(a: f64, b: f64) -> bool {
     (a.is_nan() && b.is_nan()) || a == b
@@ -573,6 +583,9 @@ mod tests {
         for p in [inf, nan] {
             assert_eq!(field(1.0, None, Some(p)), Field::PhiI, "phi_i {p}");
         }
+        assert!(check_channel_name("650nm").is_ok());
+        assert!(check_channel_name("").is_err());
+        assert!(check_channel_name("  ").is_err());
         let (_, msg) = check_measured(1.0, Some(-5.0), None).unwrap_err();
         assert!(msg.contains("sigma must be finite and >= 0"), "{msg}");
     }

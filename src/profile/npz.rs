@@ -23,7 +23,7 @@
 //! samples, round trip exactly: the writer always writes it, and stores invalid values as
 //! they are (a negative value stays negative, NaN stays NaN). Channel names come from
 //! `meta_json` (`channels` must then have `C` entries for a 4-D `value`, at most one for a
-//! 3-D one); a 4-D `value` without names gets the names `"0"`, `"1"`, .... The writer
+//! 3-D one; none may be empty, as in CSV); a 4-D `value` without names gets the names `"0"`, `"1"`, .... The writer
 //! writes a 3-D `value` for a profile without channel names, 4-D otherwise.
 //!
 //! Axis values are normalised as in the CSV reader (`-0` -> `0`, `phi = -180` -> `180`). Two
@@ -46,7 +46,10 @@
 //! axes must be given as grids in [`LoadOptions`] (`--theta-i`, `--theta-r`, `--phi` on
 //! the command line) and their lengths must match the array's shape.
 
-use super::{canonical_phi, check_angle, check_measured, dedupe, LoadOptions, Profile, Sample};
+use super::{
+    canonical_phi, check_angle, check_channel_name, check_measured, dedupe, LoadOptions, Profile,
+    Sample,
+};
 use crate::error::{Error, Result};
 use ndarray::{ArrayD, Dimension, IxDyn};
 use ndarray_npy::{NpzWriter, ReadNpyExt};
@@ -388,6 +391,10 @@ fn grid_to_profile(
                 ));
             }
         }
+    }
+    for (k, name) in meta.channels.iter().enumerate() {
+        check_channel_name(name)
+            .map_err(|m| arr_err(path, "meta_json", format!("channels[{k}]: {m}")))?;
     }
     let channels = if shape.len() == 4 {
         if meta.channels.is_empty() {
