@@ -98,3 +98,75 @@ fn simulate_rejects_bad_options() {
         assert!(!String::from_utf8_lossy(&o.stderr).is_empty());
     }
 }
+
+/// A tiny, fast `furfit simulate` run writing into `out`, with extra arguments.
+fn tiny_run(out: &std::path::Path, extra: &[&str]) -> std::process::Output {
+    furfit()
+        .args([
+            "simulate",
+            "--params",
+            "red-fox",
+            "--theta-i",
+            "0,30",
+            "--theta-r",
+            "-40:40:10",
+            "--phi",
+            "-180:180:60",
+            "--paths",
+            "20000",
+            "--threads",
+            "1",
+            "--wedge",
+            "5",
+            "--out",
+        ])
+        .arg(out)
+        .args(extra)
+        .output()
+        .unwrap()
+}
+
+#[test]
+fn simulate_file_extension_picks_the_format() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sim");
+    for name in ["p.csv", "p.npz"] {
+        let o = tiny_run(&out, &["--file", name]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    let opts = furfit::profile::LoadOptions::default();
+    let csv = furfit::profile::load_full(&out.join("p.csv"), &opts).unwrap();
+    let npz = furfit::profile::load_full(&out.join("p.npz"), &opts).unwrap();
+    assert_eq!(npz.format, furfit::profile::Format::Npz);
+    assert!(std::fs::read(out.join("p.npz")).unwrap().starts_with(b"PK"));
+    // Same seed, same numbers, whichever format holds them.
+    assert_eq!(csv.profile.samples.len(), 2 * 9 * 6);
+    assert_eq!(npz.profile.samples, csv.profile.samples);
+    assert!(npz.profile.is_synthetic());
+    // Invalid samples (the occluded wedge at theta_r = theta_i = 30, phi = 0) too.
+    assert!(csv.profile.n_invalid() > 0 && csv.profile.n_valid() > 0);
+}
+
+#[test]
+fn simulate_refuses_other_extensions_and_paths_outside_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("a").join("sim");
+    for (name, why) in [
+        ("p.txt", ".csv or .npz"),
+        ("p.npy", ".csv or .npz"),
+        ("profile", ".csv or .npz"),
+        ("../escape.csv", "plain file name"),
+        ("sub/p.csv", "plain file name"),
+    ] {
+        let o = tiny_run(&out, &["--file", name]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "--file {name} should fail");
+        assert!(
+            err.contains(why) && err.contains(name),
+            "--file {name}: {err}"
+        );
+    }
+    // Refused before any work: nothing was written, inside --out or next to it.
+    assert!(!out.exists());
+    assert!(!dir.path().join("a").join("escape.csv").exists());
+}

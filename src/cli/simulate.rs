@@ -1,5 +1,5 @@
 //! `furfit simulate`: the virtual goniometer (Monte Carlo ray tracing through a 3-D double
-//! cylinder fiber) writing a synthetic profile CSV and `metadata.json`.
+//! cylinder fiber) writing a synthetic profile (`.csv` or `.npz`) and `metadata.json`.
 
 use crate::grid::{parse_grid, parse_phi_grid};
 use crate::simulate::{self, measure, output, SimSettings};
@@ -66,7 +66,8 @@ pub struct Args {
     /// Output directory (e.g. measurements/red-fox/).
     #[arg(long, required_unless_present = "bench")]
     pub out: Option<PathBuf>,
-    /// Profile file name inside --out.
+    /// Profile file name inside --out (a plain name); .csv or .npz, the extension picks
+    /// the format.
     #[arg(long, default_value = "profile.csv")]
     pub file: String,
     /// Species label for the metadata (default: the preset name, if --params is one).
@@ -115,6 +116,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
 fn run_profile(a: Args) -> anyhow::Result<()> {
     let spec = a.params.clone().unwrap_or_default();
     let out = a.out.clone().unwrap_or_default();
+    // Before the simulation: a bad name should not cost a run.
+    output::check_file_name(&a.file)?;
     let (params, _exposure) = FurParams::load(&spec)?;
     let species = a
         .species
@@ -215,7 +218,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "tool".into(),
         format!("furfit {}", env!("CARGO_PKG_VERSION")),
     ));
-    let csv = output::profile_csv(&sim, &m, &meta)?;
+    let prof = output::to_profile(&sim, &m, &meta);
     let count = |w| m.count(Some(w));
     let md = serde_json::json!({
         "synthetic": true,
@@ -245,7 +248,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "wall_seconds": secs,
         "threads": rayon::current_num_threads(),
     });
-    output::write_all(&out, &a.file, &csv, &md)?;
+    output::write_all(&out, &a.file, &prof, &md)?;
     outln!(
         "{}: {} samples ({} valid), {} paths/angle x {} angles in {:.1} s on {} threads ({:.2e} paths/s); median rel. error above {:.0e} x peak: {}",
         out.join(&a.file).display(),

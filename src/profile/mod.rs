@@ -232,22 +232,37 @@ pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     })
 }
 
+/// The format [`save`] writes to `path`: `.csv` or `.npz` by extension (case-insensitive);
+/// any other name is an error naming the path, so a caller can check it before the work.
+pub fn save_format(path: &Path) -> Result<Format> {
+    match Format::from_path(path) {
+        Ok(f @ (Format::Csv | Format::Npz)) => Ok(f),
+        found => {
+            let what = match (found, path.extension()) {
+                (Ok(f), _) => format!("{} files", f.name()),
+                (Err(_), Some(e)) => format!("'.{}' files", e.to_string_lossy()),
+                (Err(_), None) => "a file without an extension".into(),
+            };
+            Err(Error::file(
+                path,
+                format!("cannot write {what}; the extension picks the format: .csv or .npz"),
+            ))
+        }
+    }
+}
+
+/// The bytes [`save`] would write to `path` (format by extension, see [`save_format`]).
+pub fn encode(path: &Path, profile: &Profile) -> Result<Vec<u8>> {
+    match save_format(path)? {
+        Format::Npz => npz::to_bytes(profile),
+        _ => csv::to_string(profile).map(String::into_bytes),
+    }
+}
+
 /// Save a profile as `.csv` or `.npz` (by extension), atomically via [`crate::io`].
 pub fn save(path: &Path, profile: &Profile) -> Result<()> {
-    match Format::from_path(path)? {
-        Format::Csv => {
-            let text = csv::to_string(profile)?;
-            crate::io::write_atomic(path, text.as_bytes())
-        }
-        Format::Npz => {
-            let bytes = npz::to_bytes(profile)?;
-            crate::io::write_atomic(path, &bytes)
-        }
-        f => Err(Error::file(
-            path,
-            format!("cannot write {} files; save as .csv or .npz", f.name()),
-        )),
-    }
+    let bytes = encode(path, profile)?;
+    crate::io::write_atomic(path, &bytes)
 }
 
 /// Is this directory entry a profile file [`load_dir`] should read? Profile extensions

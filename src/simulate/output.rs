@@ -1,66 +1,125 @@
-//! Writers for the virtual goniometer: the profile as DATA.md CSV and `metadata.json`.
+//! Writers for the virtual goniometer: the profile (DATA.md CSV or furfit `.npz`, chosen
+//! by the file name's extension and written by the shared [`crate::profile`] writers) and
+//! `metadata.json`.
 //!
-//! CSV layout: `# key: value` metadata lines (always including `synthetic: true`), then the
-//! header `theta_i,theta_r,phi,value,sigma` and one row per grid sample in
-//! (theta_i, theta_r, phi) order. Angles are printed as they were given (shortest exact
-//! decimal), `value` with 6 significant digits, `sigma` with 3; an invalid sample is written
-//! as `value = 0` with an empty `sigma` (DATA.md: `value <= 0` marks no usable signal).
+//! The profile holds one sample per grid cell in (theta_i, theta_r, phi) order, with
+//! metadata (always including `synthetic: true`) and columns/arrays
+//! `theta_i, theta_r, phi, value, sigma`. `value` is rounded to 6 significant digits and
+//! `sigma` to 3 (more would be Monte Carlo noise), the same numbers in either format; an
+//! invalid sample has `value = 0` and no `sigma` (DATA.md: `value <= 0` marks no usable
+//! signal).
 
 use super::measure::Measured;
 use super::SimResult;
 use crate::error::{Error, Result};
-use std::path::Path;
+use crate::profile::{self, Profile, Sample};
+use std::path::{Component, Path};
 
-/// Format with `digits` significant digits in compact scientific notation.
-fn sig(x: f64, digits: usize) -> String {
-    format!("{:.*e}", digits - 1, x)
+/// `x` rounded to `digits` significant digits.
+fn round_sig(x: f64, digits: usize) -> f64 {
+    format!("{:.*e}", digits - 1, x).parse().unwrap_or(x)
 }
 
-/// The CSV text of a measured profile with metadata lines `meta`.
-pub fn profile_csv(sim: &SimResult, m: &Measured, meta: &[(String, String)]) -> Result<Vec<u8>> {
-    let mut out = Vec::with_capacity(sim.value.len() * 32 + 1024);
-    let has_synth = meta.iter().any(|(k, _)| k == "synthetic");
-    if !has_synth {
-        out.extend_from_slice(b"# synthetic: true\n");
+/// The measured profile as a [`Profile`] with metadata `meta` (line breaks in values become
+/// spaces: a CSV metadata line holds one line).
+pub fn to_profile(sim: &SimResult, m: &Measured, meta: &[(String, String)]) -> Profile {
+    let mut prof = Profile::default();
+    if !meta.iter().any(|(k, _)| k == "synthetic") {
+        prof.set_meta("synthetic", "true");
     }
     for (k, v) in meta {
-        let v = v.replace(['\n', '\r'], " ");
-        out.extend_from_slice(format!("# {k}: {v}\n").as_bytes());
+        prof.metadata
+            .push((k.clone(), v.replace(['\n', '\r'], " ")));
     }
-    let mut w = csv::WriterBuilder::new().from_writer(out);
-    let err = |e: csv::Error| Error::Invalid(format!("writing CSV: {e}"));
-    w.write_record(["theta_i", "theta_r", "phi", "value", "sigma"])
-        .map_err(err)?;
-    for (i, ti) in sim.theta_i.iter().enumerate() {
-        let ti = format!("{ti}");
-        for (j, tr) in sim.theta_r.iter().enumerate() {
-            let tr = format!("{tr}");
-            for (k, ph) in sim.phi.iter().enumerate() {
+    prof.samples.reserve(sim.value.len());
+    for (i, &theta_i) in sim.theta_i.iter().enumerate() {
+        for (j, &theta_r) in sim.theta_r.iter().enumerate() {
+            for (k, &phi) in sim.phi.iter().enumerate() {
                 let b = sim.index(i, j, k);
-                let (v, s) = if m.invalid[b].is_some() {
-                    ("0".to_string(), String::new())
+                let (value, sigma) = if m.invalid[b].is_some() {
+                    (0.0, None)
                 } else {
-                    (sig(m.value[b], 6), sig(m.sigma[b], 3))
+                    (round_sig(m.value[b], 6), Some(round_sig(m.sigma[b], 3)))
                 };
-                w.write_record([ti.as_str(), tr.as_str(), &format!("{ph}"), &v, &s])
-                    .map_err(err)?;
+                prof.samples.push(Sample {
+                    theta_i,
+                    theta_r,
+                    phi,
+                    value,
+                    sigma,
+                    channel: 0,
+                    phi_i: None,
+                });
             }
         }
     }
-    w.into_inner()
-        .map_err(|e| Error::Invalid(format!("writing CSV: {e}")))
+    prof
 }
 
-/// Write the profile CSV and `metadata.json` into `dir` (atomically).
+/// Check `--file` before any work is done: a plain file name (it is placed inside
+/// `--out`, so no directory part, `..` or root) ending in `.csv` or `.npz`.
+pub fn check_file_name(name: &str) -> Result<()> {
+    let p = Path::new(name);
+    let plain = !name.contains(['/', '\\'])
+        && matches!(p.components().collect::<Vec<_>>()[..], [Component::Normal(n)] if n == name);
+    if !plain {
+        return Err(Error::Invalid(format!(
+            "--file '{name}': must be a plain file name (it is written inside --out; give \
+             directories with --out)"
+        )));
+    }
+    if name.eq_ignore_ascii_case("metadata.json") {
+        return Err(Error::Invalid(format!(
+            "--file '{name}': that name is taken by the metadata file"
+        )));
+    }
+    profile::save_format(p).map_err(|e| Error::Invalid(format!("--file {e}")))?;
+    Ok(())
+}
+
+/// Write the profile `dir/file_name` (format by extension) and `dir/metadata.json`
+/// (each atomically).
 pub fn write_all(
     dir: &Path,
     file_name: &str,
-    csv_bytes: &[u8],
+    prof: &Profile,
     metadata: &serde_json::Value,
 ) -> Result<()> {
-    crate::io::write_atomic(&dir.join(file_name), csv_bytes)?;
+    check_file_name(file_name)?;
+    let path = dir.join(file_name);
+    let bytes = profile::encode(&path, prof)?;
     let mut js = serde_json::to_vec_pretty(metadata)
         .map_err(|e| Error::Invalid(format!("metadata JSON: {e}")))?;
     js.push(b'\n');
+    crate::io::write_atomic(&path, &bytes)?;
     crate::io::write_atomic(&dir.join("metadata.json"), &js)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn file_name_must_be_plain_csv_or_npz() {
+        for ok in ["profile.csv", "p.npz", "P.CSV", "a b.csv", "..csv.csv"] {
+            assert!(check_file_name(ok).is_ok(), "{ok}");
+        }
+        for (bad, why) in [
+            ("../escape.csv", "plain file name"),
+            ("sub/p.csv", "plain file name"),
+            ("/tmp/p.csv", "plain file name"),
+            ("a\\p.csv", "plain file name"),
+            ("..", "plain file name"),
+            (".", "plain file name"),
+            ("", "plain file name"),
+            ("p.csv/", "plain file name"),
+            ("p.txt", ".csv or .npz"),
+            ("p.npy", ".csv or .npz"),
+            ("profile", ".csv or .npz"),
+            ("metadata.json", "metadata"),
+        ] {
+            let e = check_file_name(bad).unwrap_err().to_string();
+            assert!(e.contains(why) && e.contains("--file"), "{bad}: {e}");
+        }
+    }
 }
