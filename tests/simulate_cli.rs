@@ -170,3 +170,31 @@ fn simulate_refuses_other_extensions_and_paths_outside_out() {
     assert!(!out.exists());
     assert!(!dir.path().join("a").join("escape.csv").exists());
 }
+
+#[test]
+fn simulate_writes_profile_and_metadata_or_neither() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("simx");
+    // metadata.json cannot be written (a directory is in the way): no profile either.
+    std::fs::create_dir_all(out.join("metadata.json")).unwrap();
+    let o = tiny_run(&out, &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success());
+    assert!(err.contains("metadata.json"), "{err}");
+    let left: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
+    assert_eq!(
+        left,
+        ["metadata.json"],
+        "profile or temporaries left behind"
+    );
+    // An existing profile from an earlier run is kept as it was.
+    std::fs::write(out.join("profile.csv"), "earlier run").unwrap();
+    assert!(!tiny_run(&out, &[]).status.success());
+    assert_eq!(
+        std::fs::read_to_string(out.join("profile.csv")).unwrap(),
+        "earlier run"
+    );
+}

@@ -1,6 +1,7 @@
 //! Writers for the virtual goniometer: the profile (DATA.md CSV or furfit `.npz`, chosen
 //! by the file name's extension and written by the shared [`crate::profile`] writers) and
-//! `metadata.json`.
+//! `metadata.json`, written as a group: both files or neither, so a profile is never left
+//! without the metadata saying how it was made.
 //!
 //! The profile holds one sample per grid cell in (theta_i, theta_r, phi) order, with
 //! metadata (always including `synthetic: true`) and columns/arrays
@@ -77,8 +78,8 @@ pub fn check_file_name(name: &str) -> Result<()> {
     Ok(())
 }
 
-/// Write the profile `dir/file_name` (format by extension) and `dir/metadata.json`
-/// (each atomically).
+/// Write the profile `dir/file_name` (format by extension) and `dir/metadata.json` as one
+/// group ([`crate::io::write_atomic_all`]): a failure leaves both as they were.
 pub fn write_all(
     dir: &Path,
     file_name: &str,
@@ -91,8 +92,7 @@ pub fn write_all(
     let mut js = serde_json::to_vec_pretty(metadata)
         .map_err(|e| Error::Invalid(format!("metadata JSON: {e}")))?;
     js.push(b'\n');
-    crate::io::write_atomic(&path, &bytes)?;
-    crate::io::write_atomic(&dir.join("metadata.json"), &js)
+    crate::io::write_atomic_all(&[(path, bytes), (dir.join("metadata.json"), js)])
 }
 
 #[cfg(test)]
