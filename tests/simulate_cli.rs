@@ -198,3 +198,21 @@ fn simulate_writes_profile_and_metadata_or_neither() {
         "earlier run"
     );
 }
+
+#[test]
+fn simulate_refuses_a_one_point_detector_grid() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = furfit()
+        .args(["simulate", "--params", "red-fox", "--theta-i", "0"])
+        .args(["--theta-r", "0", "--phi", "0", "--paths", "1000", "--out"])
+        .arg(dir.path().join("one"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "a one-point grid should fail");
+    assert!(
+        err.contains("--theta-r has a single value") && err.contains("at least two values"),
+        "{err}"
+    );
+    assert!(!dir.path().join("one").exists());
+}

@@ -16,10 +16,10 @@ pub struct Args {
     /// Incidence angles (degrees), list or start:stop:step.
     #[arg(long, default_value = "0,15,30,45", allow_hyphen_values = true)]
     pub theta_i: String,
-    /// Outgoing inclinations (degrees): bin centres; bin width = grid step.
+    /// Outgoing inclinations (degrees): bin centres; bin width = grid step (at least two values).
     #[arg(long, default_value = "-80:80:2", allow_hyphen_values = true)]
     pub theta_r: String,
-    /// Relative azimuths (degrees): bin centres; bin width = grid step.
+    /// Relative azimuths (degrees): bin centres; bin width = grid step (at least two values).
     #[arg(long, default_value = "-180:180:2", allow_hyphen_values = true)]
     pub phi: String,
     /// Paths traced per incidence angle.

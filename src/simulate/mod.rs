@@ -125,6 +125,17 @@ impl SimSettings {
                 return bad(format!("{what}: values must be strictly increasing"));
             }
         }
+        // A detector bin is as wide as the spacing of its axis's centres (bin_edges), so
+        // one centre has no width of its own; refuse it rather than invent one.
+        for (what, v) in [("--theta-r", &self.theta_r), ("--phi", &self.phi)] {
+            if let [x] = v[..] {
+                return bad(format!(
+                    "{what} has a single value ({x}): detector bins are centred on the grid \
+                     values and as wide as their spacing, so {what} needs at least two values \
+                     (e.g. {what} -1,0,1 gives 0 a 1-degree bin)"
+                ));
+            }
+        }
         if self.theta_i.iter().any(|x| x.abs() >= 90.0) {
             return bad("--theta-i must be inside (-90, 90) degrees".into());
         }
@@ -147,7 +158,8 @@ impl SimSettings {
 }
 
 /// Bin edges (radians) for grid centres (degrees): half-way between neighbours, symmetric
-/// end bins; a single value gets a 1-degree bin.
+/// end bins; a single value gets a 1-degree bin (kept total; [`SimSettings::validate`]
+/// refuses a single-value axis, whose width would be arbitrary).
 pub fn bin_edges(centres_deg: &[f64]) -> Vec<f64> {
     let c: Vec<f64> = centres_deg.iter().map(|x| x.to_radians()).collect();
     let n = c.len();

@@ -387,3 +387,22 @@ fn measurement_effects() {
     let sd = (0.05 * 0.95 / rest as f64).sqrt();
     assert!((frac - 0.05).abs() < 5.0 * sd, "{frac}");
 }
+
+/// A single theta_r or phi value has no bin width (it would be a made-up 1 degree);
+/// validate refuses it, naming the axis. A single theta_i is fine (it is not binned).
+#[test]
+fn single_value_detector_axis_is_refused() {
+    let p = FurParams::preset("red-fox").unwrap();
+    let mut s = settings(p, 0.0, 1000, false);
+    assert!(s.validate().is_ok());
+    s.phi = vec![0.0];
+    let e = s.validate().unwrap_err().to_string();
+    assert!(
+        e.contains("--phi has a single value") && e.contains("at least two"),
+        "{e}"
+    );
+    s.phi = vec![0.0, 90.0];
+    s.theta_r = vec![0.0];
+    let e = s.validate().unwrap_err().to_string();
+    assert!(e.contains("--theta-r has a single value"), "{e}");
+}
