@@ -216,3 +216,25 @@ fn simulate_refuses_a_one_point_detector_grid() {
     );
     assert!(!dir.path().join("one").exists());
 }
+
+#[test]
+fn simulate_help_shows_the_paths_default() {
+    let o = furfit().args(["simulate", "--help"]).output().unwrap();
+    let help = String::from_utf8_lossy(&o.stdout);
+    let line = help
+        .lines()
+        .find(|l| l.trim_start().starts_with("--paths"))
+        .unwrap_or_default();
+    assert!(line.contains("[default: 4000000]"), "{help}");
+    // The default does not count as giving --paths: --rel-noise alone is accepted, the
+    // two together are not.
+    let dir = tempfile::tempdir().unwrap();
+    let o = furfit()
+        .args(["simulate", "--params", "red-fox", "--rel-noise", "0.5"])
+        .args(["--paths", "1000", "--out"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cannot be used with"));
+}

@@ -23,8 +23,8 @@ pub struct Args {
     #[arg(long, default_value = "-180:180:2", allow_hyphen_values = true)]
     pub phi: String,
     /// Paths traced per incidence angle.
-    #[arg(long, conflicts_with = "rel_noise")]
-    pub paths: Option<u64>,
+    #[arg(long, default_value_t = 4_000_000, conflicts_with = "rel_noise")]
+    pub paths: u64,
     /// Instead of --paths: choose the path count (from a pilot run) so that the median
     /// relative standard error of bins above --noise-above x peak is this fraction.
     #[arg(long)]
@@ -144,7 +144,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         theta_i: parse_grid("--theta-i", &a.theta_i)?,
         theta_r: parse_grid("--theta-r", &a.theta_r)?,
         phi: parse_phi_grid("--phi", &a.phi)?,
-        paths: a.paths.unwrap_or(4_000_000),
+        paths: a.paths,
         seed: a.seed,
         ellipse: a.ellipse,
         medulla_eta: a.medulla_eta,
