@@ -238,3 +238,24 @@ fn simulate_help_shows_the_paths_default() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("cannot be used with"));
 }
+
+#[test]
+fn simulate_refuses_a_grid_above_the_sample_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = furfit()
+        .args(["simulate", "--params", "red-fox", "--theta-i", "0,15,30"])
+        .args(["--theta-r", "-90:90:0.01", "--phi", "-180:180:0.01"])
+        .args(["--paths", "1000", "--out"])
+        .arg(dir.path().join("big"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    // 3 x 18001 x 36000 (-180 and 180 are one direction), with the limit.
+    let limit = furfit::grid::MAX_GRID_SAMPLES.to_string();
+    assert!(
+        err.contains("1944108000 samples") && err.contains(&limit),
+        "{err}"
+    );
+    assert!(!dir.path().join("big").exists());
+}

@@ -136,6 +136,7 @@ impl SimSettings {
                 ));
             }
         }
+        crate::grid::check_grid_size(self.theta_i.len(), self.theta_r.len(), self.phi.len())?;
         if self.theta_i.iter().any(|x| x.abs() >= 90.0) {
             return bad("--theta-i must be inside (-90, 90) degrees".into());
         }

@@ -406,3 +406,14 @@ fn single_value_detector_axis_is_refused() {
     let e = s.validate().unwrap_err().to_string();
     assert!(e.contains("--theta-r has a single value"), "{e}");
 }
+
+/// The grid-size limit (crate::grid::MAX_GRID_SAMPLES) applies to theta_i x theta_r x phi.
+#[test]
+fn grid_size_is_limited() {
+    let p = FurParams::preset("red-fox").unwrap();
+    let mut s = settings(p, 0.0, 1000, false);
+    s.theta_r = crate::grid::parse_grid("t", "-90:90:0.01").unwrap();
+    s.phi = crate::grid::parse_grid("p", "-179.99:180:0.01").unwrap();
+    let e = s.validate().unwrap_err().to_string();
+    assert!(e.contains("1 x 18001 x 36000 = 648036000 samples"), "{e}");
+}
