@@ -62,7 +62,8 @@
 //!   standard error (`sigma`) comes from the per-path weights (sum and sum of squares).
 //! - **Determinism.** Paths are split into fixed chunks of [`CHUNK`] paths; chunk `c` of
 //!   incidence angle `i` has its own Xoshiro256++ stream seeded from `(seed, i, c)`. Chunks
-//!   run in parallel (rayon) and are summed in chunk order, so the output depends only on
+//!   run in parallel (rayon; as many at once as their bins' memory allows) and are summed
+//!   in chunk order, so the output depends only on
 //!   the seed and path count, not on the thread count.
 //!
 //! Measurement effects (noise models, detector floor, occluded wedge, dropped samples) are
@@ -376,6 +377,18 @@ fn run_chunk(fiber: &Fiber, det: &Detector, theta_i: f64, n: u64, seed: u64) -> 
     acc
 }
 
+/// Memory the detector accumulators of the chunks in flight may take (bytes).
+const ACCUM_BUDGET: usize = 512 << 20;
+
+/// How many chunks run at once: 4 per thread to balance the load, but no more than fit
+/// [`ACCUM_BUDGET`] (each holds two f64 per detector bin, so on a fine grid 4 per thread
+/// would need gigabytes), and at least 1. Sums are still taken in chunk order, so the
+/// output does not depend on it.
+fn chunks_in_flight(threads: usize, bins: usize) -> u64 {
+    let fit = ACCUM_BUDGET / (16 * bins.max(1));
+    (4 * threads.max(1)).min(fit).max(1) as u64
+}
+
 /// Run the virtual goniometer. `progress(done_paths)` is called after each batch of chunks
 /// (from the calling thread). Uses the current rayon pool.
 pub fn simulate(s: &SimSettings, mut progress: impl FnMut(u64)) -> Result<SimResult> {
@@ -384,7 +397,7 @@ pub fn simulate(s: &SimSettings, mut progress: impl FnMut(u64)) -> Result<SimRes
     let det = Detector::new(&s.theta_r, &s.phi);
     let nb = det.n_theta() * det.n_phi();
     let n_chunks = s.paths.div_ceil(CHUNK);
-    let batch = (4 * rayon::current_num_threads().max(1)) as u64;
+    let batch = chunks_in_flight(rayon::current_num_threads(), nb);
     let mut value = Vec::with_capacity(s.theta_i.len() * nb);
     let mut sigma = Vec::with_capacity(s.theta_i.len() * nb);
     let mut tally = Vec::new();

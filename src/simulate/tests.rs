@@ -417,3 +417,19 @@ fn grid_size_is_limited() {
     let e = s.validate().unwrap_err().to_string();
     assert!(e.contains("1 x 18001 x 36000 = 648036000 samples"), "{e}");
 }
+
+/// Few enough chunks in flight that their accumulators fit the budget, however fine the
+/// detector; 4 per thread on an ordinary grid.
+#[test]
+fn chunks_in_flight_bounded_by_memory() {
+    assert_eq!(chunks_in_flight(2, 81 * 90), 8);
+    assert_eq!(chunks_in_flight(0, 10), 4);
+    for (threads, bins) in [(64, 10_000_000), (2, 5_000_000), (8, 1_000_000)] {
+        let n = chunks_in_flight(threads, bins) as usize;
+        assert!(
+            n >= 1 && n * 16 * bins <= ACCUM_BUDGET.max(16 * bins),
+            "{n}"
+        );
+    }
+    assert_eq!(chunks_in_flight(64, 10_000_000), 3);
+}
