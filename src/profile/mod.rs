@@ -159,12 +159,17 @@ impl Format {
             "npz" => Ok(Format::Npz),
             "npy" => Ok(Format::Npy),
             "txt" | "dat" => Ok(Format::Yan),
-            _ => Err(Error::file(
-                path,
-                format!(
-                    "unknown profile format '.{ext}' (expected .csv, .npz, .npy, or Yan-2015 .txt/.dat)"
-                ),
-            )),
+            _ => {
+                let what = if ext.is_empty() {
+                    "no file extension to tell the profile format".to_string()
+                } else {
+                    format!("unknown profile format '.{ext}'")
+                };
+                Err(Error::file(
+                    path,
+                    format!("{what} (expected .csv, .npz, .npy, or Yan-2015 .txt/.dat)"),
+                ))
+            }
         }
     }
 
