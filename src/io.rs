@@ -24,34 +24,89 @@ where
 /// Write several files as one: every file goes to a temporary beside its target first, and
 /// only when all are written are they renamed into place, so a failure (a full disk, a
 /// directory in the way) leaves none of them new or half-written. A target that is an
-/// existing directory is refused before anything is written.
+/// existing directory is refused before anything is written; should a rename still fail
+/// after others succeeded, those are rolled back to their previous content (or removed if
+/// they are new).
 pub fn write_atomic_all(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    write_all_with(files, |from, to| std::fs::rename(from, to))
+}
+
+/// [`write_atomic_all`] with the rename of the commit phase given (tests inject failures).
+fn write_all_with(
+    files: &[(PathBuf, Vec<u8>)],
+    rename: impl Fn(&Path, &Path) -> std::io::Result<()>,
+) -> Result<()> {
     for (path, _) in files {
         if path.is_dir() {
             return Err(Error::file(path, "is a directory; nothing was written"));
         }
     }
-    let mut temps = Vec::with_capacity(files.len());
+    let mut temps: Vec<PathBuf> = Vec::with_capacity(files.len());
+    let remove_all = |paths: &[PathBuf]| {
+        for p in paths {
+            let _ = std::fs::remove_file(p);
+        }
+    };
     for (path, bytes) in files {
         match write_temp(path, |w| w.write_all(bytes)) {
             Ok(t) => temps.push(t),
             Err(e) => {
-                for t in &temps {
-                    let _ = std::fs::remove_file(t);
-                }
+                remove_all(&temps);
                 return Err(e);
             }
         }
     }
-    for (i, (tmp, (path, _))) in temps.iter().zip(files).enumerate() {
-        if let Err(e) = commit(tmp, path) {
-            for t in &temps[i + 1..] {
-                let _ = std::fs::remove_file(t);
+    // Backups of the targets that exist (hard links: no copy of the bytes), to roll back.
+    let mut backups: Vec<Option<PathBuf>> = Vec::with_capacity(files.len());
+    for (path, _) in files {
+        let b = if path.is_file() {
+            let b = sibling(path, "bak");
+            let _ = std::fs::remove_file(&b);
+            match std::fs::hard_link(path, &b).or_else(|_| std::fs::copy(path, &b).map(drop)) {
+                Ok(()) => Some(b),
+                Err(e) => {
+                    remove_all(&temps);
+                    remove_all(&backups.iter().flatten().cloned().collect::<Vec<_>>());
+                    return Err(Error::io(path, e));
+                }
             }
-            return Err(e);
+        } else {
+            None
+        };
+        backups.push(b);
+    }
+    for (i, (tmp, (path, _))) in temps.iter().zip(files).enumerate() {
+        if let Err(e) = rename(tmp, path) {
+            for (j, (p, _)) in files[..i].iter().enumerate() {
+                match &backups[j] {
+                    Some(b) => {
+                        let _ = std::fs::rename(b, p);
+                    }
+                    None => {
+                        let _ = std::fs::remove_file(p);
+                    }
+                }
+            }
+            remove_all(&temps[i..]);
+            remove_all(&backups[i..].iter().flatten().cloned().collect::<Vec<_>>());
+            return Err(Error::io(path, e));
         }
     }
+    remove_all(&backups.into_iter().flatten().collect::<Vec<_>>());
     Ok(())
+}
+
+/// A hidden file beside `path` for this process: `.<name>.<what>-<pid>`.
+fn sibling(path: &Path, what: &str) -> PathBuf {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    dir.join(format!(".{name}.{what}-{}", std::process::id()))
 }
 
 /// Fill a synced temporary file beside `path` (its directory created if needed) and return
@@ -65,12 +120,10 @@ where
         _ => PathBuf::from("."),
     };
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::file(path, "not a file path"))?
-        .to_string_lossy()
-        .into_owned();
-    let tmp = dir.join(format!(".{name}.tmp-{}", std::process::id()));
+    if path.file_name().is_none() {
+        return Err(Error::file(path, "not a file path"));
+    }
+    let tmp = sibling(path, "tmp");
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         fill(&mut f)?;
@@ -175,6 +228,39 @@ mod tests {
         write_atomic_all(&files).unwrap();
         assert_eq!(std::fs::read(&a).unwrap(), b"new a");
         assert_eq!(std::fs::read(dir.path().join("d/c.png")).unwrap(), b"c");
+    }
+
+    /// A rename failing after others succeeded: the files already renamed get their old
+    /// content back (or disappear if they were new), and no temporary or backup is left.
+    #[test]
+    fn group_write_rolls_back_a_failed_commit() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b, c) = (
+            dir.path().join("a.png"),
+            dir.path().join("b.png"),
+            dir.path().join("c.exr"),
+        );
+        write_atomic(&a, b"old a").unwrap();
+        let files = vec![
+            (a.clone(), b"new a".to_vec()),
+            (b.clone(), b"new b".to_vec()),
+            (c.clone(), b"new c".to_vec()),
+        ];
+        let r = write_all_with(&files, |from, to| {
+            if to == c.as_path() {
+                Err(std::io::Error::other("injected"))
+            } else {
+                std::fs::rename(from, to)
+            }
+        });
+        assert!(r.is_err());
+        assert_eq!(std::fs::read(&a).unwrap(), b"old a");
+        assert!(!b.exists() && !c.exists());
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name())
+            .collect();
+        assert_eq!(left, vec![std::ffi::OsString::from("a.png")]);
     }
 
     #[test]
