@@ -1275,6 +1275,16 @@ impl<'a> FarSlice<'a> {
                 s.iter_mut().for_each(|x| *x = 0.0);
                 for pc in &part.unsc[p] {
                     let (lo, hi) = pc.range();
+                    // The node form of a Phi piece, built once for both sides.
+                    let phi_swept = match (pc, &grid) {
+                        (Piece::Phi { lo, len, c, l0, l }, Some(g))
+                            if g.step <= SWEEP_MAX_STEP * beta =>
+                        {
+                            phi_nodes.clear();
+                            poly_gauss_nodes(c, *l0, *l, *lo, *len, beta, &mut phi_nodes)
+                        }
+                        _ => false,
+                    };
                     for sign in part.signs() {
                         // Candidates: mu = sign phi within the window of some image k,
                         // widened by WINDOW_SLACK so rounding cannot drop a phi that
@@ -1298,12 +1308,7 @@ impl<'a> FarSlice<'a> {
                             {
                                 Some((nodes.as_slice(), g))
                             }
-                            (Piece::Phi { lo, len, c, l0, l }, Some(g))
-                                if g.step <= SWEEP_MAX_STEP * beta && {
-                                    phi_nodes.clear();
-                                    poly_gauss_nodes(c, *l0, *l, *lo, *len, beta, &mut phi_nodes)
-                                } =>
-                            {
+                            (Piece::Phi { .. }, Some(g)) if phi_swept => {
                                 Some((phi_nodes.as_slice(), g))
                             }
                             _ => None,
