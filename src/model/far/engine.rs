@@ -1517,20 +1517,22 @@ impl<'a> FarSlice<'a> {
             return false;
         }
         let m = m.round() as i64;
+        let mut acc = rows.row_weights();
         for k in 0..2 {
             let pieces = &part.scat[k].psi;
             if pieces.is_empty() {
                 continue;
             }
             s.iter_mut().for_each(|x| *x = 0.0);
-            for pc in pieces {
-                // Direct side at psi0 = phi_q - phi_hi, mirrored at -phi_q - phi_hi.
-                for sign in part.signs() {
+            for sign in part.signs() {
+                // Direct side at psi0 = phi_q - phi_hi, mirrored at -phi_q - phi_hi; the
+                // pieces' weights are summed per table row, then read along the grid once.
+                acc.clear();
+                for pc in pieces {
                     let w = rows.weights(sign * g.first - pc.phi_hi, pc.len, &pc.g);
-                    for (q, x) in s.iter_mut().enumerate() {
-                        *x += rows.dot(pc.row, &w, sign as i64 * m * q as i64);
-                    }
+                    rows.accumulate(&mut acc, pc.row, &w);
                 }
+                rows.correlate(&acc, sign as i64 * m, s);
             }
             for (q, &i) in order.iter().enumerate() {
                 out[i].0[3 + k] += self.weight * s[q];
