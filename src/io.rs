@@ -28,6 +28,12 @@ where
 /// after others succeeded, those are rolled back to their previous content (or removed if
 /// they are new).
 pub fn write_atomic_all(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    for (i, (p, _)) in files.iter().enumerate() {
+        if files[..i].iter().any(|(q, _)| q == p) {
+            // Two writes to one path would share a temporary and a backup.
+            return Err(Error::file(p, "given twice in one group write"));
+        }
+    }
     write_all_with(files, |from, to| std::fs::rename(from, to))
 }
 
@@ -59,12 +65,16 @@ fn write_all_with(
     // Backups of the targets that exist (hard links: no copy of the bytes), to roll back.
     let mut backups: Vec<Option<PathBuf>> = Vec::with_capacity(files.len());
     for (path, _) in files {
-        let b = if path.is_file() {
+        // Anything but a directory (refused above) is backed up, a symlink included (a hard
+        // link to a symlink is the symlink itself on Linux).
+        let b = if path.symlink_metadata().is_ok() {
             let b = sibling(path, "bak");
             let _ = std::fs::remove_file(&b);
             match std::fs::hard_link(path, &b).or_else(|_| std::fs::copy(path, &b).map(drop)) {
                 Ok(()) => Some(b),
                 Err(e) => {
+                    // A copy may have failed half-way.
+                    let _ = std::fs::remove_file(&b);
                     remove_all(&temps);
                     remove_all(&backups.iter().flatten().cloned().collect::<Vec<_>>());
                     return Err(Error::io(path, e));

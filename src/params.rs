@@ -91,7 +91,6 @@ impl ParamSpec {
         lo && hi
     }
 
-    /// The bound as interval notation, e.g. `(1, 3]`.
     /// [`Self::bound_text`] followed by the unit, if the parameter has one.
     pub fn bound_with_unit(&self) -> String {
         if self.unit == "-" {
@@ -101,6 +100,7 @@ impl ParamSpec {
         }
     }
 
+    /// The bound as interval notation, e.g. `(1, 3]`.
     pub fn bound_text(&self) -> String {
         let up = if self.upper.is_infinite() {
             "inf".to_string()

@@ -243,33 +243,41 @@ fn fit_with_every_parameter_fixed() {
     assert_eq!(v["solver"]["termination"], "all parameters fixed");
 }
 
-/// The output must be a .json that is not one of the inputs; the input survives.
+/// The output must be a .json and may replace only an earlier fit: not a profile, not the
+/// species' metadata.json (the true parameters), which survive byte for byte.
 #[test]
-fn fit_refuses_to_overwrite_its_input() {
+fn fit_refuses_to_overwrite_data() {
     let tmp = tempfile::tempdir().unwrap();
     make_species(tmp.path(), "mouse");
     let input = tmp.path().join("measurements/mouse/profile.csv");
-    let before = std::fs::read(&input).unwrap();
+    let meta = tmp.path().join("measurements/mouse/metadata.json");
+    let (before, meta_before) = (
+        std::fs::read(&input).unwrap(),
+        std::fs::read(&meta).unwrap(),
+    );
     let o = fit_cmd(tmp.path())
         .arg("measurements/mouse/profile.csv")
         .args(["--out", "measurements/mouse/profile.csv"])
         .output()
         .unwrap();
-    fails_with(o, &["profile.csv", ".json"]);
+    fails_with(o, &["profile.csv", "must end in .json"]);
     let o = fit_cmd(tmp.path())
         .arg("measurements/mouse")
-        .args(["--out", "./measurements/mouse/../mouse/x.json"])
+        .args(["--out", "measurements/mouse/metadata.json"])
         .output()
         .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    std::fs::copy(&input, tmp.path().join("p.json")).unwrap();
-    let o = fit_cmd(tmp.path())
-        .arg("p.json")
-        .args(["--out", "p.json"])
-        .output()
-        .unwrap();
-    fails_with(o, &["p.json"]);
+    fails_with(o, &["metadata.json", "refusing"]);
     assert_eq!(std::fs::read(&input).unwrap(), before);
+    assert_eq!(std::fs::read(&meta).unwrap(), meta_before);
+    // An earlier fit is replaced.
+    for _ in 0..2 {
+        let o = fit_cmd(tmp.path())
+            .arg("measurements/mouse")
+            .args(["--out", "x.json"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
 }
 
 /// Too few samples for the unknowns, --weighted without sigmas, and a parameter fixed twice
@@ -328,18 +336,27 @@ fn fit_reads_a_lone_npy_with_axis_options() {
     fails_with(o, &["--theta-i"]);
     let o = fit_cmd(tmp.path())
         .args(["lone.npy", "--theta-i", "-20,20", "--theta-r", "-60:60:10"])
-        .args(["--phi", "-165:180:15", "--out", "lone.json"])
+        .args(["--phi", "-165:180:15", "--out", "fits/lone.json"])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("lone.json")).unwrap())
-            .unwrap();
+    let v: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(tmp.path().join("fits/lone.json")).unwrap(),
+    )
+    .unwrap();
     assert_eq!(
         v["data"]["load"]["theta_i"],
         serde_json::json!([-20.0, 20.0])
     );
     assert!(v["nrmse"].as_f64().unwrap() < 0.05, "{}", v["nrmse"]);
+    // The report reads lone.npy back with the recorded axes (without them it could not).
+    let o = furfit()
+        .current_dir(tmp.path())
+        .arg("report")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(tmp.path().join("reports/fig11_lone.png").exists());
 }
 
 /// A species whose profile cannot be read any more: `report` still writes what it can but

@@ -136,23 +136,24 @@ pub fn load_options_from_json(v: &Value) -> LoadOptions {
     }
 }
 
-/// Refuse an output path that is not a `.json` file or that is one of the input files:
-/// a fit must never overwrite the data it was fitted to.
-fn check_out(out: &Path, files: &[PathBuf]) -> Result<()> {
+/// Refuse an output path that is not a `.json` file, or that holds anything but an earlier
+/// fit (a species' `metadata.json` with the true parameters, a parameter file, a
+/// directory): a fit must never overwrite data. Inputs are profiles, never `.json`.
+fn check_out(out: &Path) -> Result<()> {
     if out.extension().and_then(|e| e.to_str()) != Some("json") {
         return Err(Error::file(out, "a fit file must end in .json"));
     }
     if out.is_dir() {
         return Err(Error::file(out, "is a directory, not a fit file path"));
     }
-    if let Ok(o) = out.canonicalize() {
-        for f in files {
-            if f.canonicalize().is_ok_and(|f| f == o) {
-                return Err(Error::file(
-                    out,
-                    "is one of the input profiles; refusing to overwrite it with the fit",
-                ));
-            }
+    if out.exists() {
+        let is_fit = crate::io::read_json(out)
+            .is_ok_and(|v| v.get("solver").is_some() && v.get("tool_version").is_some());
+        if !is_fit {
+            return Err(Error::file(
+                out,
+                "exists and is not a furfit fit file; refusing to overwrite it",
+            ));
         }
     }
     Ok(())
@@ -175,7 +176,7 @@ pub fn run_job(
     progress: Option<Progress>,
 ) -> Result<(Value, Vec<ChannelSummary>)> {
     let files = data_files(&job.inputs)?;
-    check_out(&job.out, &files)?;
+    check_out(&job.out)?;
     let prof = load_inputs(&job.inputs, load)?;
     let mut file_info = Vec::new();
     for f in &files {

@@ -159,7 +159,9 @@ pub struct FitOutcome {
     /// Model evaluations x samples (for throughput figures).
     pub sample_evaluations: u64,
     /// Estimated seconds inside the model: evaluations x the wall time of one evaluation
-    /// measured alone after the solve (fastest of three).
+    /// measured alone after the solve (fastest of three). An upper estimate: a
+    /// finite-difference column counts as a full evaluation though most recompute only the
+    /// terms their parameter changes.
     pub model_time_s: f64,
     pub starts_global: usize,
     pub starts_lm: usize,

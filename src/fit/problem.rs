@@ -181,11 +181,13 @@ impl ParamLayout {
         FurParams::from_array(a)
     }
 
-    /// Free coordinates of a full file-unit vector.
+    /// Free coordinates of a full file-unit vector, as a start point
+    /// ([`reparam::to_u_start`]: a value on or beyond a bounded range starts just inside
+    /// it, where the solver can still move it).
     pub fn to_u(&self, file: &[f64; N_PARAMS]) -> Vec<f64> {
         self.free()
             .into_iter()
-            .map(|id| reparam::to_u(id, file[id.index()]))
+            .map(|id| reparam::to_u_start(id, file[id.index()]))
             .collect()
     }
 }

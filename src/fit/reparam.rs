@@ -129,6 +129,21 @@ pub fn to_u(id: ParamId, v: f64) -> f64 {
     }
 }
 
+/// `|u|` of a start point on a bounded (sigmoid, tanh) map: `sigmoid(7)` = 1 - 9e-4, where
+/// `d value / d u` is still 9e-4 of the span. A start at the clamp `U_MAX` (a preset's 0,
+/// a `--init` beyond the fitter's g range, a value pinned at a bound by an earlier fit)
+/// has a derivative of ~1e-13 there and the solver could never move it.
+pub const U_START_MAX: f64 = 7.0;
+
+/// [`to_u`] for a start point: on bounded maps limited to `|u| <= U_START_MAX`.
+pub fn to_u_start(id: ParamId, v: f64) -> f64 {
+    let u = to_u(id, v);
+    match map_of(id) {
+        Map::Exp => u,
+        _ => u.clamp(-U_START_MAX, U_START_MAX),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -161,6 +176,11 @@ mod tests {
         assert_eq!(to_u(ParamId::G, -0.99), -U_MAX);
         assert_eq!(to_u(ParamId::Eta, 3.0), U_MAX);
         assert!(to_value(ParamId::G, U_MAX) > 0.949);
+        // As a start, the same values sit where the solver can still move them.
+        let u = to_u_start(ParamId::G, 0.97);
+        assert_eq!(u, U_START_MAX);
+        assert!(derivative(ParamId::G, u) > 1e-3);
+        assert_eq!(to_u_start(ParamId::SigmaCA, 2000.0), 2000f64.ln());
     }
 
     #[test]

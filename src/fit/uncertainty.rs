@@ -30,7 +30,7 @@ pub struct Uncertainty {
     pub free: Vec<ParamId>,
     /// Correlation matrix of the free parameters (in `u`; NaN where undefined).
     pub correlation: DMatrix<f64>,
-    /// Residual variance `s^2 = sum r^2 / (n - p)`.
+    /// Residual variance `s^2 = sum r^2 / (n - p - 1)` (`p` free parameters and the exposure).
     pub s2: f64,
 }
 
@@ -43,7 +43,8 @@ pub fn estimate(
 ) -> Uncertainty {
     let free = layout.free();
     let (n, p) = (jac.nrows(), jac.ncols());
-    let dof = n.saturating_sub(p).max(1) as f64;
+    // The exposure is solved too (in closed form): one more unknown than the columns.
+    let dof = n.saturating_sub(p + 1).max(1) as f64;
     let s2 = r.norm_squared() / dof;
     if p == 0 {
         // Every parameter fixed: nothing to estimate (and nalgebra's SVD refuses an empty
