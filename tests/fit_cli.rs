@@ -340,10 +340,9 @@ fn fit_reads_a_lone_npy_with_axis_options() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let v: serde_json::Value = serde_json::from_str(
-        &std::fs::read_to_string(tmp.path().join("fits/lone.json")).unwrap(),
-    )
-    .unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("fits/lone.json")).unwrap())
+            .unwrap();
     assert_eq!(
         v["data"]["load"]["theta_i"],
         serde_json::json!([-20.0, 20.0])
