@@ -48,7 +48,7 @@ fn write_all_with(
         }
     }
     let mut temps: Vec<PathBuf> = Vec::with_capacity(files.len());
-    let remove_all = |paths: &[PathBuf]| {
+    let remove_all = |paths: &mut dyn Iterator<Item = &PathBuf>| {
         for p in paths {
             let _ = std::fs::remove_file(p);
         }
@@ -57,7 +57,7 @@ fn write_all_with(
         match write_temp(path, |w| w.write_all(bytes)) {
             Ok(t) => temps.push(t),
             Err(e) => {
-                remove_all(&temps);
+                remove_all(&mut temps.iter());
                 return Err(e);
             }
         }
@@ -75,8 +75,7 @@ fn write_all_with(
                 Err(e) => {
                     // A copy may have failed half-way.
                     let _ = std::fs::remove_file(&b);
-                    remove_all(&temps);
-                    remove_all(&backups.iter().flatten().cloned().collect::<Vec<_>>());
+                    remove_all(&mut temps.iter().chain(backups.iter().flatten()));
                     return Err(Error::io(path, e));
                 }
             }
@@ -97,26 +96,29 @@ fn write_all_with(
                     }
                 }
             }
-            remove_all(&temps[i..]);
-            remove_all(&backups[i..].iter().flatten().cloned().collect::<Vec<_>>());
+            remove_all(&mut temps[i..].iter().chain(backups[i..].iter().flatten()));
             return Err(Error::io(path, e));
         }
     }
-    remove_all(&backups.into_iter().flatten().collect::<Vec<_>>());
+    remove_all(&mut backups.iter().flatten());
     Ok(())
+}
+
+/// The directory `path` is in (`.` for a bare file name).
+fn parent_dir(path: &Path) -> PathBuf {
+    match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+        _ => PathBuf::from("."),
+    }
 }
 
 /// A hidden file beside `path` for this process: `.<name>.<what>-<pid>`.
 fn sibling(path: &Path, what: &str) -> PathBuf {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    dir.join(format!(".{name}.{what}-{}", std::process::id()))
+    parent_dir(path).join(format!(".{name}.{what}-{}", std::process::id()))
 }
 
 /// Fill a synced temporary file beside `path` (its directory created if needed) and return
@@ -125,10 +127,7 @@ fn write_temp<F>(path: &Path, fill: F) -> Result<PathBuf>
 where
     F: FnOnce(&mut std::fs::File) -> std::io::Result<()>,
 {
-    let dir = match path.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-        _ => PathBuf::from("."),
-    };
+    let dir = parent_dir(path);
     std::fs::create_dir_all(&dir).map_err(|e| Error::io(&dir, e))?;
     if path.file_name().is_none() {
         return Err(Error::file(path, "not a file path"));

@@ -188,6 +188,7 @@ pub fn run_job(
     let primary = (0..n_ch)
         .find(|&c| name_of(c).eq_ignore_ascii_case("y"))
         .unwrap_or(0);
+    let load_json = load_options_json(load);
     let mut objs = Vec::new();
     let mut sums = Vec::new();
     for c in 0..n_ch {
@@ -208,7 +209,7 @@ pub fn run_job(
             n_invalid: n_all - n_valid,
             synthetic: prof.is_synthetic(),
             channel: name_of(c),
-            load: load_options_json(load),
+            load: load_json.clone(),
         };
         objs.push(fit_json(&out, opts, &info));
         sums.push(ChannelSummary {

@@ -174,6 +174,12 @@ impl std::ops::Index<Lobe> for LobeValues {
     }
 }
 
+/// Whether light can scatter in the medulla (`kappa > 0` and `sigma_m_s > 0`): only then
+/// do the scattered lobes and their medulla table slice exist.
+fn scatters(params: &FurParams) -> bool {
+    params.kappa > 0.0 && params.sigma_m_s > 0.0
+}
+
 /// The fur BCSDF for one parameter set, with everything that depends only on the
 /// parameters precomputed (the `tau`/`g` slice of the medulla tables).
 #[derive(Clone, Debug)]
@@ -193,7 +199,7 @@ impl FurModel {
 
     /// Build the model with the given medulla tables.
     pub fn with_tables(params: &FurParams, tables: &MedullaTables) -> FurModel {
-        let medulla = if params.kappa > 0.0 && params.sigma_m_s > 0.0 {
+        let medulla = if scatters(params) {
             Some(tables.slice(params.sigma_m_s * params.kappa, params.g))
         } else {
             None
@@ -207,7 +213,7 @@ impl FurModel {
     /// Where these parameters leave the shipped medulla tables' `(tau, g)` range
     /// ([`MedullaTables::domain_notes`]); empty when no scattered lobe exists.
     pub fn table_notes(params: &FurParams) -> Vec<String> {
-        if params.kappa > 0.0 && params.sigma_m_s > 0.0 {
+        if scatters(params) {
             MedullaTables::builtin().domain_notes(params.sigma_m_s * params.kappa, params.g)
         } else {
             Vec::new()
