@@ -25,8 +25,9 @@ use std::path::Path;
 const TABULATE_MIN_PHI: usize = 12;
 
 /// The far field of one `theta_d` at many `phi`, as grid prediction computes it: one
-/// slice (segmentation and fits), its scattered nodes' `C^N` tabulated when there are
-/// [`TABULATE_MIN_PHI`] or more `phi`, evaluated at all of them.
+/// slice (segmentation and fits), evaluated at all of them. Its scattered nodes' `C^N`
+/// is tabulated when there are [`TABULATE_MIN_PHI`] or more `phi`, unless the grid lets
+/// the slice read the table's rows along it ([`FarSlice::sweeps_table_rows`](crate::model::far::FarSlice::sweeps_table_rows)).
 pub fn far_many(
     az: &AzimuthalSlice,
     lobes: LobeSet,
@@ -34,7 +35,7 @@ pub fn far_many(
     phis: &[f64],
 ) -> Vec<LobeValues> {
     let mut slice = az.far_slice(lobes, opts);
-    if phis.len() >= TABULATE_MIN_PHI {
+    if phis.len() >= TABULATE_MIN_PHI && !slice.sweeps_table_rows(phis) {
         slice.tabulate_scattered();
     }
     slice.eval_many(phis)

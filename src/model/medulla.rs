@@ -764,10 +764,16 @@ impl MedullaSlice {
     /// Integral of [`Self::cn`] over `psi`: `P_s(tau, x) * integral shape`, exact for the
     /// floored piecewise-linear periodic rows (bin width times the node sum, lerped in `x`).
     pub fn scattered_fraction(&self, x: f64) -> f64 {
+        self.cn_mass(x) * self.scattered_probability(x)
+    }
+
+    /// The mass of `C^N` over `psi` at entry offset `x` (interpolated between the table's
+    /// rows): [`Self::scattered_fraction`] without the scattering probability.
+    pub fn cn_mass(&self, x: f64) -> f64 {
         let x = if x.is_nan() { 0.0 } else { x.clamp(-1.0, 1.0) };
         let (i, fi) = locate(&self.cn.axes[2], x.abs());
         let m = &self.nodes().cn_mass;
-        (m[i] + fi * (m[i + 1] - m[i])) * scatter_probability(self.tau, x)
+        m[i] + fi * (m[i + 1] - m[i])
     }
 
     /// The importance sampler of this slice (built on first use, then cached).
@@ -956,30 +962,69 @@ impl CnRows<'_> {
         acc.touched[i + 1] = true;
     }
 
+    /// Add `w C^N_shape(|x|, psi0 + shift d)` to `acc` as weights on the four row nodes
+    /// around `(|x|, psi0)`: the bilinear lerp of [`MedullaSlice::cn`] written as node
+    /// weights, so [`Self::correlate`] reads a point query along a grid with the pieces.
+    pub fn accumulate_point(&self, acc: &mut RowWeights, x: f64, psi0: f64, w: f64) {
+        let n = self.n;
+        let (i, t) = locate(self.x, x.abs());
+        let (k0, k1, f) = locate_periodic(self.c0, self.d, n, psi0);
+        for (r, wr) in [(i, w * (1.0 - t)), (i + 1, w * t)] {
+            acc.w[r * n + k0] += wr * (1.0 - f);
+            acc.w[r * n + k1] += wr * f;
+            acc.touched[r] = true;
+        }
+    }
+
     /// `out[q] += sum_rows sum_k acc[row][k] R_row[k + step q]` (indices modulo the bins):
     /// every accumulated piece at once, [`Self::dot`] summed over the pieces with `shift =
-    /// step q`, in one pass per touched row and `q` instead of one per piece.
+    /// step q`, in one pass per touched row instead of one per piece. Each row is laid out
+    /// once along the direction of `step` and unrolled past its period, so a weight reads
+    /// a strided run of it (contiguous for a one-bin step) with no wrap per point.
     pub fn correlate(&self, acc: &RowWeights, step: i64, out: &mut [f64]) {
         let n = self.n;
-        let mut nz: Vec<(usize, f64)> = Vec::new();
+        if out.is_empty() {
+            return;
+        }
+        let m = step.unsigned_abs() as usize % n;
+        let len = n + m * (out.len() - 1);
+        let mut period = vec![0.0; n];
+        let mut ext = vec![0.0; len];
         for (r, _) in acc.touched.iter().enumerate().filter(|(_, t)| **t) {
-            nz.clear();
-            nz.extend(
-                acc.w[r * n..(r + 1) * n]
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, w)| **w != 0.0)
-                    .map(|(k, &w)| (k, w)),
-            );
             let row = &self.v[r * n..(r + 1) * n];
-            for (q, o) in out.iter_mut().enumerate() {
-                let shift = (step * q as i64).rem_euclid(n as i64) as usize;
-                let mut s = 0.0;
-                for &(k, w) in &nz {
-                    let j = k + shift;
-                    s += w * row[if j >= n { j - n } else { j }];
+            // One period along the step's direction, R[j] (step >= 0) or R[-j] (step < 0)
+            // modulo n, repeated: then R[k + step q] = ext[start(k) + m q].
+            if step >= 0 {
+                period.copy_from_slice(row);
+            } else {
+                period[0] = row[0];
+                for (p, &v) in period[1..].iter_mut().zip(row[1..].iter().rev()) {
+                    *p = v;
                 }
-                *o += s;
+            }
+            for chunk in ext.chunks_mut(n) {
+                chunk.copy_from_slice(&period[..chunk.len()]);
+            }
+            for (k, &w) in acc.w[r * n..(r + 1) * n].iter().enumerate() {
+                if w == 0.0 {
+                    continue;
+                }
+                let start = if step >= 0 || k == 0 { k } else { n - k };
+                match m {
+                    // A whole number of periods per step: every point reads R[k].
+                    0 => out.iter_mut().for_each(|o| *o += w * row[k]),
+                    // Contiguous: vectorises.
+                    1 => {
+                        for (o, e) in out.iter_mut().zip(&ext[start..]) {
+                            *o += w * e;
+                        }
+                    }
+                    _ => {
+                        for (o, e) in out.iter_mut().zip(ext[start..].iter().step_by(m)) {
+                            *o += w * e;
+                        }
+                    }
+                }
             }
         }
     }
@@ -1517,7 +1562,7 @@ mod tests {
         let rows = s.cn_rows();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(47);
         let mut acc = rows.row_weights();
-        for step in [1i64, -1, 2, -3] {
+        for step in [1i64, -1, 2, -3, 0, 180, -90, 7] {
             acc.clear();
             let mut pieces = Vec::new();
             for _ in 0..30 {
@@ -1541,6 +1586,37 @@ mod tests {
                     (o - sum).abs() <= 1e-12 * scale,
                     "step {step} q {q}: {o} vs {sum}"
                 );
+            }
+        }
+    }
+
+    /// A point query as row weights ([`CnRows::accumulate_point`]) read along a grid by
+    /// [`CnRows::correlate`] equals the query itself at every grid point: the bilinear
+    /// lerp rewritten, so to rounding (1e-12 of the table's peak times the weight).
+    #[test]
+    fn accumulate_point_correlates_to_point_queries() {
+        let s = MedullaTables::builtin().slice(2.0, 0.6);
+        let rows = s.cn_rows();
+        let d = rows.bin_width();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(53);
+        let mut acc = rows.row_weights();
+        for step in [1i64, -1, 2, -3, 0] {
+            for _ in 0..40 {
+                acc.clear();
+                // Offsets include the end nodes and beyond (constant there).
+                let x: f64 = [0.0, 1.0, rng.random_range(0.0..1.0)][rng.random_range(0..3)];
+                let psi0: f64 = rng.random_range(-9.0..9.0);
+                let w: f64 = rng.random_range(0.1..3.0);
+                rows.accumulate_point(&mut acc, x, psi0, w);
+                let mut out = vec![0.0; 91];
+                rows.correlate(&acc, step, &mut out);
+                for (q, &o) in out.iter().enumerate() {
+                    let want = w * s.cn_shape_clamped(x, psi0 + (step * q as i64) as f64 * d);
+                    assert!(
+                        (o - want).abs() <= 1e-12 * w * rows.peak,
+                        "step {step} x {x} psi0 {psi0} q {q}: {o} vs {want}"
+                    );
+                }
             }
         }
     }

@@ -137,6 +137,9 @@ struct Node {
     dphis: [f64; 2],
     /// Scattered fraction at `x_med` (for the scattered-lobe error check).
     frac: f64,
+    /// Probability `P_s(tau, x_med)` of scattering in the medulla at all (kept so the
+    /// scattered builders do not recompute its `expm1` at every shared node).
+    prob: f64,
 }
 
 /// A fitted unscattered segment.
@@ -448,18 +451,20 @@ impl<'a> FarSlice<'a> {
         let mut node_cache: Vec<(Vec<Node>, Vec<Node>, Vec<Node>)> = Vec::new();
         let mut mass = [0.0f64; 5];
         for (_, _, mult, us, us_trt, us_s) in &plans {
-            let mk = |v: &Vec<f64>| -> Vec<Node> {
+            // The unscattered families' nodes skip the scattered values (they read only
+            // their own lobe's).
+            let mk = |v: &Vec<f64>, scattered: bool| -> Vec<Node> {
                 let mut out = Vec::with_capacity(2 * v.len());
                 for w in v.windows(2) {
-                    out.push(fs.node(w[0]));
-                    out.push(fs.node(0.5 * (w[0] + w[1])));
+                    out.push(fs.node_with(w[0], scattered));
+                    out.push(fs.node_with(0.5 * (w[0] + w[1]), scattered));
                 }
                 if let Some(&last) = v.last() {
-                    out.push(fs.node(last));
+                    out.push(fs.node_with(last, scattered));
                 }
                 out
             };
-            let (a, b, c) = (mk(us), mk(us_trt), mk(us_s));
+            let (a, b, c) = (mk(us, false), mk(us_trt, false), mk(us_s, true));
             if opts.tol.is_some() {
                 let fam = [
                     (&a, lobes.intersect(LobeSet::only(Lobe::R).with(Lobe::TT))),
@@ -565,6 +570,7 @@ impl<'a> FarSlice<'a> {
             phis: [0.0; 2],
             dphis: [0.0; 2],
             frac: 0.0,
+            prob: 0.0,
         };
         for p in 0..3 {
             n.phi[p] = azimuthal::phi_p(p, &geo);
@@ -596,11 +602,10 @@ impl<'a> FarSlice<'a> {
                 n.dphis[p - 1] = (2.0 * pf - 1.0) * cu / (az.eta_prime * ct) - 1.0;
             }
             n.x_med = azimuthal::medulla_offset(&geo, self.az.model.params.kappa);
-            n.frac = self
-                .az
-                .model
-                .medulla()
-                .map_or(0.0, |m| m.scattered_fraction(n.x_med));
+            if let Some(m) = self.az.model.medulla() {
+                n.prob = m.scattered_probability(n.x_med);
+                n.frac = m.cn_mass(n.x_med) * n.prob;
+            }
         }
         n
     }
@@ -645,7 +650,11 @@ impl<'a> FarSlice<'a> {
             .map(|k| (nodes[k], nodes[k + 1], nodes[k + 2], 0))
             .collect();
         while let Some((a, m, b, depth)) = stack.pop() {
-            let (q1, q3) = (self.node(0.5 * (a.u + m.u)), self.node(0.5 * (m.u + b.u)));
+            let scattered = set.intersect(LobeSet::SCATTERED) != LobeSet::NONE;
+            let (q1, q3) = (
+                self.node_with(0.5 * (a.u + m.u), scattered),
+                self.node_with(0.5 * (m.u + b.u), scattered),
+            );
             let mut done = true;
             for l in set.iter() {
                 let whole = simpson(&a, &m, &b, l);
@@ -698,7 +707,12 @@ impl<'a> FarSlice<'a> {
         let lo = ph.iter().cloned().fold(f64::INFINITY, f64::min);
         let hi = ph.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         let narrow = hi - lo <= GL_SPAN_SIGMAS * beta;
-        let quarter = |s: &Self| (s.node(0.5 * (n0.u + nm.u)), s.node(0.5 * (nm.u + n1.u)));
+        let quarter = |s: &Self| {
+            (
+                s.node_with(0.5 * (n0.u + nm.u), false),
+                s.node_with(0.5 * (nm.u + n1.u), false),
+            )
+        };
         if same_sign && dmin >= RATIO_MIN * dmax && hi > lo {
             // Phi-space fit, oriented so that x = Phi - lo increases.
             let mut nodes = [n0, nm, n1];
@@ -864,13 +878,13 @@ impl<'a> FarSlice<'a> {
             }
             if let Some(depth) = rf.split(depth) {
                 let (a1, a3) = (
-                    self.node(0.5 * (n0.u + q1.u)),
-                    self.node(0.5 * (q1.u + nm.u)),
+                    self.node_with(0.5 * (n0.u + q1.u), false),
+                    self.node_with(0.5 * (q1.u + nm.u), false),
                 );
                 self.build_narrow(p, n0, q1, nm, a1, a3, depth, rf, out);
                 let (b1, b3) = (
-                    self.node(0.5 * (nm.u + q3.u)),
-                    self.node(0.5 * (q3.u + n1.u)),
+                    self.node_with(0.5 * (nm.u + q3.u), false),
+                    self.node_with(0.5 * (q3.u + n1.u), false),
                 );
                 self.build_narrow(p, nm, q3, n1, b1, b3, depth, rf, out);
                 return;
@@ -1030,12 +1044,10 @@ impl<'a> FarSlice<'a> {
             }
             return;
         }
-        let med = self.az.model.medulla().expect("rows come from the medulla");
         let row = rows.row_at(nm.x_med);
         let phi_hi = n0.phis[k].max(n1.phis[k]);
         let dens = |n: &Node| -> (f64, [f64; 2]) {
-            let w =
-                n.pre[i] * med.scattered_probability(n.x_med) * n.lam[i].exp() / n.dphis[k].abs();
+            let w = n.pre[i] * n.prob * n.lam[i].exp() / n.dphis[k].abs();
             let t = rows.weight(row, n.x_med);
             (phi_hi - n.phis[k], [w, w * t])
         };
@@ -1149,16 +1161,10 @@ impl<'a> FarSlice<'a> {
                 }
             }
         }
-        let prob = |n: &Node| {
-            self.az
-                .model
-                .medulla()
-                .map_or(0.0, |m| m.scattered_probability(n.x_med))
-        };
         let pre_p = [
-            n0.pre[i] * prob(&n0),
-            nm.pre[i] * prob(&nm),
-            n1.pre[i] * prob(&n1),
+            n0.pre[i] * n0.prob,
+            nm.pre[i] * nm.prob,
+            n1.pre[i] * n1.prob,
         ];
         let mut w = [0.0; 3];
         for j in 0..3 {
@@ -1258,10 +1264,7 @@ impl<'a> FarSlice<'a> {
         if !self.cull {
             return phis.iter().map(|&phi| self.eval(phi)).collect();
         }
-        let wrapped: Vec<f64> = phis.iter().map(|&phi| wrap_angle(phi)).collect();
-        let mut order: Vec<usize> = (0..phis.len()).collect();
-        order.sort_by(|&a, &b| wrapped[a].total_cmp(&wrapped[b]).then(a.cmp(&b)));
-        let sorted: Vec<f64> = order.iter().map(|&i| wrapped[i]).collect();
+        let (wrapped, order, sorted) = sorted_phis(phis);
         let grid = UniformGrid::detect(&sorted);
         let mut out = vec![LobeValues::default(); phis.len()];
         // Per-lobe sums in sorted order (contiguous for the sweeps), added to `out` through
@@ -1367,12 +1370,13 @@ impl<'a> FarSlice<'a> {
                 }
             }
             match &grid {
+                Some(g) if self.row_steps(g).is_some() => {
+                    self.add_rows_sweep(part, g, &order, &mut s, &mut out);
+                }
                 Some(g) if self.scattered_tabulated(part) => {
                     self.add_scattered_sweep(part, g, &order, &mut s, &mut out);
-                    if !self.add_psi_sweep(part, g, &order, &mut s, &mut out) {
-                        for (o, &phi) in out.iter_mut().zip(&wrapped) {
-                            self.add_psi_pieces(part, phi, o);
-                        }
+                    for (o, &phi) in out.iter_mut().zip(&wrapped) {
+                        self.add_psi_pieces(part, phi, o);
                     }
                 }
                 _ => {
@@ -1385,6 +1389,15 @@ impl<'a> FarSlice<'a> {
         out.into_iter()
             .map(|v| clamp_dips(self.keep_lobes(v)))
             .collect()
+    }
+
+    /// Whether [`Self::eval_many`] at `phis` reads the scattered lobes along the medulla
+    /// table's rows ([`Self::add_rows_sweep`]: an evenly spaced grid whose step is a whole
+    /// number of `psi` bins), which needs no [`Self::tabulate_scattered`].
+    pub fn sweeps_table_rows(&self, phis: &[f64]) -> bool {
+        self.cull
+            && UniformGrid::detect(&sorted_phis(phis).2)
+                .is_some_and(|g| self.row_steps(&g).is_some())
     }
 
     /// The width `beta_p` of unscattered lobe `p` and the half-width of the window of
@@ -1496,49 +1509,68 @@ impl<'a> FarSlice<'a> {
         }
     }
 
-    /// [`Self::add_psi_pieces`] along an evenly spaced sorted grid whose step is a whole
-    /// number of `psi` bins (`out` indexed through `order`, `s` scratch of the grid's
-    /// length): a piece's integral is then one weighting of the row nodes, moved by that
-    /// number of bins per point ([`CnRows::weights`]), built once per piece and side.
-    /// Returns `false` (nothing added) when the step is not such a multiple.
-    fn add_psi_sweep(
+    /// The grid step in whole `psi` bins of the medulla table, when it is one (within
+    /// [`PSI_SWEEP_SLACK`]): the scattered lobes are then read along the grid by
+    /// [`Self::add_rows_sweep`].
+    fn row_steps(&self, g: &UniformGrid) -> Option<i64> {
+        let rows = self.cn_rows()?;
+        let m = g.step / rows.bin_width();
+        (m.round() >= 1.0 && (m - m.round()).abs() <= PSI_SWEEP_SLACK).then(|| m.round() as i64)
+    }
+
+    /// The scattered lobes of `part` ([`Self::add_scattered`]) along an evenly spaced
+    /// sorted grid whose step is `m` whole `psi` bins ([`Self::row_steps`]; `out` indexed
+    /// through `order`, `s` scratch of the grid's length). Moving along the grid moves
+    /// every table query by `m` bins, so each [`PsiPiece`] is one weighting of the row
+    /// nodes ([`CnRows::weights`]) and each quadrature node one bilinear weighting
+    /// ([`CnRows::accumulate_point`]); they are summed per row and read along the grid in
+    /// one pass per direction ([`CnRows::correlate`]). The direct side reads
+    /// `C^N(x, phi - Phi^s)`, the mirrored `C^N(-x, phi + Phi^s)`, and a query at a
+    /// negative offset reads the row of `|x|` at `-psi` ([`MedullaSlice::cn`]), which
+    /// reverses its direction along the grid.
+    fn add_rows_sweep(
         &self,
         part: &Part,
         g: &UniformGrid,
         order: &[usize],
         s: &mut [f64],
         out: &mut [LobeValues],
-    ) -> bool {
-        let Some(rows) = self.cn_rows() else {
-            return true;
+    ) {
+        let (Some(rows), Some(m)) = (self.cn_rows(), self.row_steps(g)) else {
+            return;
         };
-        let m = g.step / rows.bin_width();
-        if m.round() < 1.0 || (m - m.round()).abs() > PSI_SWEEP_SLACK {
-            return false;
-        }
-        let m = m.round() as i64;
-        let mut acc = rows.row_weights();
+        // Row weights read with steps +m and -m.
+        let mut acc = [rows.row_weights(), rows.row_weights()];
         for k in 0..2 {
-            let pieces = &part.scat[k].psi;
-            if pieces.is_empty() {
+            let sn = &part.scat[k];
+            if sn.psi.is_empty() && sn.nodes.is_empty() {
                 continue;
             }
-            s.iter_mut().for_each(|x| *x = 0.0);
+            acc.iter_mut().for_each(|a| a.clear());
             for sign in part.signs() {
-                // Direct side at psi0 = phi_q - phi_hi, mirrored at -phi_q - phi_hi; the
-                // pieces' weights are summed per table row, then read along the grid once.
-                acc.clear();
-                for pc in pieces {
+                // psi at the first grid point: phi - phi_hi (direct), -phi - phi_hi (mirror).
+                let a = &mut acc[(sign < 0.0) as usize];
+                for pc in &sn.psi {
                     let w = rows.weights(sign * g.first - pc.phi_hi, pc.len, &pc.g);
-                    rows.accumulate(&mut acc, pc.row, &w);
+                    rows.accumulate(a, pc.row, &w);
                 }
-                rows.correlate(&acc, sign as i64 * m, s);
+                for node in &sn.nodes {
+                    // The query's offset (the mirror's is -x, as in add_scattered) and
+                    // its psi = phi - sign Phi^s, read flipped at a negative offset.
+                    let x = sign * node.x_med;
+                    let dir = if x.is_sign_negative() { -1.0 } else { 1.0 };
+                    let psi0 = dir * (g.first - sign * node.phi);
+                    rows.accumulate_point(&mut acc[(dir < 0.0) as usize], x, psi0, node.w);
+                }
+            }
+            s.iter_mut().for_each(|x| *x = 0.0);
+            for (a, step) in acc.iter().zip([m, -m]) {
+                rows.correlate(a, step, s);
             }
             for (q, &i) in order.iter().enumerate() {
                 out[i].0[3 + k] += self.weight * s[q];
             }
         }
-        true
     }
 
     /// Whether every scattered node of `part` has its `C^N` profile tabulated.
@@ -1615,6 +1647,16 @@ fn hidden_mass_bound(dev: f64, nodes: [Node; 5], value: impl Fn(&Node) -> f64) -
     } else {
         0.0
     }
+}
+
+/// `phis` wrapped to `[-pi, pi]`, the order that sorts them (ties by index) and the sorted
+/// values.
+fn sorted_phis(phis: &[f64]) -> (Vec<f64>, Vec<usize>, Vec<f64>) {
+    let wrapped: Vec<f64> = phis.iter().map(|&phi| wrap_angle(phi)).collect();
+    let mut order: Vec<usize> = (0..phis.len()).collect();
+    order.sort_by(|&a, &b| wrapped[a].total_cmp(&wrapped[b]).then(a.cmp(&b)));
+    let sorted = order.iter().map(|&i| wrapped[i]).collect();
+    (wrapped, order, sorted)
 }
 
 /// `v` with negative rounding dips set to 0 (see [`FarSlice::eval`]).
@@ -1749,8 +1791,9 @@ impl UniformGrid {
 }
 
 /// How far (in bins) a grid step may be from a whole number of `psi` bins for
-/// [`FarSlice::add_psi_sweep`]: over 360 points the positions then drift by under 4e-7 of
-/// a bin, which moves a piece's integral by that fraction of its value at most.
+/// [`FarSlice::add_rows_sweep`]: over 360 points the positions then drift by under 4e-7 of
+/// a bin, which moves a piece's integral (or a node's query) by that fraction of its value
+/// at most.
 const PSI_SWEEP_SLACK: f64 = 1e-9;
 
 /// Slack (radians) of [`FarSlice::eval_many`]'s candidate windows: far above the rounding
