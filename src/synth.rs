@@ -19,26 +19,16 @@ use rayon::prelude::*;
 use std::collections::HashMap;
 use std::path::Path;
 
-/// Tabulate the medulla table per scattered node when a `theta_d` has at least this many
-/// `phi`: a node's profile (one rank dot product per psi bin) costs about as much as 60
-/// rank-sum queries, and each `phi` makes about five queries per node.
-const TABULATE_MIN_PHI: usize = 12;
-
 /// The far field of one `theta_d` at many `phi`, as grid prediction computes it: one
-/// slice (segmentation and fits), evaluated at all of them. Its scattered nodes' `C^N`
-/// is tabulated when there are [`TABULATE_MIN_PHI`] or more `phi`, unless the grid lets
-/// the slice read the table's rows along it ([`FarSlice::sweeps_table_rows`](crate::model::far::FarSlice::sweeps_table_rows)).
+/// slice (segmentation and fits), evaluated at all of them
+/// ([`FarSlice::eval_grid`](crate::model::far::FarSlice::eval_grid)).
 pub fn far_many(
     az: &AzimuthalSlice,
     lobes: LobeSet,
     opts: &FarOptions,
     phis: &[f64],
 ) -> Vec<LobeValues> {
-    let mut slice = az.far_slice(lobes, opts);
-    if phis.len() >= TABULATE_MIN_PHI && !slice.sweeps_table_rows(phis) {
-        slice.tabulate_scattered();
-    }
-    slice.eval_many(phis)
+    az.far_slice(lobes, opts).eval_grid(phis)
 }
 
 /// Which azimuthal integral a synthesized profile uses.

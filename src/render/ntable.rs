@@ -9,7 +9,7 @@
 //! `G_p(theta_d, h, phi) = integral_{-1}^{h} A_p(h') D_p(h', phi) dh'`
 //!
 //! on a grid, computed once per render with the model's analytic engine
-//! ([`FarSlice::range`] on each `h` cell, [`FarSlice::eval`] at each `phi` node). Then
+//! ([`FarSlice::range`] on each `h` cell, [`FarSlice::eval_grid`] at the `phi` nodes). Then
 //!
 //! * far field: `N_p(phi) = G_p(1) / 2` (exact at the `h` node `h = 1`);
 //! * multi-scale: `N_p^{[h1,h2]}(phi) = (G_p(h2) - G_p(h1)) / (h2 - h1)`.
@@ -87,6 +87,7 @@ impl FarTable {
         let n_phi = Self::phi_nodes(models[0].params.beta_n);
         let dh = 2.0 / N_H as f64;
         let per_theta = (N_H + 1) * n_phi;
+        let phis: Vec<f64> = (0..n_phi).map(|k| Self::phi_at(k, n_phi)).collect();
         let jobs: Vec<(usize, usize)> = (0..N_THETA)
             .flat_map(|t| (0..3).map(move |c| (t, c)))
             .collect();
@@ -100,10 +101,8 @@ impl FarTable {
                 let mut acc = vec![[0f64; 5]; n_phi];
                 for j in 0..N_H {
                     let (h1, h2) = (-1.0 + j as f64 * dh, -1.0 + (j + 1) as f64 * dh);
-                    let mut slice = FarSlice::range(&az, h1, h2, lobes, opts);
-                    slice.tabulate_scattered();
-                    for (k, a) in acc.iter_mut().enumerate() {
-                        let v = slice.eval(Self::phi_at(k, n_phi));
+                    let vals = FarSlice::range(&az, h1, h2, lobes, opts).eval_grid(&phis);
+                    for (k, (a, v)) in acc.iter_mut().zip(vals).enumerate() {
                         for l in 0..5 {
                             a[l] += dh * v.0[l];
                         }

@@ -1391,6 +1391,17 @@ impl<'a> FarSlice<'a> {
             .collect()
     }
 
+    /// [`Self::eval_many`] for a slice built to serve one grid of `phi` (grid synthesis,
+    /// the renderer's tables): tabulates the scattered nodes' `C^N` first when there are
+    /// [`TABULATE_MIN_PHI`] or more `phi` and the grid does not let the slice read the
+    /// table's rows along it ([`Self::sweeps_table_rows`]).
+    pub fn eval_grid(mut self, phis: &[f64]) -> Vec<LobeValues> {
+        if phis.len() >= TABULATE_MIN_PHI && !self.sweeps_table_rows(phis) {
+            self.tabulate_scattered();
+        }
+        self.eval_many(phis)
+    }
+
     /// Whether [`Self::eval_many`] at `phis` reads the scattered lobes along the medulla
     /// table's rows ([`Self::add_rows_sweep`]: an evenly spaced grid whose step is a whole
     /// number of `psi` bins), which needs no [`Self::tabulate_scattered`].
@@ -1795,6 +1806,11 @@ impl UniformGrid {
 /// a bin, which moves a piece's integral (or a node's query) by that fraction of its value
 /// at most.
 const PSI_SWEEP_SLACK: f64 = 1e-9;
+
+/// [`FarSlice::eval_grid`] tabulates the medulla table per scattered node from this many
+/// `phi` on: a node's profile (one rank dot product per psi bin) costs about as much as
+/// 60 rank-sum queries, and each `phi` makes about five queries per node.
+const TABULATE_MIN_PHI: usize = 12;
 
 /// Slack (radians) of [`FarSlice::eval_many`]'s candidate windows: far above the rounding
 /// of `lo - w - mu` (~1e-15) and far below any window width, so it only adds candidates
