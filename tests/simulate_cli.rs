@@ -259,3 +259,28 @@ fn simulate_refuses_a_grid_above_the_sample_limit() {
     );
     assert!(!dir.path().join("big").exists());
 }
+
+/// `--theta-i` takes a list in any order and drops repeats, as `synth` does (incidence
+/// angles are not detector bins, so they need not be sorted).
+#[test]
+fn simulate_theta_i_drops_repeats_in_any_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("dup");
+    let o = furfit()
+        .args(["simulate", "--params", "red-fox", "--theta-i", "30,0,0,-0"])
+        .args(["--theta-r", "-40:40:40", "--phi", "-180:180:90"])
+        .args(["--paths", "2000", "--threads", "1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = std::fs::read_to_string(out.join("profile.csv")).unwrap();
+    let rows: Vec<&str> = csv
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .skip(1)
+        .collect();
+    // 2 distinct theta_i x 3 theta_r x 4 phi.
+    assert_eq!(rows.len(), 2 * 3 * 4);
+    assert!(rows[0].starts_with("30,") && rows.last().unwrap().starts_with("0,"));
+}

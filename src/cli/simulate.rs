@@ -1,7 +1,7 @@
 //! `furfit simulate`: the virtual goniometer (Monte Carlo ray tracing through a 3-D double
 //! cylinder fiber) writing a synthetic profile (`.csv` or `.npz`) and `metadata.json`.
 
-use crate::grid::{parse_grid, parse_phi_grid};
+use crate::grid::{parse_grid, parse_phi_grid, parse_theta_grid};
 use crate::simulate::{self, measure, output, SimSettings};
 use crate::FurParams;
 use anyhow::{bail, Context};
@@ -141,7 +141,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     }
     let mut s = SimSettings {
         params,
-        theta_i: parse_grid("--theta-i", &a.theta_i)?,
+        theta_i: parse_theta_grid("--theta-i", &a.theta_i)?,
         theta_r: parse_grid("--theta-r", &a.theta_r)?,
         phi: parse_phi_grid("--phi", &a.phi)?,
         paths: a.paths,

@@ -122,9 +122,18 @@ impl SimSettings {
             if let Some(x) = v.iter().find(|x| x.abs() > lim) {
                 return bad(format!("{what}: {x} is outside [-{lim}, {lim}] degrees"));
             }
-            if v.windows(2).any(|w| w[1] <= w[0]) {
+            // Detector bins need sorted centres; incidence angles only need to be distinct.
+            if what != "--theta-i" && v.windows(2).any(|w| w[1] <= w[0]) {
                 return bad(format!("{what}: values must be strictly increasing"));
             }
+        }
+        let mut seen = std::collections::HashSet::new();
+        if let Some(x) = self
+            .theta_i
+            .iter()
+            .find(|x| !seen.insert((*x + 0.0).to_bits()))
+        {
+            return bad(format!("--theta-i: {x} is given twice"));
         }
         // A detector bin is as wide as the spacing of its axis's centres (bin_edges), so
         // one centre has no width of its own; refuse it rather than invent one.
