@@ -377,3 +377,42 @@ fn report_fails_when_a_part_is_skipped() {
     fails_with(o, &["skipped mouse", "profile.csv"]);
     assert!(tmp.path().join("reports/nrmse.md").exists());
 }
+
+/// A fit made from other files than `measurements/<species>/`: the report plots the data
+/// the fit recorded (so a broken `measurements/<species>/` does not stop its Fig. 11) and
+/// does not pair that fit with the folder's model-vs-simulation entry.
+#[test]
+fn report_uses_the_data_a_fit_recorded() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    std::fs::create_dir_all(root.join("lab")).unwrap();
+    let o = furfit()
+        .current_dir(root)
+        .args(["synth", "--params", "mouse", "--theta-i", "0,30"])
+        .args(["--theta-r", "-60:60:10", "--phi", "-165:180:15"])
+        .args(["--out", "lab/mouse.csv"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = fit_cmd(root)
+        .args(["lab/mouse.csv", "--out", "fits/mouse.json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
+    let row = mvs.lines().find(|l| l.starts_with("| mouse |")).unwrap();
+    assert!(row.contains("(no fit of this data)"), "{row}");
+    // Fig. 11 reads lab/mouse.csv: the species folder's profile may break without it
+    // being skipped (the model-vs-simulation entry, which reads the folder, is).
+    let prof = root.join("measurements/mouse/profile.csv");
+    let mut text = std::fs::read_to_string(&prof).unwrap();
+    text.push_str("0,0,0,not-a-number\n");
+    std::fs::write(&prof, text).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("fig11"), "{err}");
+    assert!(err.contains("model_vs_simulation"), "{err}");
+}

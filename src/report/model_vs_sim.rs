@@ -80,7 +80,7 @@ pub fn markdown(entries: &[Entry]) -> String {
          \"NRMSE at truth\" evaluates the far-field model (8/5 segments) at the TRUE \
          parameters with the optimal exposure: it is the model's own error against this \
          simulation, the floor no fit of the same parameterisation has to reach. \
-         \"NRMSE of fit\" is from `fits/<species>.json`.\n"
+         \"NRMSE of fit\" is from `fits/<species>.json` when that fit was made from this folder.\n"
     );
     if entries.is_empty() {
         s.push_str("No species folder with a metadata.json `params` object was found.\n");
@@ -99,7 +99,7 @@ pub fn markdown(entries: &[Entry]) -> String {
             e.fit
                 .as_ref()
                 .map(|f| format!("{:.2}%", 100.0 * f.nrmse))
-                .unwrap_or_else(|| "(no fit)".into())
+                .unwrap_or_else(|| "(no fit of this data)".into())
         );
     }
     for e in entries {

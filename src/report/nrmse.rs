@@ -104,6 +104,29 @@ impl FitFile {
             se,
         })
     }
+
+    /// Where the report reloads this fit's data: the files the fit recorded when they all
+    /// still exist (the data it was fitted to), else `measurements/<species>/`.
+    fn data_inputs(&self, measurements: &Path) -> Option<Vec<PathBuf>> {
+        if !self.files.is_empty() && self.files.iter().all(|p| p.is_file()) {
+            return Some(self.files.clone());
+        }
+        let dir = measurements.join(&self.species);
+        dir.is_dir().then(|| vec![dir])
+    }
+
+    /// Whether every file the fit recorded lies in `dir` (so its loader options apply to
+    /// `dir` and its NRMSE is comparable with one computed there).
+    fn fitted_from(&self, dir: &Path) -> bool {
+        let Ok(dir) = dir.canonicalize() else {
+            return false;
+        };
+        !self.files.is_empty()
+            && self
+                .files
+                .iter()
+                .all(|p| p.canonicalize().is_ok_and(|p| p.starts_with(&dir)))
+    }
 }
 
 /// Every `*.json` fit file in `dir`, sorted by file name.
@@ -300,8 +323,8 @@ pub struct ReportSummary {
 
 /// The entry point of the fit reports: `nrmse.{md,csv}`, `fig11_<species>.{png,svg}`,
 /// `fit_error_vs_time.{csv,png,svg}` and `model_vs_simulation.md` from the fit files in
-/// `fits_dir` and the profiles in `measurements` (a species' profile is read from
-/// `measurements/<species>/` when it exists, else from the files its fit recorded).
+/// `fits_dir` and the profiles in `measurements` (a fit's Fig-11 data is read from the
+/// files it recorded when they exist, else from `measurements/<species>/`).
 pub fn write_fit_reports(
     fits_dir: &Path,
     measurements: &Path,
@@ -319,13 +342,12 @@ pub fn write_fit_reports(
             .push(out.join(format!("fit_error_vs_time.{ext}")));
     }
     for f in &fits {
-        let dir = measurements.join(&f.species);
-        let prof = if dir.is_dir() {
-            crate::fit::job::load_inputs(&[dir], &f.load)
-        } else if !f.files.is_empty() {
-            crate::fit::job::load_inputs(&f.files, &f.load)
-        } else {
-            Err(Error::Invalid("no profile recorded".into()))
+        let prof = match f.data_inputs(measurements) {
+            Some(inputs) => crate::fit::job::load_inputs(&inputs, &f.load),
+            None => Err(Error::Invalid(format!(
+                "its recorded data files are missing and there is no {}",
+                measurements.join(&f.species).display()
+            ))),
         };
         match prof.and_then(|p| fig11::write(f, &p, out)) {
             Ok(paths) => sum.written.extend(paths),
@@ -351,7 +373,12 @@ pub fn write_fit_reports(
                     continue;
                 }
             };
-            let fit = fits.iter().find(|f| f.species == species).cloned();
+            // A fit of other data (its own files) has other loader options and an NRMSE
+            // that is not comparable: listed without it.
+            let fit = fits
+                .iter()
+                .find(|f| f.species == species && f.fitted_from(&d))
+                .cloned();
             let load = fit.as_ref().map(|f| f.load.clone()).unwrap_or_default();
             let prof = match crate::fit::job::load_inputs(std::slice::from_ref(&d), &load) {
                 Ok(p) => p,
