@@ -521,3 +521,19 @@ fn npz_empty_channel_name() {
         "{msg}"
     );
 }
+
+/// Two channels with one name are ambiguous (`--channel` and the fit file name a channel
+/// by its name): refused, naming both entries.
+#[test]
+fn npz_repeated_channel_name() {
+    let mut e = axes();
+    e.push(("value.npy", value(&[2, 3, 4, 2])));
+    let meta = br#"{"channels": ["r", "r"]}"#.to_vec();
+    e.push(("meta_json.npy", npy_bytes(&Array1::from(meta))));
+    let msg = npz_err(&e);
+    assert!(
+        msg.contains("bad.npz: array 'meta_json'")
+            && msg.contains("channels[1] 'r' repeats channels[0]"),
+        "{msg}"
+    );
+}

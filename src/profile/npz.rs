@@ -395,6 +395,13 @@ fn grid_to_profile(
     for (k, name) in meta.channels.iter().enumerate() {
         check_channel_name(name)
             .map_err(|m| arr_err(path, "meta_json", format!("channels[{k}]: {m}")))?;
+        if let Some(j) = meta.channels[..k].iter().position(|c| c == name) {
+            return Err(arr_err(
+                path,
+                "meta_json",
+                format!("channels[{k}] '{name}' repeats channels[{j}]"),
+            ));
+        }
     }
     let channels = if shape.len() == 4 {
         if meta.channels.is_empty() {
