@@ -104,6 +104,43 @@ fn write_all_with(
     Ok(())
 }
 
+/// Check, before any work, that the directory `dir` exists or can be created: every
+/// existing ancestor must be a directory. Long jobs call this (and [`check_out_file`])
+/// first, so a bad `--out` fails at once instead of after the computation.
+pub fn check_out_dir(dir: &Path) -> Result<()> {
+    for a in dir.ancestors().filter(|a| !a.as_os_str().is_empty()) {
+        match std::fs::metadata(a) {
+            Ok(m) if m.is_dir() => return Ok(()),
+            Ok(_) => {
+                return Err(Error::file(
+                    dir,
+                    format!("cannot write here: {} is not a directory", a.display()),
+                ))
+            }
+            // Not found, or below a file (ENOTDIR): the ancestor in the way decides.
+            Err(e)
+                if matches!(
+                    e.kind(),
+                    std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+                ) =>
+            {
+                continue
+            }
+            Err(e) => return Err(Error::io(a, e)),
+        }
+    }
+    Ok(())
+}
+
+/// [`check_out_dir`] for the directory of the file `path`, which must not itself be a
+/// directory.
+pub fn check_out_file(path: &Path) -> Result<()> {
+    if path.is_dir() {
+        return Err(Error::file(path, "is a directory, expected a file path"));
+    }
+    check_out_dir(&parent_dir(path))
+}
+
 /// The directory `path` is in (`.` for a bare file name).
 fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
@@ -183,6 +220,22 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn out_checks_name_the_file_in_the_way() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = dir.path().join("regular");
+        std::fs::write(&file, b"x").unwrap();
+        assert!(check_out_dir(&dir.path().join("new/deeper")).is_ok());
+        assert!(check_out_dir(Path::new("relative-not-yet")).is_ok());
+        let e = check_out_dir(&file.join("x")).unwrap_err().to_string();
+        assert!(e.contains("regular is not a directory"), "{e}");
+        let e = check_out_file(&file.join("a.png")).unwrap_err().to_string();
+        assert!(e.contains("regular is not a directory"), "{e}");
+        let e = check_out_file(dir.path()).unwrap_err().to_string();
+        assert!(e.contains("is a directory"), "{e}");
+        assert!(check_out_file(&dir.path().join("a.png")).is_ok());
+    }
 
     #[test]
     fn atomic_write_replaces_whole_file() {
