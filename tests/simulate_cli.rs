@@ -130,8 +130,9 @@ fn tiny_run(out: &std::path::Path, extra: &[&str]) -> std::process::Output {
 fn simulate_file_extension_picks_the_format() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("sim");
-    for name in ["p.csv", "p.npz"] {
-        let o = tiny_run(&out, &["--file", name]);
+    // The second run replaces the first one's metadata.json: --force.
+    for args in [&["--file", "p.csv"][..], &["--file", "p.npz", "--force"]] {
+        let o = tiny_run(&out, args);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     let opts = furfit::profile::LoadOptions::default();
@@ -283,4 +284,37 @@ fn simulate_theta_i_drops_repeats_in_any_order() {
     // 2 distinct theta_i x 3 theta_r x 4 phi.
     assert_eq!(rows.len(), 2 * 3 * 4);
     assert!(rows[0].starts_with("30,") && rows.last().unwrap().starts_with("0,"));
+}
+
+/// An existing profile or metadata.json is replaced only with --force, and only when the
+/// folder's metadata.json records an earlier furfit simulate run: lab data is never lost.
+#[test]
+fn simulate_replaces_only_its_own_earlier_output_and_only_with_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("sim");
+    assert!(tiny_run(&out, &[]).status.success());
+    let first = std::fs::read(out.join("profile.csv")).unwrap();
+    let o = tiny_run(&out, &["--seed", "9"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success() && err.contains("--force"), "{err}");
+    assert_eq!(std::fs::read(out.join("profile.csv")).unwrap(), first);
+    let o = tiny_run(&out, &["--seed", "9", "--force"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_ne!(std::fs::read(out.join("profile.csv")).unwrap(), first);
+
+    // A lab folder: a profile with no simulate record beside it.
+    let lab = dir.path().join("lab");
+    std::fs::create_dir_all(&lab).unwrap();
+    let measured = "# source: lab goniometer\ntheta_i,theta_r,phi,value\n0,0,0,1\n";
+    std::fs::write(lab.join("profile.csv"), measured).unwrap();
+    for extra in [&[][..], &["--force"]] {
+        let o = tiny_run(&lab, extra);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains("profile.csv"), "{err}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(lab.join("profile.csv")).unwrap(),
+        measured
+    );
+    assert!(!lab.join("metadata.json").exists());
 }

@@ -70,6 +70,11 @@ pub struct Args {
     /// the format.
     #[arg(long, default_value = "profile.csv")]
     pub file: String,
+    /// Replace the profile and metadata.json of an earlier furfit simulation in --out
+    /// (without it, existing files are never replaced; files not written by furfit simulate
+    /// are not replaced even with it).
+    #[arg(long)]
+    pub force: bool,
     /// Species label for the metadata (default: the preset name, if --params is one).
     #[arg(long)]
     pub species: Option<String>,
@@ -118,6 +123,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     let out = a.out.clone().unwrap_or_default();
     // Before the simulation: a bad name should not cost a run.
     output::check_file_name(&a.file)?;
+    output::check_replace(&out, &a.file, a.force)?;
     let (params, _exposure) = FurParams::load(&spec)?;
     let species = a
         .species

@@ -14,7 +14,7 @@ use super::measure::Measured;
 use super::SimResult;
 use crate::error::{Error, Result};
 use crate::profile::{self, Profile, Sample};
-use std::path::{Component, Path};
+use std::path::{Component, Path, PathBuf};
 
 /// `x` rounded to `digits` significant digits.
 fn round_sig(x: f64, digits: usize) -> f64 {
@@ -75,6 +75,46 @@ pub fn check_file_name(name: &str) -> Result<()> {
         )));
     }
     profile::save_format(p).map_err(|e| Error::Invalid(format!("--file {e}")))?;
+    Ok(())
+}
+
+/// Check before any work that writing `dir/file_name` and `dir/metadata.json` loses
+/// nothing: where either exists, `force` must be given and `dir/metadata.json` must record
+/// an earlier `furfit simulate` run (its `command`), so a lab profile or a hand-written
+/// metadata file is never replaced, not even with `--force`.
+pub fn check_replace(dir: &Path, file_name: &str, force: bool) -> Result<()> {
+    crate::io::check_out_dir(dir)?;
+    let meta = dir.join("metadata.json");
+    let existing: Vec<PathBuf> = [dir.join(file_name), meta.clone()]
+        .into_iter()
+        .filter(|p| p.exists())
+        .collect();
+    let Some(first) = existing.first() else {
+        return Ok(());
+    };
+    if !force {
+        return Err(Error::file(
+            first,
+            "exists; simulate would replace it (give --force to replace an earlier furfit              simulation, or choose another --out)",
+        ));
+    }
+    let simulated = crate::io::read_json(&meta)
+        .ok()
+        .and_then(|v| {
+            v["command"]
+                .as_str()
+                .map(|c| c.starts_with("furfit simulate"))
+        })
+        .unwrap_or(false);
+    if !simulated {
+        return Err(Error::file(
+            first,
+            format!(
+                "exists and {} does not record a furfit simulate run: not replaced, even with                  --force (move it away first)",
+                meta.display()
+            ),
+        ));
+    }
     Ok(())
 }
 
