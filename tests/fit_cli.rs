@@ -416,3 +416,38 @@ fn report_uses_the_data_a_fit_recorded() {
     assert!(!err.contains("fig11"), "{err}");
     assert!(err.contains("model_vs_simulation"), "{err}");
 }
+
+/// The report checks the data against the SHA-256 digests the fit recorded: changed data,
+/// or a species folder standing in for missing files with other data, is not plotted
+/// under the fit (the report names it and fails).
+#[test]
+fn report_refuses_data_that_changed_since_the_fit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    std::fs::create_dir_all(root.join("lab")).unwrap();
+    let o = furfit()
+        .current_dir(root)
+        .args(["synth", "--params", "mouse", "--theta-i", "0,30"])
+        .args(["--theta-r", "-60:60:10", "--phi", "-165:180:15"])
+        .args(["--out", "lab/mouse.csv"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = fit_cmd(root)
+        .args(["lab/mouse.csv", "--out", "fits/mouse.json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // Edited after the fit (one more valid row): refused.
+    let lab = root.join("lab/mouse.csv");
+    let mut text = std::fs::read_to_string(&lab).unwrap();
+    text.push_str("30,65,0,0.5\n");
+    std::fs::write(&lab, text).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    fails_with(o, &["fig11", "lab/mouse.csv", "SHA-256"]);
+    // Gone: measurements/mouse/ holds other data (theta_i -20, 20), so refused too.
+    std::fs::remove_file(&lab).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    fails_with(o, &["fig11", "measurements/mouse", "SHA-256"]);
+}

@@ -22,6 +22,8 @@ pub struct FitFile {
     pub synthetic: bool,
     /// Data files recorded in the fit (paths as given to `furfit fit`).
     pub files: Vec<PathBuf>,
+    /// Their SHA-256 digests as recorded (empty in fit files that did not record them).
+    pub sha256: Vec<String>,
     /// Loader options the fit read them with (`data.load`).
     pub load: crate::profile::LoadOptions,
     /// Channel name fitted at the top level ("" for a single channel).
@@ -53,14 +55,18 @@ impl FitFile {
         let nrmse = v["nrmse"]
             .as_f64()
             .ok_or_else(|| Error::file(path, "fit file has no numeric 'nrmse'"))?;
-        let files = v["data"]["files"]
-            .as_array()
-            .map(|a| {
-                a.iter()
-                    .filter_map(|f| f["path"].as_str().map(PathBuf::from))
-                    .collect()
-            })
-            .unwrap_or_default();
+        let recorded = |key: &str| -> Vec<String> {
+            v["data"]["files"]
+                .as_array()
+                .map(|a| {
+                    a.iter()
+                        .filter_map(|f| f[key].as_str().map(str::to_string))
+                        .collect()
+                })
+                .unwrap_or_default()
+        };
+        let files = recorded("path").into_iter().map(PathBuf::from).collect();
+        let sha256 = recorded("sha256");
         let trace = v["trace"]
             .as_array()
             .map(|a| {
@@ -96,6 +102,7 @@ impl FitFile {
             nrmse,
             synthetic: v["data"]["synthetic"].as_bool().unwrap_or(false),
             files,
+            sha256,
             load: crate::fit::job::load_options_from_json(&v["data"]["load"]),
             channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
             trace,
@@ -106,13 +113,46 @@ impl FitFile {
     }
 
     /// Where the report reloads this fit's data: the files the fit recorded when they all
-    /// still exist (the data it was fitted to), else `measurements/<species>/`.
-    fn data_inputs(&self, measurements: &Path) -> Option<Vec<PathBuf>> {
-        if !self.files.is_empty() && self.files.iter().all(|p| p.is_file()) {
-            return Some(self.files.clone());
+    /// still exist, else `measurements/<species>/`; either only if its files have the
+    /// recorded SHA-256 digests, so a figure never shows a fit over other data than it was
+    /// fitted to (fit files without digests are taken on trust).
+    fn data_inputs(&self, measurements: &Path) -> Result<Vec<PathBuf>> {
+        let (inputs, files) = if !self.files.is_empty() && self.files.iter().all(|p| p.is_file()) {
+            (self.files.clone(), self.files.clone())
+        } else {
+            let dir = measurements.join(&self.species);
+            if !dir.is_dir() {
+                return Err(Error::Invalid(format!(
+                    "its recorded data files are missing and there is no {}",
+                    dir.display()
+                )));
+            }
+            let files = crate::fit::job::data_files(std::slice::from_ref(&dir))?;
+            (vec![dir], files)
+        };
+        if self.sha256.len() == self.files.len() && !self.sha256.is_empty() {
+            let mut have = Vec::new();
+            for f in &files {
+                let bytes = std::fs::read(f).map_err(|e| Error::io(f, e))?;
+                have.push(crate::io::sha256_hex(&bytes));
+            }
+            let (mut a, mut b) = (have, self.sha256.clone());
+            a.sort();
+            b.sort();
+            if a != b {
+                let what = inputs
+                    .iter()
+                    .map(|p| p.display().to_string())
+                    .collect::<Vec<_>>()
+                    .join(", ");
+                return Err(Error::Invalid(format!(
+                    "{what} does not hold the data this fit was made from (SHA-256 differs \
+                     from {}); refit or restore the data",
+                    self.path.display()
+                )));
+            }
         }
-        let dir = measurements.join(&self.species);
-        dir.is_dir().then(|| vec![dir])
+        Ok(inputs)
     }
 
     /// Whether every file the fit recorded lies in `dir` (so its loader options apply to
@@ -342,13 +382,9 @@ pub fn write_fit_reports(
             .push(out.join(format!("fit_error_vs_time.{ext}")));
     }
     for f in &fits {
-        let prof = match f.data_inputs(measurements) {
-            Some(inputs) => crate::fit::job::load_inputs(&inputs, &f.load),
-            None => Err(Error::Invalid(format!(
-                "its recorded data files are missing and there is no {}",
-                measurements.join(&f.species).display()
-            ))),
-        };
+        let prof = f
+            .data_inputs(measurements)
+            .and_then(|inputs| crate::fit::job::load_inputs(&inputs, &f.load));
         match prof.and_then(|p| fig11::write(f, &p, out)) {
             Ok(paths) => sum.written.extend(paths),
             Err(e) => sum.skipped.push((f.species.clone(), format!("fig11: {e}"))),
