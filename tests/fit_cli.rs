@@ -451,3 +451,25 @@ fn report_refuses_data_that_changed_since_the_fit() {
     let o = furfit().current_dir(root).arg("report").output().unwrap();
     fails_with(o, &["fig11", "measurements/mouse", "SHA-256"]);
 }
+
+/// Two fits of one species (`mouse.json`, `mouse-v2.json`) get their own figures and
+/// table columns, named by their files.
+#[test]
+fn report_keeps_two_fits_of_one_species_apart() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    fit(root, "mouse", "fits/mouse.json", "1");
+    fit(root, "mouse", "fits/mouse-v2.json", "2");
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["fig11_mouse.png", "fig11_mouse-v2.png"] {
+        assert!(root.join("reports").join(f).exists(), "{f}");
+    }
+    let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
+    let head = md.lines().find(|l| l.starts_with("| parameter |")).unwrap();
+    assert!(
+        head.contains(" mouse |") && head.contains(" mouse-v2 |"),
+        "{head}"
+    );
+}

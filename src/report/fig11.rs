@@ -1,4 +1,4 @@
-//! Per-species seed-Fig.-11-style figure (`reports/fig11_<species>.{png,svg}`): for each
+//! Per-species seed-Fig.-11-style figure (`reports/fig11_<fit file stem>.{png,svg}`): for each
 //! incident angle (rows) the measured profile, the fitted profile and the log residual as
 //! `theta_r x phi` heat maps, measured and fitted on ONE log colour scale, plus the
 //! per-lobe contributions of the fit (R, TT, TRT, TTs, TRTs, times the exposure) along
@@ -374,7 +374,7 @@ fn draw<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Write `fig11_<species>.png` and `.svg` into `out` for this fit and profile.
+/// Write `fig11_<label>.png` and `.svg` into `out` for this fit and profile ([`FitFile::label`]).
 pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::path::PathBuf>> {
     ensure_font();
     let channel = profile
@@ -393,13 +393,14 @@ pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::pa
     let h = 40 + 300 * sls.len() as u32;
     let size = (1600u32, h);
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
-    let png = out.join(format!("fig11_{}.png", fit.species));
-    let svg = out.join(format!("fig11_{}.svg", fit.species));
+    let name = fit.label();
+    let png = out.join(format!("fig11_{name}.png"));
+    let svg = out.join(format!("fig11_{name}.svg"));
     // Render to temporaries, then move into place atomically.
-    let tmp_png = out.join(format!(".fig11_{}.tmp.png", fit.species));
+    let tmp_png = out.join(format!(".fig11_{name}.tmp.png"));
     {
         let root = BitMapBackend::new(&tmp_png, size).into_drawing_area();
-        draw(root, &fit.species, &sls, fit.nrmse, fit.synthetic).map_err(plot_err(&png))?;
+        draw(root, &name, &sls, fit.nrmse, fit.synthetic).map_err(plot_err(&png))?;
     }
     let bytes = std::fs::read(&tmp_png).map_err(|e| Error::io(&tmp_png, e))?;
     let _ = std::fs::remove_file(&tmp_png);
@@ -407,7 +408,7 @@ pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::pa
     let mut svg_text = String::new();
     {
         let root = SVGBackend::with_string(&mut svg_text, size).into_drawing_area();
-        draw(root, &fit.species, &sls, fit.nrmse, fit.synthetic).map_err(plot_err(&svg))?;
+        draw(root, &name, &sls, fit.nrmse, fit.synthetic).map_err(plot_err(&svg))?;
     }
     crate::io::write_atomic(&svg, svg_text.as_bytes())?;
     Ok(vec![png, svg])

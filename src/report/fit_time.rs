@@ -16,7 +16,7 @@ pub fn csv(fits: &[FitFile]) -> String {
     let mut s = String::from("species,stage,iter,time_s,nrmse\n");
     for f in fits {
         for (stage, it, t, e) in &f.trace {
-            let _ = writeln!(s, "{},{stage},{it},{t},{e}", f.species);
+            let _ = writeln!(s, "{},{stage},{it},{t},{e}", f.label());
         }
     }
     s
@@ -83,7 +83,7 @@ fn draw<DB: DrawingBackend>(
                 .filter(|(x, y)| x.is_finite() && good(*y))
                 .collect();
             ch.draw_series(LineSeries::new(pts.clone(), c.stroke_width(2)))?
-                .label(f.species.clone())
+                .label(f.label())
                 .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], c));
             ch.draw_series(pts.into_iter().map(|p| Circle::new(p, 2, c.filled())))?;
         }

@@ -112,6 +112,16 @@ impl FitFile {
         })
     }
 
+    /// The name the reports give this fit: its file's stem (the species for
+    /// `fits/<species>.json`), so two fits of one species (`red-fox.json`,
+    /// `red-fox-v2.json`) get their own columns and figures.
+    pub fn label(&self) -> String {
+        self.path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_else(|| self.species.clone())
+    }
+
     /// Where the report reloads this fit's data: the files the fit recorded when they all
     /// still exist, else `measurements/<species>/`; either only if its files have the
     /// recorded SHA-256 digests, so a figure never shows a fit over other data than it was
@@ -280,7 +290,7 @@ pub fn markdown(fits: &[FitFile]) -> String {
     );
     let _ = write!(s, "| parameter | unit |");
     for f in fits {
-        let _ = write!(s, " {} |", f.species);
+        let _ = write!(s, " {} |", f.label());
     }
     let _ = write!(s, "\n|---|---|");
     for _ in fits {
@@ -302,7 +312,7 @@ pub fn csv(fits: &[FitFile]) -> String {
     let mut s = String::from("row,unit");
     for f in fits {
         s.push(',');
-        s.push_str(&f.species);
+        s.push_str(&f.label());
     }
     s.push('\n');
     for id in ParamId::ALL {
@@ -387,7 +397,7 @@ pub fn write_fit_reports(
             .and_then(|inputs| crate::fit::job::load_inputs(&inputs, &f.load));
         match prof.and_then(|p| fig11::write(f, &p, out)) {
             Ok(paths) => sum.written.extend(paths),
-            Err(e) => sum.skipped.push((f.species.clone(), format!("fig11: {e}"))),
+            Err(e) => sum.skipped.push((f.label(), format!("fig11: {e}"))),
         }
     }
     // Model vs simulation: every species folder with true parameters.
