@@ -473,3 +473,60 @@ fn report_keeps_two_fits_of_one_species_apart() {
         "{head}"
     );
 }
+
+/// `--init` runs Levenberg-Marquardt in addition to the best-scored starts (it used to
+/// replace one, with `--lm-starts 1` the best), and the fit file records it and the
+/// iteration cap. Nonsense counts and `--all` with inputs are refused.
+#[test]
+fn fit_init_adds_a_start_and_is_recorded() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    let run = |extra: &[&str], out: &str| -> serde_json::Value {
+        let o = furfit()
+            .current_dir(root)
+            .args([
+                "fit",
+                "measurements/mouse",
+                "--starts",
+                "8",
+                "--lm-starts",
+                "1",
+            ])
+            .args(["--threads", "1", "--out", out])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_str(&std::fs::read_to_string(root.join(out)).unwrap()).unwrap()
+    };
+    let plain = run(&[], "fits/plain.json");
+    let init = run(&["--init", "human"], "fits/init.json");
+    assert_eq!(plain["solver"]["starts"]["lm"], 1);
+    assert_eq!(init["solver"]["starts"]["lm"], 2);
+    assert_eq!(init["solver"]["starts"]["global"], 8 + 10 + 1);
+    assert_eq!(init["solver"]["max_iters"], 100);
+    assert_eq!(init["solver"]["init"]["eta"], 1.2);
+    assert!(plain["solver"]["init"].is_null());
+    // The best start still runs: adding a start cannot make the fit worse.
+    let (a, b) = (
+        plain["nrmse"].as_f64().unwrap(),
+        init["nrmse"].as_f64().unwrap(),
+    );
+    assert!(b <= a + 1e-9, "with --init {b} vs {a}");
+
+    for (args, needle) in [
+        (&["--lm-starts", "0"][..], "--lm-starts 0"),
+        (&["--subsample", "5"], "--subsample 5"),
+        (&["--max-iters", "0"], "--max-iters 0"),
+        (&["--all"], "--all"),
+    ] {
+        let o = furfit()
+            .current_dir(root)
+            .args(["fit", "measurements/mouse"])
+            .args(args)
+            .output()
+            .unwrap();
+        fails_with(o, &[needle]);
+    }
+}

@@ -20,7 +20,7 @@ pub struct Args {
     /// Seed of the subsample and the Halton scrambling (same seed, same fit).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Worker threads (default: all cores).
+    /// Worker threads (default or 0: all cores).
     #[arg(long)]
     pub threads: Option<usize>,
     /// Fit every species folder under --measurements (one species after another, each
@@ -38,16 +38,16 @@ pub struct Args {
     /// Fix a parameter, `name=value` in file units (e.g. `kappa=0`); repeatable.
     #[arg(long = "fix", value_name = "NAME=VALUE")]
     pub fix: Vec<String>,
-    /// Halton starts in the global stage.
+    /// Halton starts in the global stage (scored with the ten presets and --init).
     #[arg(long, default_value_t = 128)]
     pub starts: usize,
-    /// Starts that run Levenberg-Marquardt.
+    /// Best-scored starts that run Levenberg-Marquardt (at least 1; --init runs in addition).
     #[arg(long, default_value_t = 4)]
     pub lm_starts: usize,
-    /// Samples in the subsample of the global stage.
+    /// Samples in the subsample of the global stage (at least 10).
     #[arg(long, default_value_t = 1500)]
     pub subsample: usize,
-    /// Iteration cap per LM run.
+    /// Iteration cap per LM run (at least 1).
     #[arg(long, default_value_t = 100)]
     pub max_iters: u64,
     /// Weight residuals by sigma/value (every valid sample needs a sigma > 0).
@@ -61,17 +61,32 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    if let Some(t) = a.threads {
+    for (name, v, min) in [
+        ("--lm-starts", a.lm_starts as u64, 1),
+        ("--subsample", a.subsample as u64, 10),
+        ("--max-iters", a.max_iters, 1),
+    ] {
+        if v < min {
+            anyhow::bail!("{name} {v}: must be at least {min}");
+        }
+    }
+    if a.all && (!a.inputs.is_empty() || a.out.is_some()) {
+        anyhow::bail!(
+            "--all fits every folder under --measurements into --fits: give no input files              and no --out with it"
+        );
+    }
+    // 0 = all cores, as for render.
+    if let Some(t) = a.threads.filter(|&t| t > 0) {
         rayon::ThreadPoolBuilder::new()
-            .num_threads(t.max(1))
+            .num_threads(t)
             .build_global()
             .context("setting up the thread pool")?;
     }
     let mut opts = FitOptions {
         seed: a.seed,
         n_global: a.starts,
-        n_sub: a.subsample.max(10),
-        n_best: a.lm_starts.max(1),
+        n_sub: a.subsample,
+        n_best: a.lm_starts,
         max_iters: a.max_iters,
         weighted: a.weighted,
         ..FitOptions::default()

@@ -294,11 +294,6 @@ pub fn fit_data(
     let sub = LogResidualProblem::new(&sub_data, layout.clone(), opts.far);
 
     // 1. Global stage.
-    say(&format!(
-        "global stage: scoring {} starts on {} samples",
-        opts.n_global + 11,
-        sub_data.len()
-    ));
     let mut cands: Vec<[f64; N_PARAMS]> = Vec::new();
     if let Some(init) = opts.init {
         let mut v = init;
@@ -309,8 +304,18 @@ pub fn fit_data(
         }
         cands.push(v);
     }
-    cands.extend(starts::preset_starts(layout));
+    let presets = starts::preset_starts(layout);
+    let n_presets = presets.len();
+    cands.extend(presets);
     cands.extend(starts::halton_starts(layout, opts.n_global, opts.seed));
+    say(&format!(
+        "global stage: scoring {} starts ({} Halton, {} presets{}) on {} samples",
+        cands.len(),
+        opts.n_global,
+        n_presets,
+        if opts.init.is_some() { ", --init" } else { "" },
+        sub_data.len()
+    ));
     let scored: Vec<(usize, f64, DVector<f64>)> = cands
         .par_iter()
         .enumerate()
@@ -331,8 +336,9 @@ pub fn fit_data(
     let mut order: Vec<usize> = (0..scored.len()).collect();
     order.sort_by(|&a, &b| scored[a].1.total_cmp(&scored[b].1).then(a.cmp(&b)));
     let mut chosen: Vec<usize> = order.iter().copied().take(opts.n_best.max(1)).collect();
+    // The --init start always runs LM, in addition to the best scored ones (replacing one
+    // of them could drop the best start of all).
     if opts.init.is_some() && !chosen.contains(&0) {
-        chosen.pop();
         chosen.insert(0, 0);
     }
     let n_sub = sub_data.len() as f64;
@@ -413,7 +419,7 @@ pub fn fit_data(
         iters,
         termination,
         trace,
-        opts.n_global + 10 + opts.init.is_some() as usize,
+        cands.len(),
         chosen.len(),
         clock,
     )

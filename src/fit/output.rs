@@ -97,6 +97,14 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "evaluations": out.evaluations,
             "sample_evaluations": out.sample_evaluations,
             "starts": {"global": out.starts_global, "lm": out.starts_lm, "subsample": opts.n_sub},
+            "max_iters": opts.max_iters,
+            // The --init start (file units), so the fit can be reproduced.
+            "init": opts.init.map(|v| {
+                crate::params::ParamId::ALL
+                    .iter()
+                    .map(|id| (id.spec().name.to_string(), serde_json::json!(v[id.index()])))
+                    .collect::<serde_json::Map<_, _>>()
+            }),
             "segments": {"unscattered": opts.far.n_unscattered, "scattered": opts.far.n_scattered},
             "weighted": opts.weighted,
             "wall_time_s": out.wall_time_s,
