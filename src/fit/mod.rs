@@ -501,11 +501,20 @@ pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result
     let mut pts = Points::default();
     let mut vals = Vec::new();
     let mut rel = Vec::new();
-    for s in profile
+    // In angle order, not file order: the subsample, the starts' scores and every sum
+    // then do not depend on how the file's rows happen to be ordered (a shuffled file
+    // gave another optimum, eta 1.588 vs 1.618 on the red fox).
+    let mut samples: Vec<_> = profile
         .samples
         .iter()
         .filter(|s| s.channel == channel && s.is_valid())
-    {
+        .collect();
+    samples.sort_by(|a, b| {
+        (a.theta_i.total_cmp(&b.theta_i))
+            .then(a.theta_r.total_cmp(&b.theta_r))
+            .then(a.phi.total_cmp(&b.phi))
+    });
+    for s in samples {
         let (ti, tr, ph) = s.angles_rad();
         pts.push(ti, tr, ph);
         vals.push(s.value);
