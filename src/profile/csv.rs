@@ -2,7 +2,8 @@
 //!
 //! # Reading
 //! - Each record is one line: a quoted field may not span lines, and a quote left open is
-//!   an error naming its line and column.
+//!   an error naming its line and column. Lines end in `\n`, `\r\n` or a lone `\r`
+//!   (old Mac / instrument exports); line numbers count any of them.
 //! - Lines before the header that start with `#` are metadata `# key: value` (split at the
 //!   first `:`, both sides trimmed), kept in file order. A `#` line without a `:` or with
 //!   an empty key is a free comment and ignored. Blank lines and `#` lines are tolerated
@@ -42,8 +43,8 @@
 //! line breaks and values may not contain line breaks (an error, not a silent edit).
 
 use super::{
-    canonical_phi, check_angle, check_channel_name, check_measured, dedupe_notes, Field, Profile,
-    Sample,
+    canonical_phi, check_angle, check_channel_name, check_measured, dedupe_notes, split_lines,
+    Field, Profile, Sample,
 };
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -64,7 +65,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     let mut header_line = None;
     let mut kept: Vec<u8> = Vec::with_capacity(bytes.len());
     let mut orig_line: Vec<usize> = Vec::new();
-    for (k, raw) in bytes.split(|b| *b == b'\n').enumerate() {
+    for (k, raw) in split_lines(bytes).enumerate() {
         let raw = if k == 0 {
             raw.strip_prefix("\u{feff}".as_bytes()).unwrap_or(raw)
         } else {
@@ -486,6 +487,24 @@ mod tests {
             p("theta_i,theta_r,phi,value,note\n 0 ,\"0\", 0 ,\" 1 \",\"a \"\"b\"\", c\"\n")
                 .unwrap();
         assert_eq!(pr.samples[0].value, 1.0);
+    }
+
+    #[test]
+    fn lone_cr_line_endings() {
+        let e = p("theta_i,theta_r,phi,value\r0,0,0,1\r0,0,1,2\r0,0,x,3\r")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("t.csv:4: column 3 (phi)"), "{e}");
+        let (pr, _) =
+            p("# species: fox\r# fiber: 3\rtheta_i,theta_r,phi,value\r0,0,0,1\r").unwrap();
+        assert_eq!(pr.meta("species"), Some("fox"));
+        assert_eq!(pr.meta("fiber"), Some("3"));
+        assert_eq!(pr.samples.len(), 1);
+        // Mixed endings count one line each.
+        let e = p("theta_i,theta_r,phi,value\r\n0,0,0,1\r0,0,1,2\n0,0,x,3\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("t.csv:4:"), "{e}");
     }
 
     #[test]

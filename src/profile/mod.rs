@@ -382,6 +382,27 @@ pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
     Ok((out, collapsed))
 }
 
+/// Split text into lines at `\n`, `\r\n` or a lone `\r` (old Mac and some instrument
+/// exports end lines with CR only), so every text reader numbers lines alike and a CR-only
+/// file is not one long line. The line breaks are not part of the lines.
+pub(crate) fn split_lines(bytes: &[u8]) -> impl Iterator<Item = &[u8]> {
+    let mut rest = Some(bytes);
+    std::iter::from_fn(move || {
+        let r = rest?;
+        match r.iter().position(|b| *b == b'\n' || *b == b'\r') {
+            None => {
+                rest = None;
+                Some(r)
+            }
+            Some(i) => {
+                let crlf = r[i] == b'\r' && r.get(i + 1) == Some(&b'\n');
+                rest = Some(&r[i + 1 + usize::from(crlf)..]);
+                Some(&r[..i])
+            }
+        }
+    })
+}
+
 /// Normalise an angle as every loader does: `-0` becomes `0` and `phi = -180` becomes
 /// `180`, following MODEL.md's wrap of phi to (-180, 180]; the two spellings are the same
 /// direction, and one canonical spelling keeps grids and duplicate checks exact.
@@ -584,6 +605,14 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn lines_split_at_lf_crlf_and_lone_cr() {
+        let lines: Vec<&[u8]> = split_lines(b"a\nb\r\nc\rd\r\re\n").collect();
+        let want: Vec<&[u8]> = vec![b"a", b"b", b"c", b"d", b"", b"e", b""];
+        assert_eq!(lines, want);
+        assert_eq!(split_lines(b"").count(), 1);
+    }
 
     #[test]
     fn measured_field_rules() {

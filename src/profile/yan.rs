@@ -7,7 +7,8 @@
 //!   kept and counted, as DATA.md asks for missing values); `nan` is accepted as well.
 //! - `#` starts a comment line. A comment of the form `# key: value` is metadata (kept in
 //!   file order), except `# theta_i: <deg>`, which gives the file's incident angle.
-//! - Blank lines are ignored; a trailing `\r` is ignored.
+//! - Blank lines are ignored. Lines end in `\n`, `\r\n` or a lone `\r` (old Mac /
+//!   instrument exports); line numbers count any of them.
 //! - The incident angle comes from the `# theta_i:` line or from [`LoadOptions::theta_i`]
 //!   (exactly one value). If both are given they must agree; if neither is, it is an error.
 //!
@@ -28,7 +29,7 @@
 //! repeats are collapsed with a note), a bad `# theta_i:` line; each names the file, the
 //! 1-based line and the column (`column 2 (theta)`). A file without data rows is an error.
 
-use super::{check_angle, dedupe_notes, wrap_phi, LoadOptions, Profile, Sample};
+use super::{check_angle, dedupe_notes, split_lines, wrap_phi, LoadOptions, Profile, Sample};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -47,7 +48,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     let mut file_theta_i: Option<(f64, usize)> = None;
     let mut samples = Vec::new();
     let mut lines = Vec::new();
-    for (k, raw) in bytes.split(|b| *b == b'\n').enumerate() {
+    for (k, raw) in split_lines(bytes).enumerate() {
         let line = k + 1;
         let text = std::str::from_utf8(raw)
             .map_err(|_| perr(line, "column 1".into(), "not valid UTF-8".into()))?;
@@ -235,6 +236,17 @@ mod tests {
         // -30 + 180 = 150
         assert_eq!(pr.samples[0].phi, 150.0);
         assert_eq!(pr.samples[0].theta_r, -20.0);
+    }
+
+    #[test]
+    fn lone_cr_line_endings() {
+        let (pr, _) = p("# theta_i: 30\r0 10 1\r5 10 2\r", &LoadOptions::default()).unwrap();
+        assert_eq!(pr.samples.len(), 2);
+        assert!(pr.samples.iter().all(|s| s.theta_i == 30.0));
+        let e = p("# theta_i: 30\r0 10 1\r5 1x 2\r", &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("y.txt:3: column 2 (theta)"), "{e}");
     }
 
     #[test]
