@@ -7,7 +7,8 @@
 //! - Lines before the header that start with `#` are metadata `# key: value` (split at the
 //!   first `:`, both sides trimmed), kept in file order. A `#` line without a `:` or with
 //!   an empty key is a free comment and ignored. Blank lines and `#` lines are tolerated
-//!   anywhere (after the header they are comments).
+//!   anywhere (after the header they are comments), and so are rows holding only commas
+//!   (a spreadsheet's padding, e.g. `,,,`), counted in a note.
 //! - The first other line is the header. Column names are trimmed and matched
 //!   case-insensitively; any order. Required: `theta_i, theta_r, phi, value`; optional:
 //!   `sigma, channel, phi_i`; any other column is ignored (its cells are never parsed).
@@ -65,6 +66,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     let mut header_line = None;
     let mut kept: Vec<u8> = Vec::with_capacity(bytes.len());
     let mut orig_line: Vec<usize> = Vec::new();
+    let mut separator_rows = 0usize;
     for (k, raw) in split_lines(bytes).enumerate() {
         let raw = if k == 0 {
             raw.strip_prefix("\u{feff}".as_bytes()).unwrap_or(raw)
@@ -73,6 +75,11 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
         };
         let t = raw.trim_ascii();
         if t.is_empty() {
+            continue;
+        }
+        // Spreadsheets pad a table with rows of bare separators: they hold no sample.
+        if t.iter().all(|b| *b == b',' || b.is_ascii_whitespace()) {
+            separator_rows += 1;
             continue;
         }
         if let Some(c) = t.strip_prefix(b"#") {
@@ -236,13 +243,18 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     }
     let names = header.unwrap_or_default();
     let value_label = format!("column {} ({})", cols.value + 1, names[cols.value]);
-    let notes = dedupe_notes(&mut samples, |i, j, what| {
+    let mut notes = dedupe_notes(&mut samples, |i, j, what| {
         perr(
             lines[j],
             value_label.clone(),
             format!("{what}; first on line {}", lines[i]),
         )
     })?;
+    if separator_rows > 0 {
+        notes.push(format!(
+            "{separator_rows} row(s) holding only separators (e.g. a spreadsheet's ',,,') skipped"
+        ));
+    }
     Ok((
         Profile {
             samples,
@@ -505,6 +517,26 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("t.csv:4:"), "{e}");
+    }
+
+    #[test]
+    fn separator_only_rows_are_skipped_with_a_note() {
+        let (pr, notes) =
+            p("theta_i,theta_r,phi,value\n0,0,0,1\n,,,\n0,0,1,2\n,,,\n , ,,,\n").unwrap();
+        assert_eq!(pr.samples.len(), 2);
+        assert_eq!(notes.len(), 1);
+        assert!(
+            notes[0].starts_with("3 row(s) holding only separators"),
+            "{notes:?}"
+        );
+        // A row with a value somewhere is still a row (and here a short one).
+        let e = p("theta_i,theta_r,phi,value\n0,0,0,1\n,,,5\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:3: column 1 (theta_i): missing angle"),
+            "{e}"
+        );
     }
 
     #[test]
