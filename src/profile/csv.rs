@@ -9,6 +9,9 @@
 //!   an empty key is a free comment and ignored. Blank lines and `#` lines are tolerated
 //!   anywhere (after the header they are comments), and so are rows holding only commas
 //!   (a spreadsheet's padding, e.g. `,,,`), counted in a note.
+//! - A first line `sep=,` (Excel's separator declaration) is skipped; `sep=` with any
+//!   other separator is an error. The separator is always a comma: a missing-column error
+//!   on a header that holds `;` or a tab says so.
 //! - The first other line is the header. Column names are trimmed and matched
 //!   case-insensitively; any order. Required: `theta_i, theta_r, phi, value`; optional:
 //!   `sigma, channel, phi_i`; any other column is ignored (its cells are never parsed).
@@ -67,6 +70,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     let mut kept: Vec<u8> = Vec::with_capacity(bytes.len());
     let mut orig_line: Vec<usize> = Vec::new();
     let mut separator_rows = 0usize;
+    let mut seen_line = false;
     for (k, raw) in split_lines(bytes).enumerate() {
         let raw = if k == 0 {
             raw.strip_prefix("\u{feff}".as_bytes()).unwrap_or(raw)
@@ -76,6 +80,29 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
         let t = raw.trim_ascii();
         if t.is_empty() {
             continue;
+        }
+        // Excel's `sep=,` first line names the separator; any other separator is refused
+        // here, where the reason is clear, rather than as a header without its columns.
+        if !seen_line {
+            seen_line = true;
+            let u = t.to_ascii_lowercase();
+            let u = u
+                .strip_prefix(b"\"")
+                .and_then(|u| u.strip_suffix(b"\""))
+                .unwrap_or(&u[..]);
+            if let Some(sep) = u.strip_prefix(b"sep=") {
+                if sep == b"," {
+                    continue;
+                }
+                return Err(perr(
+                    k + 1,
+                    "column 1".into(),
+                    format!(
+                        "the file declares the separator '{}' (Excel's sep= line); the separator must be a comma",
+                        String::from_utf8_lossy(t)
+                    ),
+                ));
+            }
         }
         // Spreadsheets pad a table with rows of bare separators: they hold no sample.
         if t.iter().all(|b| *b == b',' || b.is_ascii_whitespace()) {
@@ -294,12 +321,20 @@ impl Columns {
             }
             Ok(first)
         };
+        // A semicolon- or tab-separated file reads as one column: say why.
+        let hint = if names.iter().any(|n| n.contains(';')) {
+            "; the header looks separated by ';': the separator must be a comma"
+        } else if names.iter().any(|n| n.contains('\t')) {
+            "; the header looks separated by tabs: the separator must be a comma"
+        } else {
+            ""
+        };
         let required = |want: &str| -> Result<usize> {
             find(want)?.ok_or_else(|| {
                 err(
                     format!("column '{want}'"),
                     format!(
-                        "required column '{want}' is missing from the header (found: {})",
+                        "required column '{want}' is missing from the header (found: {}){hint}",
                         names.join(", ")
                     ),
                 )
@@ -537,6 +572,36 @@ mod tests {
             e.starts_with("t.csv:3: column 1 (theta_i): missing angle"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn excel_sep_line_and_separator_hint() {
+        let (pr, _) = p("sep=,\ntheta_i,theta_r,phi,value\n0,0,0,1\n").unwrap();
+        assert_eq!(pr.samples.len(), 1);
+        let (pr, _) = p("\u{feff}\"sep=,\"\r\ntheta_i,theta_r,phi,value\r\n0,0,0,1\r\n").unwrap();
+        assert_eq!(pr.samples.len(), 1);
+        let e = p("sep=;\ntheta_i;theta_r;phi;value\n0;0;0;1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:1: column 1:") && e.contains("must be a comma"),
+            "{e}"
+        );
+        for (text, what) in [
+            ("theta_i;theta_r;phi;value\n0;0;0;1\n", "';'"),
+            ("theta_i\ttheta_r\tphi\tvalue\n0\t0\t0\t1\n", "tabs"),
+        ] {
+            let e = p(text).unwrap_err().to_string();
+            assert!(
+                e.contains("required column 'theta_i' is missing")
+                    && e.contains(what)
+                    && e.contains("the separator must be a comma"),
+                "{e}"
+            );
+        }
+        // A plain missing column gets no separator hint.
+        let e = p("theta_i,theta_r,value\n0,0,1\n").unwrap_err().to_string();
+        assert!(!e.contains("separator"), "{e}");
     }
 
     #[test]
