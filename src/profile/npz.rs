@@ -4,16 +4,17 @@
 //! # Arrays in a furfit `.npz`
 //! | name | dtype | shape | meaning |
 //! |---|---|---|---|
-//! | `theta_i` | float64 | `[I]` | incident inclinations, degrees, in [-90, 90] (required) |
-//! | `theta_r` | float64 | `[R]` | outgoing inclinations, degrees, in [-90, 90] (required) |
-//! | `phi` | float64 | `[P]` | relative azimuths, degrees, in [-180, 180] (required) |
+//! | `theta_i` | float64 or integer | `[I]` | incident inclinations, degrees, in [-90, 90] (required) |
+//! | `theta_r` | float64 or integer | `[R]` | outgoing inclinations, degrees, in [-90, 90] (required) |
+//! | `phi` | float64 or integer | `[P]` | relative azimuths, degrees, in [-180, 180] (required) |
 //! | `value` | float64 | `[I, R, P]` or `[I, R, P, C]` | intensity; NaN = missing (required) |
 //! | `present` | uint8 (or bool) | same as `value` | 1 = a sample exists at this cell, 0 = none (optional) |
 //! | `sigma` | float64 | same as `value` | standard error; NaN = none (optional) |
 //! | `phi_i` | float64 | same as `value` | absolute incident azimuth; NaN = none (optional) |
 //! | `meta_json` | uint8 | `[n]` | UTF-8 JSON `{"metadata": [[key, value], ...], "channels": [name, ...]}` (optional) |
 //!
-//! float32 arrays are accepted too and widened to float64.
+//! float32 arrays are accepted too and widened to float64; the three axes may also be any
+//! integer dtype (NumPy's `np.array([0, 15, 30])` is int64), converted to float64.
 //!
 //! A cell is a sample when `present` is non-zero; without `present`, when `value` is not
 //! NaN. A sample's value, sigma and phi_i (NaN decoded as "none" for the latter two) obey
@@ -168,6 +169,37 @@ fn read_float(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
     }
 }
 
+/// Decode an axis array: float (as [`read_float`]) or any integer type, since
+/// `np.array([0, 15, 30])` is int64 and whole-degree grids are common.
+fn read_axis(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
+    let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
+    let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
+    // Integers beyond 2^53 round, but such an angle fails the range check anyway.
+    match h.kind() {
+        ('i', 1) => Ok(ArrayD::<i8>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
+        ('i', 2) => Ok(ArrayD::<i16>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
+        ('i', 4) => Ok(ArrayD::<i32>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
+        ('i', 8) => Ok(ArrayD::<i64>::read_npy(bytes)
+            .map_err(npy)?
+            .mapv(|v| v as f64)),
+        ('u', 1) => Ok(ArrayD::<u8>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
+        ('u', 2) => Ok(ArrayD::<u16>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
+        ('u', 4) => Ok(ArrayD::<u32>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
+        ('u', 8) => Ok(ArrayD::<u64>::read_npy(bytes)
+            .map_err(npy)?
+            .mapv(|v| v as f64)),
+        ('f', 8) | ('f', 4) => read_float(bytes, path, name),
+        _ => Err(arr_err(
+            path,
+            name,
+            format!(
+                "wrong dtype '{}': expected float64, float32 or an integer type",
+                h.descr
+            ),
+        )),
+    }
+}
+
 /// Decode a byte array (uint8 or bool).
 fn read_bytes_array(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<u8>> {
     let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
@@ -239,9 +271,9 @@ pub fn parse_npz(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     let ph = required("phi")?;
     let va = required("value")?;
     let axes = [
-        axis(&read_float(&ti, path, "theta_i")?, path, "theta_i", 90.0)?,
-        axis(&read_float(&tr, path, "theta_r")?, path, "theta_r", 90.0)?,
-        axis(&read_float(&ph, path, "phi")?, path, "phi", 180.0)?,
+        axis(&read_axis(&ti, path, "theta_i")?, path, "theta_i", 90.0)?,
+        axis(&read_axis(&tr, path, "theta_r")?, path, "theta_r", 90.0)?,
+        axis(&read_axis(&ph, path, "phi")?, path, "phi", 180.0)?,
     ];
     let value = read_float(&va, path, "value")?;
     let present = match entry(&mut zip, path, "present")? {
@@ -649,6 +681,36 @@ mod tests {
         assert_eq!(back.metadata, p.metadata);
         // Deterministic bytes.
         assert_eq!(to_bytes(&back).unwrap(), bytes);
+    }
+
+    #[test]
+    fn integer_axes_are_read_as_degrees() {
+        let mut w = NpzWriter::new(Cursor::new(Vec::new()));
+        w.add_array("theta_i", &ndarray::arr1(&[0i64, 30])).unwrap();
+        w.add_array("theta_r", &ndarray::arr1(&[-10i32])).unwrap();
+        w.add_array("phi", &ndarray::arr1(&[0u16, 90, 180]))
+            .unwrap();
+        w.add_array("value", &ArrayD::<f64>::from_elem(IxDyn(&[2, 1, 3]), 1.0))
+            .unwrap();
+        let bytes = w.finish().unwrap().into_inner();
+        let (p, _) = parse_npz(&bytes, Path::new("i.npz")).unwrap();
+        assert_eq!(p.samples.len(), 6);
+        assert_eq!(
+            (p.samples[5].theta_i, p.samples[5].theta_r, p.samples[5].phi),
+            (30.0, -10.0, 180.0)
+        );
+        // Other dtypes keep their clear error.
+        let mut w = NpzWriter::new(Cursor::new(Vec::new()));
+        w.add_array("theta_i", &ndarray::arr1(&[true])).unwrap();
+        w.add_array("theta_r", &ndarray::arr1(&[0.0])).unwrap();
+        w.add_array("phi", &ndarray::arr1(&[0.0])).unwrap();
+        w.add_array("value", &ArrayD::<f64>::from_elem(IxDyn(&[1, 1, 1]), 1.0))
+            .unwrap();
+        let bytes = w.finish().unwrap().into_inner();
+        let e = parse_npz(&bytes, Path::new("b.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("'theta_i'") && e.contains("wrong dtype"), "{e}");
     }
 
     #[test]
