@@ -15,7 +15,9 @@
 //! - a repeated direction (same `theta_i, theta_r, phi, channel`) whose other fields are
 //!   identical is collapsed into its first occurrence with a note in [`Loaded::notes`]; a
 //!   repeat that differs is an error naming both places;
-//! - invalid values (NaN, `<= 0`) are kept as samples, never dropped.
+//! - invalid values (NaN, `<= 0`) are kept as samples, never dropped;
+//! - a file whose every angle lies within +-3.2 (not all 0) gets a warning note: the values
+//!   look like radians, but files hold degrees ([`radians_warning`]).
 
 use crate::error::{Error, Result};
 use std::collections::HashMap;
@@ -230,10 +232,38 @@ pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
         Format::Yan => yan::parse(&bytes, path, opts)?,
     };
     profile.source = Some(path.to_path_buf());
+    let mut notes = notes;
+    notes.extend(radians_warning(&profile));
     Ok(Loaded {
         profile,
         format,
         notes,
+    })
+}
+
+/// Largest |angle| of a profile whose angles look like radians: pi, plus slack for
+/// rounded exports.
+const RADIANS_LIMIT: f64 = 3.2;
+
+/// A warning (a loader note, not an error) when every `theta_i`, `theta_r` and `phi` of
+/// `profile` lies within +-3.2 and not all are 0: files hold degrees (DATA.md), a real
+/// goniometer sweep spans far more than 3.2 deg, and radians read as degrees load
+/// silently and fit to absurd parameters.
+pub fn radians_warning(profile: &Profile) -> Option<String> {
+    let mut largest = 0.0f64;
+    for s in &profile.samples {
+        for a in [s.theta_i, s.theta_r, s.phi] {
+            if a.is_nan() || a.abs() > RADIANS_LIMIT {
+                return None;
+            }
+            largest = largest.max(a.abs());
+        }
+    }
+    (largest > 0.0).then(|| {
+        format!(
+            "warning: every theta_i, theta_r and phi lies within +-{RADIANS_LIMIT} (largest |angle| {largest}): \
+             the values look like radians, but files hold degrees (DATA.md); convert them (x 180/pi) before fitting"
+        )
     })
 }
 
@@ -605,6 +635,48 @@ where
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn at(theta_i: f64, theta_r: f64, phi: f64) -> Sample {
+        Sample {
+            theta_i,
+            theta_r,
+            phi,
+            value: 1.0,
+            sigma: None,
+            channel: 0,
+            phi_i: None,
+        }
+    }
+
+    #[test]
+    fn radians_look_alike_warns() {
+        let prof = |s: Vec<Sample>| Profile {
+            samples: s,
+            ..Default::default()
+        };
+        let w = radians_warning(&prof(vec![at(0.0, -0.785, 0.5), at(0.52, 0.785, -3.1)]))
+            .expect("radians");
+        assert!(w.starts_with("warning:") && w.contains("radians"), "{w}");
+        assert!(w.contains("largest |angle| 3.1)"), "{w}");
+        // Degrees, all zero, or empty: no warning.
+        assert!(radians_warning(&prof(vec![at(0.0, 0.0, 0.0), at(0.0, 3.0, 10.0)])).is_none());
+        assert!(radians_warning(&prof(vec![at(0.0, 0.0, 0.0)])).is_none());
+        assert!(radians_warning(&prof(Vec::new())).is_none());
+        // Through the loader, as a note.
+        let dir = tempfile::tempdir().unwrap();
+        let f = dir.path().join("rad.csv");
+        std::fs::write(
+            &f,
+            "theta_i,theta_r,phi,value\n0,0.785,0,1\n0,-0.785,1.5,2\n",
+        )
+        .unwrap();
+        let l = load_full(&f, &LoadOptions::default()).unwrap();
+        assert!(
+            l.notes.iter().any(|n| n.contains("look like radians")),
+            "{:?}",
+            l.notes
+        );
+    }
 
     #[test]
     fn lines_split_at_lf_crlf_and_lone_cr() {
