@@ -530,3 +530,43 @@ fn fit_init_adds_a_start_and_is_recorded() {
         fails_with(o, &[needle]);
     }
 }
+
+/// `fit` says what the loaders noticed (as `inspect` does) and records it in the fit file
+/// under `data.notes`.
+#[test]
+fn fit_prints_and_records_loader_notes() {
+    let tmp = tempfile::tempdir().unwrap();
+    make_species(tmp.path(), "mouse");
+    let prof = tmp.path().join("measurements/mouse/profile.csv");
+    let text = std::fs::read_to_string(&prof).unwrap();
+    // Repeat the first three data rows: identical duplicates, collapsed with a note.
+    let rows: Vec<&str> = text
+        .lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("theta_i"))
+        .take(3)
+        .collect();
+    std::fs::write(&prof, format!("{text}{}\n", rows.join("\n"))).unwrap();
+    let o = fit_cmd(tmp.path())
+        .args(["measurements/mouse", "--out", "fits/mouse.json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("mouse: note: ")
+            && out.contains("profile.csv: 3 identical duplicate row(s) collapsed"),
+        "{out}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("fits/mouse.json")).unwrap())
+            .unwrap();
+    let notes = v["data"]["notes"].as_array().expect("data.notes");
+    assert_eq!(notes.len(), 1, "{notes:?}");
+    assert!(
+        notes[0]
+            .as_str()
+            .unwrap()
+            .contains("3 identical duplicate row(s)"),
+        "{notes:?}"
+    );
+}

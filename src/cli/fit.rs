@@ -1,6 +1,6 @@
 //! `furfit fit <profile-file-or-species-folder>... [--out fits/<species>.json] ...`
 
-use crate::fit::job::{jobs_for_all, run_job, species_name, Job};
+use crate::fit::job::{fit_loaded, jobs_for_all, load_inputs_full, species_name, Job};
 use crate::fit::{forward::parse_segments, FitOptions};
 use crate::FurParams;
 use anyhow::Context;
@@ -126,6 +126,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }]
     };
     for job in &jobs {
+        let inputs = load_inputs_full(&job.inputs, &load)
+            .with_context(|| format!("fitting {}", job.species))?;
+        // What inspect would say about the data (duplicates, a radians warning) is said
+        // before the fit, which may take long or fail because of it.
+        for n in &inputs.notes {
+            outln!("{}: note: {n}", job.species);
+        }
         let bar = indicatif::ProgressBar::new_spinner();
         bar.set_prefix(job.species.clone());
         bar.set_style(
@@ -134,7 +141,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         bar.enable_steady_tick(std::time::Duration::from_millis(200));
         let say = |m: &str| bar.set_message(m.to_string());
-        let res = run_job(job, &opts, &load, Some(&say));
+        let res = fit_loaded(job, &inputs, &opts, &load, Some(&say));
         bar.finish_and_clear();
         let (_, sums) = res.with_context(|| format!("fitting {}", job.species))?;
         for s in &sums {

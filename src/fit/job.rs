@@ -90,20 +90,47 @@ pub fn data_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(out)
 }
 
+/// The inputs of a fit, loaded and merged.
+#[derive(Clone, Debug)]
+pub struct LoadedInputs {
+    pub profile: Profile,
+    /// The loaders' notes, each naming its file (`inspect` prints the same ones).
+    pub notes: Vec<String>,
+}
+
 /// Load and merge the inputs into one profile with the loader options `opts`.
 pub fn load_inputs(inputs: &[PathBuf], opts: &LoadOptions) -> Result<Profile> {
+    Ok(load_inputs_full(inputs, opts)?.profile)
+}
+
+/// [`load_inputs`], also keeping the loader notes.
+pub fn load_inputs_full(inputs: &[PathBuf], opts: &LoadOptions) -> Result<LoadedInputs> {
     let mut parts = Vec::new();
+    let mut notes = Vec::new();
     for p in inputs {
         if p.is_dir() {
-            parts.push(profile::load_dir(p, opts)?.profile);
+            // load_dir already names the file in each note.
+            let l = profile::load_dir(p, opts)?;
+            notes.extend(l.notes);
+            parts.push(l.profile);
         } else {
-            parts.push(profile::load(p, opts)?);
+            let l = profile::load_full(p, opts)?;
+            notes.extend(l.notes.iter().map(|n| format!("{}: {n}", p.display())));
+            parts.push(l.profile);
         }
     }
-    if parts.len() == 1 {
-        return Ok(parts.pop().expect("one part"));
-    }
-    Ok(profile::merge(parts)?.0)
+    let profile = if parts.len() == 1 {
+        parts.pop().expect("one part")
+    } else {
+        let (merged, collapsed) = profile::merge(parts)?;
+        if collapsed > 0 {
+            notes.push(format!(
+                "{collapsed} identical duplicate sample(s) across inputs collapsed"
+            ));
+        }
+        merged
+    };
+    Ok(LoadedInputs { profile, notes })
 }
 
 /// The loader options as a fit file records them (`data.load`), so a report reads the
@@ -175,9 +202,23 @@ pub fn run_job(
     load: &LoadOptions,
     progress: Option<Progress>,
 ) -> Result<(Value, Vec<ChannelSummary>)> {
+    check_out(&job.out)?;
+    let inputs = load_inputs_full(&job.inputs, load)?;
+    fit_loaded(job, &inputs, opts, load, progress)
+}
+
+/// [`run_job`] on inputs already loaded (with `load`) by [`load_inputs_full`]; the fit file
+/// records their loader notes under `data.notes`.
+pub fn fit_loaded(
+    job: &Job,
+    inputs: &LoadedInputs,
+    opts: &FitOptions,
+    load: &LoadOptions,
+    progress: Option<Progress>,
+) -> Result<(Value, Vec<ChannelSummary>)> {
     let files = data_files(&job.inputs)?;
     check_out(&job.out)?;
-    let prof = load_inputs(&job.inputs, load)?;
+    let prof = &inputs.profile;
     let mut file_info = Vec::new();
     for f in &files {
         let bytes = std::fs::read(f).map_err(|e| Error::io(f, e))?;
@@ -192,7 +233,7 @@ pub fn run_job(
     let mut objs = Vec::new();
     let mut sums = Vec::new();
     for c in 0..n_ch {
-        let data = channel_data(&prof, c, opts.weighted).map_err(|e| match e {
+        let data = channel_data(prof, c, opts.weighted).map_err(|e| match e {
             Error::Invalid(m) => Error::Invalid(format!("{}: {m}", job.species)),
             other => other,
         })?;
@@ -210,6 +251,7 @@ pub fn run_job(
             synthetic: prof.is_synthetic(),
             channel: name_of(c),
             load: load_json.clone(),
+            notes: inputs.notes.clone(),
         };
         objs.push(fit_json(&out, opts, &info));
         sums.push(ChannelSummary {

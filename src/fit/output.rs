@@ -22,6 +22,8 @@ pub struct DataInfo {
     pub channel: String,
     /// Loader options the data was read with ([`super::job::load_options_json`]).
     pub load: Value,
+    /// The loaders' notes on the data (collapsed duplicates, a radians warning ...).
+    pub notes: Vec<String>,
 }
 
 /// Units of the ten keys, in file units.
@@ -120,6 +122,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "synthetic": data.synthetic,
             "channel": data.channel,
             "load": data.load,
+            "notes": data.notes,
         },
         "tool_version": concat!("furfit ", env!("CARGO_PKG_VERSION")),
         "seed": opts.seed,
