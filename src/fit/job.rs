@@ -40,16 +40,7 @@ pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<Vec<Job>> {
     let mut dirs: Vec<PathBuf> = rd
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_dir())
-        .filter(|p| {
-            std::fs::read_dir(p)
-                .map(|mut r| {
-                    r.any(|e| {
-                        e.map(|e| profile::is_profile_file(&e.path()))
-                            .unwrap_or(false)
-                    })
-                })
-                .unwrap_or(false)
-        })
+        .filter(|p| profile::dir_profile_files(p).is_ok_and(|(f, _)| !f.is_empty()))
         .collect();
     dirs.sort();
     if dirs.is_empty() {
@@ -71,18 +62,13 @@ pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<Vec<Job>> {
         .collect())
 }
 
-/// The profile files behind the inputs (folders expanded), sorted per input.
+/// The profile files behind the inputs (folders expanded as [`profile::load_dir`] reads
+/// them), sorted per input.
 pub fn data_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
     let mut out = Vec::new();
     for p in inputs {
         if p.is_dir() {
-            let rd = std::fs::read_dir(p).map_err(|e| Error::io(p, e))?;
-            let mut v: Vec<PathBuf> = rd
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| profile::is_profile_file(f))
-                .collect();
-            v.sort();
-            out.extend(v);
+            out.extend(profile::dir_profile_files(p)?.0);
         } else {
             out.push(p.clone());
         }

@@ -6,7 +6,8 @@
 //!
 //! Entry points: [`load`] / [`load_full`] pick the reader by extension ([`csv`], [`npz`]
 //! for `.npz` and lone `.npy`, [`yan`] for `.txt`/`.dat`), [`save`] writes `.csv` or `.npz`
-//! atomically, [`load_dir`] reads and [`merge`]s a species folder. [`summary`] computes what
+//! atomically, [`load_dir`] reads and [`merge`]s a species folder (skipping, with a note,
+//! a `.txt`/`.dat` that is not a Yan-2015 profile, e.g. `notes.txt`). [`summary`] computes what
 //! `furfit inspect` prints.
 //!
 //! Choices shared by every reader (each documented again in its module):
@@ -313,9 +314,25 @@ pub fn is_profile_file(path: &Path) -> bool {
     path.is_file() && Format::from_path(path).is_ok()
 }
 
-/// Load every profile file of a directory (e.g. `measurements/<species>/`), in file-name
-/// order, and [`merge`] them into one profile whose `source` is the directory.
-pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
+/// Does this text read as a Yan-2015 profile? Its first line that is neither blank nor a
+/// `#` comment must be a data row: three whitespace-separated fields, each a number or `?`.
+/// A folder's `.txt`/`.dat` can be prose (`notes.txt`), which is skipped, not an error.
+pub fn looks_like_yan(bytes: &[u8]) -> bool {
+    for raw in split_lines(bytes) {
+        let text = String::from_utf8_lossy(raw);
+        let t = text.trim().trim_start_matches('\u{feff}');
+        if t.is_empty() || t.starts_with('#') {
+            continue;
+        }
+        let fields: Vec<&str> = t.split_whitespace().collect();
+        return fields.len() == 3 && fields.iter().all(|f| *f == "?" || f.parse::<f64>().is_ok());
+    }
+    false
+}
+
+/// The profile files of a directory that [`load_dir`] reads, sorted, and a note for each
+/// `.txt`/`.dat` it skips because it is not a Yan-2015 profile ([`looks_like_yan`]).
+pub fn dir_profile_files(dir: &Path) -> Result<(Vec<PathBuf>, Vec<String>)> {
     let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     let mut files = Vec::new();
     for entry in rd {
@@ -326,14 +343,41 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
         }
     }
     files.sort();
+    let mut kept = Vec::new();
+    let mut notes = Vec::new();
+    for f in files {
+        if Format::from_path(&f).ok() == Some(Format::Yan) {
+            let bytes = std::fs::read(&f).map_err(|e| Error::io(&f, e))?;
+            if !looks_like_yan(&bytes) {
+                let name = f.file_name().unwrap_or_default().to_string_lossy();
+                notes.push(format!("skipped {name}: not a Yan-2015 profile"));
+                continue;
+            }
+        }
+        kept.push(f);
+    }
+    Ok((kept, notes))
+}
+
+/// Load every profile file of a directory (e.g. `measurements/<species>/`), in file-name
+/// order, and [`merge`] them into one profile whose `source` is the directory. A `.txt` or
+/// `.dat` that does not read as a Yan-2015 profile is skipped with a note
+/// ([`dir_profile_files`]); named on its own ([`load_full`]) it is an error.
+pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
+    let (files, skipped) = dir_profile_files(dir)?;
     if files.is_empty() {
+        let why = if skipped.is_empty() {
+            String::new()
+        } else {
+            format!(" ({})", skipped.join("; "))
+        };
         return Err(Error::file(
             dir,
-            "no profile files (.csv, .npz, .npy, .txt, .dat) in this directory",
+            format!("no profile files (.csv, .npz, .npy, .txt, .dat) in this directory{why}"),
         ));
     }
     let mut parts = Vec::new();
-    let mut notes = Vec::new();
+    let mut notes = skipped;
     let mut format = None;
     for f in &files {
         let l = load_full(f, opts)?;
@@ -676,6 +720,33 @@ mod tests {
             "{:?}",
             l.notes
         );
+    }
+
+    #[test]
+    fn folder_skips_prose_txt_but_not_a_bad_yan_file() {
+        assert!(looks_like_yan(b"# theta_i: 30\n\n0 10 1.5\n"));
+        assert!(looks_like_yan(b"\xef\xbb\xbf-90 5 ?\r"));
+        assert!(!looks_like_yan(b"Measured by A. Lab, 2015.\n0 10 1\n"));
+        assert!(!looks_like_yan(b"# only comments\n"));
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(d.join("a.csv"), "theta_i,theta_r,phi,value\n0,10,20,1\n").unwrap();
+        std::fs::write(d.join("notes.txt"), "Fox fiber 3, combed.\nSee a.csv.\n").unwrap();
+        let l = load_dir(d, &LoadOptions::default()).unwrap();
+        assert_eq!(l.profile.samples.len(), 1);
+        assert!(
+            l.notes
+                .contains(&"skipped notes.txt: not a Yan-2015 profile".to_string()),
+            "{:?}",
+            l.notes
+        );
+        // Named on its own it is still read as Yan, and fails.
+        let e = load(&d.join("notes.txt"), &LoadOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("notes.txt:1:"), "{e}");
+        // A Yan file with a genuine bad row (after good ones) is still an error.
+        std::fs::write(d.join("y.txt"), "# theta_i: 0\n0 10 1\n5 10 x\n").unwrap();
+        let e = load_dir(d, &LoadOptions::default()).unwrap_err();
+        assert!(e.to_string().contains("y.txt:3:"), "{e}");
     }
 
     #[test]
