@@ -118,3 +118,74 @@ fn closed_stdout_is_not_a_panic() {
     );
     assert!(!err.contains("panicked"), "{err}");
 }
+
+/// The convention options convert a CSV as they do a Yan file; an axis option that no
+/// input reads is an error naming it, not silently ignored.
+#[test]
+fn inspect_applies_conventions_to_csv_and_refuses_unused_axes() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("lab.csv");
+    std::fs::write(
+        &p,
+        "theta_i,theta_r,phi,value\n0,10,0,1\n0,20,30,2\n0,30,60,3\n",
+    )
+    .unwrap();
+    let args = |extra: &[&str]| -> Vec<std::ffi::OsString> {
+        let mut v = vec![p.clone().into_os_string()];
+        v.extend(extra.iter().map(Into::into));
+        v
+    };
+    let run = |a: Vec<std::ffi::OsString>| {
+        let refs: Vec<&std::ffi::OsStr> = a.iter().map(|s| s.as_os_str()).collect();
+        inspect(&refs)
+    };
+    let (ok, out, err) = run(args(&[
+        "--flip-phi",
+        "--phi-offset",
+        "90",
+        "--flip-theta-r",
+    ]));
+    assert!(ok, "{err}");
+    // phi 0, 30, 60 -> 90, 60, 30; theta_r negated.
+    assert!(
+        out.contains("phi      3 distinct, 30 .. 90 deg, step 30 deg"),
+        "{out}"
+    );
+    assert!(out.contains("theta_r  3 distinct, -30 .. -10 deg"), "{out}");
+    for (opt, val, needle) in [
+        (
+            "--theta-i",
+            "45",
+            "--theta-i was given but no input is a lone .npy or Yan",
+        ),
+        (
+            "--theta-r",
+            "0:10:10",
+            "--theta-r was given but no input is a lone .npy",
+        ),
+        ("--phi", "0", "--phi was given but no input is a lone .npy"),
+    ] {
+        let (ok, _, err) = run(args(&[opt, val]));
+        assert!(!ok && err.contains(needle), "{opt}: {err}");
+    }
+}
+
+/// A profile whose angles all lie within +-3.2 loads, with a warning that it looks like
+/// radians.
+#[test]
+fn inspect_warns_about_radians() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("rad.csv");
+    std::fs::write(
+        &p,
+        "theta_i,theta_r,phi,value\n0.5,-0.785,0,1\n0.5,0.785,3.14,2\n",
+    )
+    .unwrap();
+    let (ok, out, err) = inspect(&[p.as_os_str()]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("note: warning: every theta_i, theta_r and phi lies within +-3.2")
+            && out.contains("look like radians"),
+        "{out}"
+    );
+}

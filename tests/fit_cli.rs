@@ -570,3 +570,26 @@ fn fit_prints_and_records_loader_notes() {
         "{notes:?}"
     );
 }
+
+/// An axis option that no input reads is refused before any fit (it used to be recorded in
+/// the fit file as if applied).
+#[test]
+fn fit_refuses_an_axis_option_no_input_reads() {
+    let tmp = tempfile::tempdir().unwrap();
+    make_species(tmp.path(), "mouse");
+    let o = fit_cmd(tmp.path())
+        .args([
+            "measurements/mouse/profile.csv",
+            "--flip-phi",
+            "--phi-offset",
+            "90",
+        ])
+        .args(["--theta-i", "45", "--out", "fits/x.json"])
+        .output()
+        .unwrap();
+    fails_with(
+        o,
+        &["--theta-i was given but no input is a lone .npy or Yan"],
+    );
+    assert!(!tmp.path().join("fits/x.json").exists());
+}

@@ -125,9 +125,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             inputs: a.inputs.clone(),
         }]
     };
+    // Every job's data is read before any fit, so an unreadable file or an axis option no
+    // input reads (e.g. --theta-i for CSV files) fails at once, not after earlier fits.
+    let mut loaded = Vec::new();
     for job in &jobs {
-        let inputs = load_inputs_full(&job.inputs, &load)
-            .with_context(|| format!("fitting {}", job.species))?;
+        loaded.push(
+            load_inputs_full(&job.inputs, &load)
+                .with_context(|| format!("fitting {}", job.species))?,
+        );
+    }
+    let formats: Vec<_> = loaded.iter().flat_map(|l| l.formats()).collect();
+    load.check_used(&formats)?;
+    for (job, inputs) in jobs.iter().zip(&loaded) {
         // What inspect would say about the data (duplicates, a radians warning) is said
         // before the fit, which may take long or fail because of it.
         for n in &inputs.notes {
@@ -141,7 +150,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         bar.enable_steady_tick(std::time::Duration::from_millis(200));
         let say = |m: &str| bar.set_message(m.to_string());
-        let res = fit_loaded(job, &inputs, &opts, &load, Some(&say));
+        let res = fit_loaded(job, inputs, &opts, &load, Some(&say));
         bar.finish_and_clear();
         let (_, sums) = res.with_context(|| format!("fitting {}", job.species))?;
         for s in &sums {

@@ -1,7 +1,8 @@
 //! `furfit inspect <file>...`: per file, the format, sample counts (valid / invalid), the
 //! distinct values, range and most common step of each angle, channels, metadata and any
 //! loader notes. Every file is inspected even if an earlier one fails; each failure is
-//! printed to stderr and the command exits non-zero if any file failed.
+//! printed to stderr and the command exits non-zero if any file failed, or if an axis
+//! option (`--theta-i`, `--theta-r`, `--phi`) was given that no file read.
 
 use crate::profile;
 use crate::profile::summary::{AxisStats, Summary};
@@ -34,6 +35,7 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let opts = args.load.to_options()?;
     let mut failed = 0;
+    let mut formats = Vec::new();
     for (k, path) in args.files.iter().enumerate() {
         let loaded = if path.is_dir() {
             profile::load_dir(path, &opts)
@@ -48,6 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 continue;
             }
         };
+        formats.extend(l.files.iter().map(|(_, f)| *f));
         if k > 0 {
             outln!();
         }
@@ -98,5 +101,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if failed > 0 {
         anyhow::bail!("{failed} of {} file(s) could not be read", args.files.len());
     }
+    opts.check_used(&formats)?;
     Ok(())
 }

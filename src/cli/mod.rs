@@ -34,27 +34,29 @@ pub(crate) fn out_line(args: std::fmt::Arguments) {
     }
 }
 
-/// Loader options of Yan-2015 files and lone `.npy` grids, shared by the commands that
-/// read profiles (`inspect`, `fit`).
+/// Loader options shared by the commands that read profiles (`inspect`, `fit`): axis
+/// grids for files that lack them (an axis option no input reads is an error) and angle
+/// convention conversions applied to every format.
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct LoadArgs {
     /// Incident angle (deg) for Yan-2015 files without a `# theta_i:` line; for a lone .npy,
-    /// its theta_i axis grid (e.g. `0,15,30`).
+    /// its theta_i axis grid (e.g. `0,15,30`). An error if no input is one of those.
     #[arg(long, allow_hyphen_values = true)]
     pub theta_i: Option<String>,
-    /// theta_r axis grid (deg) of a lone .npy, e.g. `-60:60:2`.
+    /// theta_r axis grid (deg) of a lone .npy, e.g. `-60:60:2`. An error without a lone .npy.
     #[arg(long, allow_hyphen_values = true)]
     pub theta_r: Option<String>,
-    /// phi axis grid (deg) of a lone .npy, e.g. `-180:180:2`.
+    /// phi axis grid (deg) of a lone .npy, e.g. `-180:180:2`. An error without a lone .npy.
     #[arg(long, allow_hyphen_values = true)]
     pub phi: Option<String>,
-    /// Yan-2015: degrees added to the file's phi (after --flip-phi) before wrapping.
+    /// Degrees added to every file's phi (after --flip-phi) before wrapping to (-180, 180]
+    /// (data in another azimuth convention; any format).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub phi_offset: f64,
-    /// Yan-2015: negate the file's phi.
+    /// Negate every file's phi (any format; applied before --phi-offset).
     #[arg(long)]
     pub flip_phi: bool,
-    /// Yan-2015: negate the file's theta (theta_r).
+    /// Negate every file's theta_r (any format).
     #[arg(long)]
     pub flip_theta_r: bool,
 }

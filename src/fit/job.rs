@@ -9,7 +9,7 @@
 use super::output::{fit_json, DataInfo};
 use super::{channel_data, fit_data, FitOptions, FitOutcome, Progress};
 use crate::error::{Error, Result};
-use crate::profile::{self, LoadOptions, Profile};
+use crate::profile::{self, Format, LoadOptions, Profile};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -80,8 +80,17 @@ pub fn data_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
 #[derive(Clone, Debug)]
 pub struct LoadedInputs {
     pub profile: Profile,
+    /// The files read and their formats (folders expanded).
+    pub files: Vec<(PathBuf, Format)>,
     /// The loaders' notes, each naming its file (`inspect` prints the same ones).
     pub notes: Vec<String>,
+}
+
+impl LoadedInputs {
+    /// The formats of the files read (for [`LoadOptions::check_used`]).
+    pub fn formats(&self) -> Vec<Format> {
+        self.files.iter().map(|(_, f)| *f).collect()
+    }
 }
 
 /// Load and merge the inputs into one profile with the loader options `opts`.
@@ -93,15 +102,18 @@ pub fn load_inputs(inputs: &[PathBuf], opts: &LoadOptions) -> Result<Profile> {
 pub fn load_inputs_full(inputs: &[PathBuf], opts: &LoadOptions) -> Result<LoadedInputs> {
     let mut parts = Vec::new();
     let mut notes = Vec::new();
+    let mut files = Vec::new();
     for p in inputs {
         if p.is_dir() {
             // load_dir already names the file in each note.
             let l = profile::load_dir(p, opts)?;
             notes.extend(l.notes);
+            files.extend(l.files);
             parts.push(l.profile);
         } else {
             let l = profile::load_full(p, opts)?;
             notes.extend(l.notes.iter().map(|n| format!("{}: {n}", p.display())));
+            files.extend(l.files);
             parts.push(l.profile);
         }
     }
@@ -116,7 +128,11 @@ pub fn load_inputs_full(inputs: &[PathBuf], opts: &LoadOptions) -> Result<Loaded
         }
         merged
     };
-    Ok(LoadedInputs { profile, notes })
+    Ok(LoadedInputs {
+        profile,
+        files,
+        notes,
+    })
 }
 
 /// The loader options as a fit file records them (`data.load`), so a report reads the
@@ -179,8 +195,8 @@ pub struct ChannelSummary {
     pub outcome: FitOutcome,
 }
 
-/// Fit one species (its inputs read with the loader options `load`) and write its fit
-/// file. Returns the JSON written and per-channel
+/// Fit one species (its inputs read with the loader options `load`, an axis option no
+/// input reads being an error) and write its fit file. Returns the JSON written and per-channel
 /// summaries.
 pub fn run_job(
     job: &Job,
@@ -190,11 +206,13 @@ pub fn run_job(
 ) -> Result<(Value, Vec<ChannelSummary>)> {
     check_out(&job.out)?;
     let inputs = load_inputs_full(&job.inputs, load)?;
+    load.check_used(&inputs.formats())?;
     fit_loaded(job, &inputs, opts, load, progress)
 }
 
-/// [`run_job`] on inputs already loaded (with `load`) by [`load_inputs_full`]; the fit file
-/// records their loader notes under `data.notes`.
+/// [`run_job`] on inputs already loaded (with `load`) by [`load_inputs_full`] (and checked
+/// with [`LoadOptions::check_used`]); the fit file records their loader notes under
+/// `data.notes`.
 pub fn fit_loaded(
     job: &Job,
     inputs: &LoadedInputs,
@@ -202,11 +220,10 @@ pub fn fit_loaded(
     load: &LoadOptions,
     progress: Option<Progress>,
 ) -> Result<(Value, Vec<ChannelSummary>)> {
-    let files = data_files(&job.inputs)?;
     check_out(&job.out)?;
     let prof = &inputs.profile;
     let mut file_info = Vec::new();
-    for f in &files {
+    for (f, _) in &inputs.files {
         let bytes = std::fs::read(f).map_err(|e| Error::io(f, e))?;
         file_info.push((f.display().to_string(), crate::io::sha256_hex(&bytes)));
     }

@@ -1,8 +1,8 @@
 //! Goniometric fiber profiles: the in-memory [`Profile`] and its loaders and writers
 //! (CSV per DATA.md, `.npy`/`.npz` dense grids, the Yan-2015 text format).
 //!
-//! Angles are stored in **degrees**, exactly as read, so that a profile round-trips through
-//! every format bit for bit; use [`Sample::angles_rad`] to get the radians the model needs.
+//! Angles are stored in **degrees**, exactly as read (unless [`LoadOptions`] asks for a
+//! convention conversion), so that a profile round-trips through every format bit for bit; use [`Sample::angles_rad`] to get the radians the model needs.
 //!
 //! Entry points: [`load`] / [`load_full`] pick the reader by extension ([`csv`], [`npz`]
 //! for `.npz` and lone `.npy`, [`yan`] for `.txt`/`.dat`), [`save`] writes `.csv` or `.npz`
@@ -197,12 +197,61 @@ pub struct LoadOptions {
     pub theta_r: Option<Vec<f64>>,
     /// Azimuth grid (degrees) for a lone `.npy`.
     pub phi: Option<Vec<f64>>,
-    /// Yan-2015 only: degrees added to the file's phi before wrapping to (-180, 180].
+    /// Degrees added to every file's phi (after `flip_phi`) before wrapping to (-180, 180]:
+    /// data written in another azimuth convention, whatever the format ([`convention`]).
     pub phi_offset: f64,
-    /// Yan-2015 only: negate the file's phi (applied before `phi_offset`).
+    /// Negate every file's phi (applied before `phi_offset`).
     pub flip_phi: bool,
-    /// Yan-2015 only: negate the file's theta (theta_r).
+    /// Negate every file's theta_r.
     pub flip_theta_r: bool,
+}
+
+impl LoadOptions {
+    /// Refuse an axis option that none of the loaded files' `formats` reads: `theta_i`
+    /// is read by a lone `.npy` and a Yan-2015 file, `theta_r` and `phi` only by a lone
+    /// `.npy`. A CSV or npz carries its own angles, so such an option would be recorded as
+    /// if applied while changing nothing.
+    pub fn check_used(&self, formats: &[Format]) -> Result<()> {
+        let has = |f: Format| formats.contains(&f);
+        if self.theta_i.is_some() && !has(Format::Npy) && !has(Format::Yan) {
+            return Err(Error::Invalid(
+                "--theta-i was given but no input is a lone .npy or Yan-2015 file (.csv and .npz files carry their own angles)".into(),
+            ));
+        }
+        for (given, opt) in [(&self.theta_r, "--theta-r"), (&self.phi, "--phi")] {
+            if given.is_some() && !has(Format::Npy) {
+                return Err(Error::Invalid(format!(
+                    "{opt} was given but no input is a lone .npy file (.csv, .npz and Yan-2015 files carry their own angles)"
+                )));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// The angle convention conversion of `opts` applied to a file's `(theta_r, phi)`: negate
+/// theta_r if `flip_theta_r`; negate phi if `flip_phi`, add `phi_offset`, then wrap phi to
+/// (-180, 180]. The same for every format, so lab data in another convention reads alike
+/// whatever its file type. A non-finite phi comes back non-finite for the caller to refuse.
+pub(crate) fn convention(opts: &LoadOptions, theta_r: f64, phi: f64) -> (f64, f64) {
+    let theta_r = if opts.flip_theta_r { -theta_r } else { theta_r } + 0.0;
+    let phi = if opts.flip_phi { -phi } else { phi } + opts.phi_offset;
+    (theta_r, if phi.is_finite() { wrap_phi(phi) } else { phi })
+}
+
+/// [`convention`] over a loaded CSV / npz profile (the Yan reader converts row by row).
+/// Without conversion options the profile is untouched, so files round-trip bit for bit.
+fn apply_convention(profile: &mut Profile, opts: &LoadOptions, path: &Path) -> Result<()> {
+    if !opts.flip_phi && !opts.flip_theta_r && opts.phi_offset == 0.0 {
+        return Ok(());
+    }
+    if !opts.phi_offset.is_finite() {
+        return Err(Error::file(path, "the phi offset must be finite"));
+    }
+    for s in &mut profile.samples {
+        (s.theta_r, s.phi) = convention(opts, s.theta_r, s.phi);
+    }
+    Ok(())
 }
 
 /// A loaded profile with what the loader noticed on the way.
@@ -210,6 +259,9 @@ pub struct LoadOptions {
 pub struct Loaded {
     pub profile: Profile,
     pub format: Format,
+    /// The files read and their formats (one for [`load_full`], the folder's for
+    /// [`load_dir`]).
+    pub files: Vec<(PathBuf, Format)>,
     /// Things the loader did that a user should know about (e.g. identical duplicate
     /// samples collapsed into one). Never errors: those are returned as `Err`.
     pub notes: Vec<String>,
@@ -217,7 +269,9 @@ pub struct Loaded {
 
 /// Load a profile file, choosing the loader by extension: `.csv` ([`csv`]), `.npz`
 /// ([`npz`]), `.npy` ([`npz::parse_npy`], needs the three axis grids in `opts`),
-/// `.txt`/`.dat` ([`yan`]). `Profile::source` is set to `path`.
+/// `.txt`/`.dat` ([`yan`]). The convention options of `opts` (`flip_phi`, `phi_offset`,
+/// `flip_theta_r`) apply to every format ([`convention`]). `Profile::source` is set to
+/// `path`.
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Profile> {
     load_full(path, opts).map(|l| l.profile)
 }
@@ -232,12 +286,16 @@ pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
         Format::Npy => npz::parse_npy(&bytes, path, opts)?,
         Format::Yan => yan::parse(&bytes, path, opts)?,
     };
+    if format != Format::Yan {
+        apply_convention(&mut profile, opts, path)?;
+    }
     profile.source = Some(path.to_path_buf());
     let mut notes = notes;
     notes.extend(radians_warning(&profile));
     Ok(Loaded {
         profile,
         format,
+        files: vec![(path.to_path_buf(), format)],
         notes,
     })
 }
@@ -379,9 +437,11 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let mut parts = Vec::new();
     let mut notes = skipped;
     let mut format = None;
+    let mut read = Vec::new();
     for f in &files {
         let l = load_full(f, opts)?;
         format.get_or_insert(l.format);
+        read.extend(l.files);
         notes.extend(l.notes.into_iter().map(|n| format!("{}: {n}", f.display())));
         parts.push(l.profile);
     }
@@ -395,6 +455,7 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
     Ok(Loaded {
         profile,
         format: format.unwrap_or(Format::Csv),
+        files: read,
         notes,
     })
 }
@@ -747,6 +808,78 @@ mod tests {
         std::fs::write(d.join("y.txt"), "# theta_i: 0\n0 10 1\n5 10 x\n").unwrap();
         let e = load_dir(d, &LoadOptions::default()).unwrap_err();
         assert!(e.to_string().contains("y.txt:3:"), "{e}");
+    }
+
+    #[test]
+    fn convention_options_apply_to_csv_and_npz_like_yan() {
+        let dir = tempfile::tempdir().unwrap();
+        let csv = dir.path().join("c.csv");
+        std::fs::write(&csv, "theta_i,theta_r,phi,value\n10,20,30,1\n10,-5,170,2\n").unwrap();
+        let opts = LoadOptions {
+            flip_phi: true,
+            phi_offset: -160.0,
+            flip_theta_r: true,
+            ..Default::default()
+        };
+        let got = |p: &Profile| -> Vec<(f64, f64, f64)> {
+            let mut v: Vec<_> = p
+                .samples
+                .iter()
+                .map(|s| (s.theta_i, s.theta_r, s.phi))
+                .collect();
+            v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            v
+        };
+        // -30 - 160 = -190 -> 170; -170 - 160 = -330 -> 30.
+        let want = vec![(10.0, -20.0, 170.0), (10.0, 5.0, 30.0)];
+        let mut want_sorted = want.clone();
+        want_sorted.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        let c = load(&csv, &opts).unwrap();
+        assert_eq!(got(&c), want_sorted);
+        let npz = dir.path().join("c.npz");
+        save(&npz, &load(&csv, &LoadOptions::default()).unwrap()).unwrap();
+        assert_eq!(got(&load(&npz, &opts).unwrap()), want_sorted);
+        // The Yan reader gives the same for the same rows.
+        let yan = dir.path().join("c.txt");
+        std::fs::write(&yan, "# theta_i: 10\n30 20 1\n170 -5 2\n").unwrap();
+        assert_eq!(got(&load(&yan, &opts).unwrap()), want_sorted);
+        // Without options nothing changes.
+        assert_eq!(got(&load(&csv, &LoadOptions::default()).unwrap()), {
+            let mut v = vec![(10.0, 20.0, 30.0), (10.0, -5.0, 170.0)];
+            v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+            v
+        });
+    }
+
+    #[test]
+    fn axis_options_must_be_used_by_some_input() {
+        let o = |ti: bool, tr: bool, ph: bool| LoadOptions {
+            theta_i: ti.then(|| vec![0.0]),
+            theta_r: tr.then(|| vec![0.0]),
+            phi: ph.then(|| vec![0.0]),
+            ..Default::default()
+        };
+        let e = o(true, false, false)
+            .check_used(&[Format::Csv, Format::Npz])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("--theta-i was given but no input is a lone .npy or Yan"),
+            "{e}"
+        );
+        assert!(o(true, false, false)
+            .check_used(&[Format::Csv, Format::Yan])
+            .is_ok());
+        let e = o(true, false, true)
+            .check_used(&[Format::Yan])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("--phi was given but no input is a lone .npy"),
+            "{e}"
+        );
+        assert!(o(true, true, true).check_used(&[Format::Npy]).is_ok());
+        assert!(o(false, false, false).check_used(&[Format::Csv]).is_ok());
     }
 
     #[test]

@@ -21,7 +21,8 @@
 //! options fix it without editing the file: [`LoadOptions::flip_phi`] negates phi,
 //! [`LoadOptions::phi_offset`] then adds a constant (e.g. 180 when the file's 0 is forward
 //! scattering) before the wrap, and [`LoadOptions::flip_theta_r`] negates theta
-//! (`furfit inspect --flip-phi --phi-offset 180 --flip-theta-r`).
+//! (`furfit inspect --flip-phi --phi-offset 180 --flip-theta-r`); the same options convert
+//! CSV and npz files too ([`super::convention`]).
 //!
 //! # Errors
 //! Like the CSV reader: a non-number, a non-finite or out-of-range angle, a row with other
@@ -29,7 +30,7 @@
 //! repeats are collapsed with a note), a bad `# theta_i:` line; each names the file, the
 //! 1-based line and the column (`column 2 (theta)`). A file without data rows is an error.
 
-use super::{check_angle, dedupe_notes, split_lines, wrap_phi, LoadOptions, Profile, Sample};
+use super::{check_angle, convention, dedupe_notes, split_lines, LoadOptions, Profile, Sample};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -114,15 +115,14 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             }
             v
         };
-        let phi = if opts.flip_phi { -phi } else { phi } + opts.phi_offset;
+        let (theta_r, phi) = convention(opts, theta, phi);
         if !phi.is_finite() {
             return Err(perr(line, label(0), "phi + offset is not finite".into()));
         }
-        let theta_r = if opts.flip_theta_r { -theta } else { theta } + 0.0;
         samples.push(Sample {
             theta_i: 0.0,
             theta_r,
-            phi: wrap_phi(phi),
+            phi,
             value,
             sigma: None,
             channel: 0,
