@@ -223,3 +223,31 @@ fn synth_dedups_grids_limits_size_and_notes_table_range() {
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(err.contains("g = 0.97") && err.contains("range"), "{err}");
 }
+
+/// Long jobs check `--out` before the work: a path under a regular file fails at once,
+/// naming the file in the way (stability used to fail after its 90 s sweep).
+#[test]
+fn long_jobs_refuse_an_out_under_a_file_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("regular");
+    std::fs::write(&file, "x").unwrap();
+    for (cmd, out) in [
+        (&["stability"][..], file.join("r")),
+        (&["bench-model"], file.join("r")),
+        (&["report"], file.join("r")),
+        (&["fit", "measurements/red-fox"], file.join("f.json")),
+    ] {
+        let o = Command::new(env!("CARGO_BIN_EXE_furfit"))
+            .current_dir(env!("CARGO_MANIFEST_DIR"))
+            .args(cmd)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success(), "{cmd:?} should fail");
+        // Only the up-front check words it so (a failure after the work would be the
+        // OS error "Not a directory").
+        assert!(err.contains("regular is not a directory"), "{cmd:?}: {err}");
+    }
+}

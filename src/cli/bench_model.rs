@@ -17,7 +17,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::report::far_error::synth_throughput(&mut |line| outln!("{line}"));
         return Ok(());
     }
-    std::fs::create_dir_all(&a.out)?;
+    // The sweep takes minutes: a bad --out fails first, naming the path.
+    crate::io::check_out_dir(&a.out)?;
+    std::fs::create_dir_all(&a.out).map_err(|e| crate::Error::io(&a.out, e))?;
     crate::report::far_error::run(&a.out, &mut |line| outln!("{line}"))?;
     Ok(())
 }

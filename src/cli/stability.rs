@@ -10,6 +10,8 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    // The sweep takes a minute and more: a bad --out fails first.
+    crate::io::check_out_dir(&a.out)?;
     let summary = crate::report::stability::run(&a.out, &mut |line| outln!("{line}"))?;
     if summary.n_nonfinite > 0 {
         anyhow::bail!(

@@ -175,6 +175,7 @@ fn check_out(out: &Path) -> Result<()> {
     if out.is_dir() {
         return Err(Error::file(out, "is a directory, not a fit file path"));
     }
+    crate::io::check_out_file(out)?;
     if out.exists() {
         let is_fit = crate::io::read_json(out)
             .is_ok_and(|v| v.get("solver").is_some() && v.get("tool_version").is_some());

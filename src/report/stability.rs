@@ -190,6 +190,16 @@ fn median(v: &mut [f64]) -> f64 {
     v[v.len() / 2]
 }
 
+/// A table cell of an error maximum: `-` where nothing of that kind was compared (a case
+/// without medulla has no scattered multi-scale samples), as in the other columns.
+fn cell(x: f64) -> String {
+    if x.is_nan() {
+        "-".into()
+    } else {
+        format!("{x:.1e}")
+    }
+}
+
 fn max_of(v: &[f64]) -> f64 {
     if v.is_empty() {
         f64::NAN
@@ -474,10 +484,10 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
         );
         let _ = writeln!(
             table,
-            "| {} | {} | {} | {} ({}) | {:.1e} / {:.1e} | {}/{} | {} | {tus} | {tss} | {:.1e} / {:.1e} | {sss} | {mss:.1e} | {pus} | {pss} | {:.1e} / {:.1e} | {:.0} |",
+            "| {} | {} | {} | {} ({}) | {:.1e} / {:.1e} | {}/{} | {} | {tus} | {tss} | {} / {} | {sss} | {} | {pus} | {pss} | {} / {} | {:.0} |",
             case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.worst_dip[0], r.worst_dip[1],
             r.capped, r.slices,
-            refs, mtu, mts, mpu, mps, r.seconds
+            refs, cell(mtu), cell(mts), cell(mss), cell(mpu), cell(mps), r.seconds
         );
         for (fam, what) in [(0, "unscattered"), (1, "scattered")] {
             for (w, model) in [(0, "far field"), (1, "multi-scale")] {
