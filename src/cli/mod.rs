@@ -83,6 +83,24 @@ impl LoadArgs {
     }
 }
 
+/// Parse an image size `WxH` (or `WXH`) given to option `opt` (e.g. `--size`); each side
+/// must be in `1..=max`. Shared by `render` and `render-convergence` so both read and
+/// refuse sizes alike.
+pub fn parse_size(opt: &str, s: &str, max: usize) -> anyhow::Result<(usize, usize)> {
+    let bad = || anyhow::anyhow!("{opt} '{s}': expected WxH with width and height in 1..={max}");
+    let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let side = |v: &str| {
+        v.trim()
+            .parse::<usize>()
+            .ok()
+            .filter(|n| (1..=max).contains(n))
+    };
+    match (side(w), side(h)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(bad()),
+    }
+}
+
 pub mod bench_model;
 pub mod fit;
 pub mod inspect;

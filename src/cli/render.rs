@@ -4,10 +4,16 @@ use crate::model::{Lobe, LobeSet};
 use crate::params::FurParams;
 use crate::render::bsdf::{Mode, Tint};
 use crate::render::math::V3;
-use crate::render::scene::{DirectionalLight, Environment};
+use crate::render::scene::{DirectionalLight, Environment, MAX_FIBERS};
 use crate::render::{output, render_scene, RenderSettings, Scene};
+use crate::render::{MAX_DEPTH, MAX_RADIANCE, MAX_SIDE, MAX_SPP};
 use anyhow::{bail, Context};
+use clap::builder::RangedU64ValueParser;
 use std::path::{Path, PathBuf};
+
+/// Largest `--threads`: rayon spawns them all up front, so a huge count would fail only
+/// after the scene is built (or exhaust the process's threads).
+pub const MAX_THREADS: usize = 1024;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -20,15 +26,16 @@ pub struct Args {
     /// Render every fits/*.json and write a labelled contact sheet to --out.
     #[arg(long, conflicts_with_all = ["fit", "params"])]
     pub all: bool,
-    /// Directory searched by --all.
-    #[arg(long, default_value = "fits")]
-    pub fits_dir: PathBuf,
+    /// Directory searched by --all [default: fits]; only with --all.
+    #[arg(long)]
+    pub fits_dir: Option<PathBuf>,
     /// BCSDF scale: near, far or multiscale.
     #[arg(long, default_value = "multiscale")]
     pub mode: String,
-    #[arg(long, default_value_t = 64)]
+    /// Samples per pixel, 1..=1048576.
+    #[arg(long, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
     pub spp: usize,
-    /// Image size WxH.
+    /// Image size WxH (or WXH), each side 1..=8192.
     #[arg(long, default_value = "512x512")]
     pub size: String,
     /// Lobes to render: R,TT,TRT,TTs,TRTs or all.
@@ -36,8 +43,8 @@ pub struct Args {
     pub lobes: String,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Worker threads (0 = all cores).
-    #[arg(long, default_value_t = 0)]
+    /// Worker threads (0 = all cores), at most 1024.
+    #[arg(long, default_value_t = 0, value_parser = RangedU64ValueParser::<usize>::new().range(0..=MAX_THREADS as u64))]
     pub threads: usize,
     #[arg(long, default_value_t = 3.0)]
     pub cam_dist: f64,
@@ -53,23 +60,26 @@ pub struct Args {
     /// Direction toward the key light, x,y,z.
     #[arg(long, default_value = "-0.5,0.6,0.62")]
     pub light_dir: String,
-    /// Key light irradiance (0 = no key light).
+    /// Key light irradiance, 0..=1e6 (0 = no key light).
     #[arg(long, default_value_t = 2.5)]
     pub light_intensity: f64,
-    /// Environment radiance: one value (constant) or TOP,BOTTOM (vertical grey gradient).
+    /// Environment radiance: one value (constant) or TOP,BOTTOM (vertical grey gradient),
+    /// each in 0..=1e6.
     #[arg(long, default_value = "0.34,0.10")]
     pub env: String,
     /// Per-channel absorption ratios r,g,b applied to sigma_c_a and sigma_m_a, or
     /// `melanin` (default, eumelanin-like) or `grey`.
     #[arg(long, default_value = "melanin")]
     pub tint: String,
-    /// Exposure in stops applied before the tone map.
+    /// Exposure in stops applied before the tone map, -64..=64.
     #[arg(long, default_value_t = 0.0)]
     pub exposure: f64,
-    /// Number of fibers in the test lock.
-    #[arg(long, default_value_t = 1500)]
+    /// Number of fibers in the test lock, 1..=100000 (building the scene takes about 45 KB
+    /// of memory per fiber: 4.5 GB at the cap).
+    #[arg(long, default_value_t = 1500, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_FIBERS as u64))]
     pub fibers: usize,
-    #[arg(long, default_value_t = 16)]
+    /// Longest path in fiber vertices, 1..=1024.
+    #[arg(long, default_value_t = 16, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_DEPTH as u64))]
     pub max_depth: usize,
     /// Multiplier of the pixel coverage (0 = near field, large = far field).
     #[arg(long, default_value_t = 1.0)]
@@ -103,33 +113,29 @@ fn parse_list(what: &str, s: &str) -> anyhow::Result<Vec<f64>> {
         .collect()
 }
 
-fn parse_size(s: &str) -> anyhow::Result<(usize, usize)> {
-    let (w, h) = s
-        .split_once(['x', 'X'])
-        .with_context(|| format!("--size '{s}': expected WxH"))?;
-    let w: usize = w.trim().parse().with_context(|| format!("--size '{s}'"))?;
-    let h: usize = h.trim().parse().with_context(|| format!("--size '{s}'"))?;
-    if w == 0 || h == 0 || w > 8192 || h > 8192 {
-        bail!("--size '{s}': width and height must be in 1..=8192");
-    }
-    Ok((w, h))
-}
-
-/// Settings shared by `render` and `render-convergence`.
+/// The render settings of `a`, every option checked (integer ranges are checked by clap).
 pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
-    let (width, height) = parse_size(&a.size)?;
+    let (width, height) = super::parse_size("--size", &a.size, MAX_SIDE)?;
+    // Checked here, not by clap's `requires`: a default-false flag satisfies that.
+    if a.fits_dir.is_some() && !a.all {
+        bail!("--fits-dir is only read with --all (give --all, or drop --fits-dir)");
+    }
     let ld = parse_list("light-dir", &a.light_dir)?;
     if ld.len() != 3 || ld.iter().all(|v| *v == 0.0) {
         bail!("--light-dir: expected a non-zero x,y,z");
     }
     let env = parse_list("env", &a.env)?;
+    let radiance = |v: &f64| (0.0..=MAX_RADIANCE).contains(v);
     let env = match env.as_slice() {
-        [v] if *v >= 0.0 => Environment::constant(*v),
-        [t, b] if *t >= 0.0 && *b >= 0.0 => Environment {
+        [v] if radiance(v) => Environment::constant(*v),
+        [t, b] if radiance(t) && radiance(b) => Environment {
             top: [*t; 3],
             bottom: [*b; 3],
         },
-        _ => bail!("--env: expected one or two non-negative values"),
+        _ => bail!(
+            "--env '{}': expected one or two radiances in 0..={MAX_RADIANCE:e}",
+            a.env
+        ),
     };
     let tint = match a.tint.as_str() {
         "melanin" => Tint::default(),
@@ -142,14 +148,18 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
             Tint([v[0], v[1], v[2]])
         }
     };
-    if a.spp == 0 {
-        bail!("--spp must be at least 1");
-    }
     // One message per flag, naming the value given (NaN fails every test).
-    if !(a.light_intensity >= 0.0 && a.light_intensity.is_finite()) {
+    if !radiance(&a.light_intensity) {
         bail!(
-            "--light-intensity must be a finite number >= 0, got {}",
+            "--light-intensity must be in 0..={MAX_RADIANCE:e}, got {}",
             a.light_intensity
+        );
+    }
+    let ev = output::MAX_EXPOSURE_EV;
+    if !(-ev..=ev).contains(&a.exposure) {
+        bail!(
+            "--exposure must be in -{ev}..={ev} stops, got {}",
+            a.exposure
         );
     }
     if !(a.cam_dist > 0.0 && a.cam_dist.is_finite()) {
@@ -174,8 +184,11 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
             a.out.display()
         );
     }
-    if a.footprint_scale.is_nan() || a.footprint_scale < 0.0 {
-        bail!("--footprint-scale must be >= 0");
+    if !(a.footprint_scale >= 0.0 && a.footprint_scale.is_finite()) {
+        bail!(
+            "--footprint-scale must be a finite number >= 0, got {}",
+            a.footprint_scale
+        );
     }
     let mut s = RenderSettings {
         width,
@@ -183,9 +196,9 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
         spp: a.spp,
         seed: a.seed,
         threads: a.threads,
-        mode: Mode::parse(&a.mode)?,
+        mode: Mode::parse(&a.mode).context("--mode")?,
         lobes: LobeSet::parse(&a.lobes)?,
-        max_depth: a.max_depth.max(1),
+        max_depth: a.max_depth,
         footprint_scale: a.footprint_scale,
         env,
         tint,
@@ -201,7 +214,7 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
         dir: V3::new(ld[0], ld[1], ld[2]).normalized(),
         irradiance: [a.light_intensity; 3],
     });
-    s.strand.fibers = a.fibers.max(1);
+    s.strand.fibers = a.fibers;
     Ok(s)
 }
 
@@ -226,14 +239,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         s.mode.name()
     );
     let jobs: Vec<(String, FurParams)> = if a.all {
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&a.fits_dir)
-            .with_context(|| format!("reading {}", a.fits_dir.display()))?
+        let dir = a.fits_dir.clone().unwrap_or_else(|| "fits".into());
+        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
+            .with_context(|| format!("reading {}", dir.display()))?
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| p.extension().is_some_and(|e| e == "json"))
             .collect();
         files.sort();
         if files.is_empty() {
-            bail!("{}: no *.json fit files", a.fits_dir.display());
+            bail!("{}: no *.json fit files", dir.display());
         }
         files
             .iter()

@@ -41,6 +41,20 @@ use scene::{Camera, DirectionalLight, Environment, StrandSpec};
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+/// Largest samples per pixel accepted (`render --spp`, `render-convergence --max-spp`,
+/// `--ref-spp`): far above any preview or reference here, and it stops a typo (or
+/// `u64::MAX`) from running for ever.
+pub const MAX_SPP: usize = 1 << 20;
+/// Largest path length (`--max-depth`): Russian roulette ends nearly every path long
+/// before it; more only lets a typo through.
+pub const MAX_DEPTH: usize = 1024;
+/// Largest image side in pixels (`--size`, `--frame`).
+pub const MAX_SIDE: usize = 8192;
+/// Largest key-light irradiance / environment radiance: with the exposure bound
+/// ([`output::MAX_EXPOSURE_EV`]) pixel values stay far inside the range where the tone
+/// map is finite (beyond it the ACES fit turns to inf/inf = NaN, an all-black image).
+pub const MAX_RADIANCE: f64 = 1e6;
+
 /// A linear RGB image, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {

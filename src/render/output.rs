@@ -10,6 +10,11 @@ use crate::io::write_atomic;
 use std::io::Cursor;
 use std::path::Path;
 
+/// Largest exposure magnitude in stops (`--exposure`): `2^64` times
+/// [`super::MAX_RADIANCE`] is still far from overflowing `x (2.51 x + 0.03)` in [`aces`],
+/// and any image is all black or all white well inside it.
+pub const MAX_EXPOSURE_EV: f64 = 64.0;
+
 /// The shipped font, registered with plotters under [`FONT`].
 pub const FONT: &str = "furfit-dejavu";
 static FONT_BYTES: &[u8] = include_bytes!("../../assets/fonts/DejaVuSans.ttf");

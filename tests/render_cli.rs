@@ -1,0 +1,139 @@
+//! `furfit render` and `furfit render-convergence` on bad input: every option that sizes or
+//! lights the work is bounded and named in the error, and output paths are checked before
+//! anything is rendered or written.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn furfit(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_furfit"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A refused run: an ordinary error exit (not an abort), stderr names `flag`.
+#[track_caller]
+fn refused(o: &Output, flag: &str) {
+    assert!(
+        matches!(o.status.code(), Some(1 | 2)),
+        "{flag}: status {:?}, stderr {}",
+        o.status,
+        stderr(o)
+    );
+    assert!(stderr(o).contains(flag), "{flag}: {}", stderr(o));
+}
+
+/// `args`, then each of `defaults` whose flag `extra` does not give (clap refuses a flag
+/// given twice, which would hide what a test checks), then `extra`.
+fn with_defaults(args: &[&str], defaults: &[(&str, &str)], extra: &[&str]) -> Output {
+    let mut a: Vec<&str> = args.to_vec();
+    for (f, v) in defaults {
+        if !extra
+            .iter()
+            .any(|e| e == f || e.starts_with(&format!("{f}=")))
+        {
+            a.push(f);
+            if !v.is_empty() {
+                a.push(v);
+            }
+        }
+    }
+    a.extend_from_slice(extra);
+    furfit(&a)
+}
+
+fn render(dir: &Path, extra: &[&str]) -> Output {
+    let out = dir.join("r.png");
+    let defaults = [
+        ("--params", "red-fox"),
+        ("--size", "8x8"),
+        ("--spp", "1"),
+        ("--fibers", "20"),
+        ("--threads", "1"),
+        ("--no-aovs", ""),
+        ("--out", out.to_str().unwrap()),
+    ];
+    with_defaults(&["render"], &defaults, extra)
+}
+
+#[test]
+fn scene_size_and_sample_counts_are_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    for (flag, v) in [
+        // 20 M fibers aborted on a failed allocation; 1e9 asked for terabytes.
+        ("--fibers", "20000000"),
+        ("--fibers", "1000000000"),
+        // Was silently raised to 1.
+        ("--fibers", "0"),
+        ("--max-depth", "0"),
+        ("--max-depth", "100000"),
+        // Was accepted and ran for ever.
+        ("--spp", "18446744073709551615"),
+        ("--spp", "2000000"),
+        ("--spp", "0"),
+        ("--threads", "100000"),
+    ] {
+        let o = render(dir.path(), &[flag, v]);
+        refused(&o, flag);
+    }
+    assert!(!dir.path().join("r.png").exists());
+    // The bounds themselves are accepted.
+    let o = render(dir.path(), &["--max-depth", "1", "--fibers", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn exposure_and_radiances_are_finite_and_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    // Each of these used to exit 0 with an all-black PNG.
+    for (flag, v) in [
+        ("--exposure", "nan"),
+        ("--exposure", "1e308"),
+        ("--exposure", "-1e308"),
+        ("--exposure", "inf"),
+        ("--env", "1e308"),
+        ("--env", "0.3,1e308"),
+        ("--env", "-1"),
+        ("--light-intensity", "1e308"),
+        ("--light-intensity", "nan"),
+        ("--footprint-scale", "inf"),
+    ] {
+        let o = render(dir.path(), &[&format!("{flag}={v}")]);
+        refused(&o, flag);
+    }
+    assert!(!dir.path().join("r.png").exists());
+    let o = render(dir.path(), &["--exposure=-64", "--env", "1e6"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+#[test]
+fn size_parser_is_shared_and_names_the_option() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r.png");
+    for size in ["axb", "8x", "0x8", "9000x8", "8"] {
+        let o = furfit(&[
+            "render",
+            "--params",
+            "red-fox",
+            "--size",
+            size,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        refused(&o, "--size");
+        assert!(stderr(&o).contains("1..=8192"), "{}", stderr(&o));
+    }
+}
+
+#[test]
+fn fits_dir_requires_all() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = render(dir.path(), &["--fits-dir", "fits"]);
+    refused(&o, "--all");
+    assert!(!dir.path().join("r.png").exists());
+}
