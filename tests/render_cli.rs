@@ -16,6 +16,10 @@ fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
 /// A refused run: an ordinary error exit (not an abort), stderr names `flag`.
 #[track_caller]
 fn refused(o: &Output, flag: &str) {
@@ -59,6 +63,10 @@ fn render(dir: &Path, extra: &[&str]) -> Output {
         ("--out", out.to_str().unwrap()),
     ];
     with_defaults(&["render"], &defaults, extra)
+}
+
+fn fit_file() -> std::path::PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("fits/red-fox.json")
 }
 
 #[test]
@@ -136,4 +144,80 @@ fn fits_dir_requires_all() {
     let o = render(dir.path(), &["--fits-dir", "fits"]);
     refused(&o, "--all");
     assert!(!dir.path().join("r.png").exists());
+}
+
+#[test]
+fn render_checks_output_paths_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    let regular = dir.path().join("regular");
+    std::fs::write(&regular, "keep").unwrap();
+    let o = furfit(&[
+        "render",
+        "--params",
+        "red-fox",
+        "--size",
+        "8x8",
+        "--spp",
+        "1",
+        "--fibers",
+        "20",
+        "--out",
+        regular.join("a.png").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    // Refused up front (no scene was built) with the real reason, not "File exists".
+    assert!(stderr(&o).contains("not a directory"), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
+
+    // --all: the contact sheet's path is a directory, so no species file may be written.
+    let fits = dir.path().join("fits");
+    std::fs::create_dir(&fits).unwrap();
+    for n in ["a.json", "sheet.json"] {
+        std::fs::copy(fit_file(), fits.join(n)).unwrap();
+    }
+    let out = dir.path().join("out");
+    std::fs::create_dir_all(out.join("contact.png")).unwrap();
+    let all = |sheet: &str| {
+        furfit(&[
+            "render",
+            "--all",
+            "--fits-dir",
+            fits.to_str().unwrap(),
+            "--size",
+            "8x8",
+            "--spp",
+            "1",
+            "--fibers",
+            "20",
+            "--threads",
+            "1",
+            "--out",
+            out.join(sheet).to_str().unwrap(),
+        ])
+    };
+    let o = all("contact.png");
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("contact.png"), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
+    // A fit named like the sheet, whose path is a directory: "nothing was written" is true.
+    std::fs::create_dir(out.join("sheet.png")).unwrap();
+    let o = all("sheet.png");
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("sheet.png"), "{}", stderr(&o));
+    // ... and when the path is free, the sheet would overwrite that fit's render: refused.
+    std::fs::remove_dir(out.join("sheet.png")).unwrap();
+    let o = all("sheet.png");
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("contact sheet"), "{}", stderr(&o));
+    let left: Vec<_> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().into_string().unwrap())
+        .collect();
+    assert_eq!(left, ["contact.png"], "files written before the error");
+    // A free sheet path renders every fit and the sheet.
+    let o = all("sheet2.png");
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in ["a.png", "a.exr", "sheet.png", "sheet_R.png", "sheet2.png"] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
 }

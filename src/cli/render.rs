@@ -226,18 +226,22 @@ fn with_suffix(out: &Path, suffix: &str, ext: &str) -> PathBuf {
     out.with_file_name(format!("{stem}{suffix}.{ext}"))
 }
 
+/// The files one render writes: the PNG, the linear EXR beside it and the AOVs.
+fn outputs(out: &Path, s: &RenderSettings, aovs: bool) -> Vec<(Option<Lobe>, PathBuf)> {
+    let mut v = vec![
+        (None, out.to_path_buf()),
+        (None, with_suffix(out, "", "exr")),
+    ];
+    if aovs {
+        for l in Lobe::ALL.into_iter().filter(|&l| s.lobes.contains(l)) {
+            v.push((Some(l), with_suffix(out, &format!("_{}", l.name()), "png")));
+        }
+    }
+    v
+}
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     let s = settings_from(&a)?;
-    let scene = Scene::build(&s.strand);
-    outln!(
-        "scene: {} fibers, {} segments; {}x{} at {} spp, mode {}",
-        s.strand.fibers,
-        scene.bvh.segments().len(),
-        s.width,
-        s.height,
-        s.spp,
-        s.mode.name()
-    );
     let jobs: Vec<(String, FurParams)> = if a.all {
         let dir = a.fits_dir.clone().unwrap_or_else(|| "fits".into());
         let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
@@ -276,8 +280,50 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .unwrap_or(spec.clone());
         vec![(name, p)]
     };
+    // Every output path is checked before the (possibly long) renders, so a bad --out
+    // fails at once and a failure never leaves some species written and others not.
+    let outs: Vec<PathBuf> = jobs
+        .iter()
+        .map(|(name, _)| {
+            if a.all {
+                a.out.with_file_name(format!("{name}.png"))
+            } else {
+                a.out.clone()
+            }
+        })
+        .collect();
+    let mut taken: Vec<(PathBuf, &str)> = Vec::new();
+    if a.all {
+        taken.push((a.out.clone(), "the contact sheet"));
+    }
+    for ((name, _), out) in jobs.iter().zip(&outs) {
+        for (_, p) in outputs(out, &s, !a.no_aovs) {
+            if let Some((_, owner)) = taken.iter().find(|(q, _)| *q == p) {
+                bail!(
+                    "--out {}: {} of fit '{name}' would overwrite {owner}; rename the fit \
+                     or choose another --out",
+                    a.out.display(),
+                    p.display()
+                );
+            }
+            taken.push((p, name));
+        }
+    }
+    for (p, _) in &taken {
+        crate::io::check_out_file(p)?;
+    }
+    let scene = Scene::build(&s.strand);
+    outln!(
+        "scene: {} fibers, {} segments; {}x{} at {} spp, mode {}",
+        s.strand.fibers,
+        scene.bvh.segments().len(),
+        s.width,
+        s.height,
+        s.spp,
+        s.mode.name()
+    );
     let mut tiles = Vec::new();
-    for (name, p) in &jobs {
+    for ((name, p), out) in jobs.iter().zip(&outs) {
         for n in crate::model::FurModel::table_notes(p) {
             eprintln!("note: {name}: {n}");
         }
@@ -291,32 +337,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             r.rays,
             r.rays_per_second() / 1e6
         );
-        let out = if a.all {
-            a.out.with_file_name(format!("{name}.png"))
-        } else {
-            a.out.clone()
-        };
         // The PNG, the EXR and the AOVs are written as one: all or none.
-        let exr = with_suffix(&out, "", "exr");
-        let mut files = vec![
-            (out.clone(), output::png_bytes(&r.beauty, a.exposure, &out)?),
-            (exr.clone(), output::exr_bytes(&r.beauty, &exr)?),
-        ];
-        if !a.no_aovs {
-            for l in Lobe::ALL.into_iter().filter(|&l| s.lobes.contains(l)) {
-                let p = with_suffix(&out, &format!("_{}", l.name()), "png");
-                files.push((
-                    p.clone(),
-                    output::png_bytes(&r.lobes[l.index()], a.exposure, &p)?,
-                ));
-            }
-        }
+        let files = outputs(out, &s, !a.no_aovs)
+            .into_iter()
+            .map(|(lobe, p)| {
+                let bytes = match lobe {
+                    Some(l) => output::png_bytes(&r.lobes[l.index()], a.exposure, &p)?,
+                    None if p == *out => output::png_bytes(&r.beauty, a.exposure, &p)?,
+                    None => output::exr_bytes(&r.beauty, &p)?,
+                };
+                Ok((p, bytes))
+            })
+            .collect::<crate::Result<Vec<_>>>()?;
         crate::io::write_atomic_all(&files)?;
         outln!("wrote {} (+ .exr)", out.display());
         if !a.no_aovs {
             outln!(
                 "wrote per-lobe AOVs {}",
-                with_suffix(&out, "_<lobe>", "png").display()
+                with_suffix(out, "_<lobe>", "png").display()
             );
         }
         tiles.push((name.clone(), r.beauty));
