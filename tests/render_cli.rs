@@ -136,6 +136,12 @@ fn size_parser_is_shared_and_names_the_option() {
         refused(&o, "--size");
         assert!(stderr(&o).contains("1..=8192"), "{}", stderr(&o));
     }
+    let rc = dir.path().join("rc");
+    for (flag, v) in [("--size", "axb"), ("--frame", "16xb"), ("--frame", "0x16")] {
+        let o = furfit(&["render-convergence", flag, v, "--out", rc.to_str().unwrap()]);
+        refused(&o, flag);
+    }
+    assert!(!rc.exists());
 }
 
 #[test]
@@ -219,5 +225,64 @@ fn render_checks_output_paths_before_rendering() {
     assert!(o.status.success(), "{}", stderr(&o));
     for f in ["a.png", "a.exr", "sheet.png", "sheet_R.png", "sheet2.png"] {
         assert!(out.join(f).is_file(), "{f}");
+    }
+}
+
+fn convergence(out: &Path, extra: &[&str]) -> Output {
+    let mut defaults = vec![
+        ("--size", "8X8"),
+        ("--frame", "64x64"),
+        ("--max-spp", "1"),
+        ("--threads", "1"),
+        ("--out", out.to_str().unwrap()),
+    ];
+    // The culling study refuses these (it does not use them).
+    if !extra.contains(&"--culling-study") {
+        defaults.extend([("--ref-spp", "2"), ("--repeats", "1"), ("--modes", "near")]);
+    }
+    with_defaults(&["render-convergence"], &defaults, extra)
+}
+
+#[test]
+fn render_convergence_validates_before_any_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let rc = dir.path().join("rc");
+    for (extra, flag) in [
+        // Rendered the references, wrote a header-only CSV, then failed.
+        (&["--max-spp", "0", "--ref-spp", "4"][..], "--max-spp"),
+        (&["--max-spp", "4", "--ref-spp", "4"], "--ref-spp"),
+        (&["--ref-spp", "18446744073709551615"], "--ref-spp"),
+        (&["--repeats", "0"], "--repeats"),
+        (&["--modes", "near,near"], "--modes"),
+        (&["--modes", "near,bogus"], "--modes"),
+        // Options the culling study ignores, an unknown mode among them.
+        (&["--culling-study", "--modes", "bogus"], "--modes"),
+        (&["--culling-study", "--repeats", "1"], "--repeats"),
+        (&["--threads", "100000"], "--threads"),
+    ] {
+        let o = convergence(&rc, extra);
+        refused(&o, flag);
+        assert!(stdout(&o).is_empty(), "{flag}: {}", stdout(&o));
+    }
+    assert!(!rc.exists(), "files written by a refused run");
+    // --out under a regular file: refused before the references are rendered.
+    let regular = dir.path().join("regular");
+    std::fs::write(&regular, "keep").unwrap();
+    let o = convergence(&regular.join("rc"), &[]);
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("not a directory"), "{}", stderr(&o));
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
+    // One of the report's files is a directory: refused up front, none written.
+    std::fs::create_dir_all(rc.join("render_convergence.md")).unwrap();
+    let o = convergence(&rc, &[]);
+    assert!(!o.status.success());
+    assert!(stdout(&o).is_empty(), "{}", stdout(&o));
+    assert!(!rc.join("render_convergence.csv").exists());
+    // The smallest valid run (`8X8` as `render` accepts it) writes the whole report.
+    std::fs::remove_dir(rc.join("render_convergence.md")).unwrap();
+    let o = convergence(&rc, &[]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in ["csv", "png", "svg", "md"] {
+        assert!(rc.join(format!("render_convergence.{f}")).is_file(), "{f}");
     }
 }

@@ -2,66 +2,101 @@
 //! lock, the equal-quality speedup of multi-scale over near field, and (with
 //! `--culling-study`) the time saved by far-field culling with its image difference.
 
+use super::render::MAX_THREADS;
 use crate::params::FurParams;
 use crate::render::bsdf::Mode;
-use crate::render::study::{convergence, culling_study, plot_convergence};
-use crate::render::{RenderSettings, Scene};
+use crate::render::study::{convergence, culling_study, plot_convergence_bytes};
+use crate::render::{RenderSettings, Scene, MAX_SIDE, MAX_SPP};
 use anyhow::{bail, Context};
+use clap::builder::RangedU64ValueParser;
 use std::path::PathBuf;
+
+/// Largest `--repeats`: each repeat renders the whole curve again.
+const MAX_REPEATS: usize = 1000;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Parameter file, fit file or preset.
     #[arg(long, default_value = "red-fox")]
     pub params: String,
-    /// Size of the central patch rendered (WxH).
+    /// Size of the central patch rendered (WxH or WXH), inside --frame.
     #[arg(long, default_value = "48x48")]
     pub size: String,
-    /// Full frame the patch is cut from (sets the pixel footprint).
+    /// Full frame the patch is cut from (sets the pixel footprint), each side 1..=8192.
     #[arg(long, default_value = "512x512")]
     pub frame: String,
-    /// Largest spp of the curves (powers of two from 1).
-    #[arg(long, default_value_t = 64)]
+    /// Largest spp of the curves (powers of two from 1), 1..=1048576; with
+    /// --culling-study, the spp of its renders.
+    #[arg(long, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
     pub max_spp: usize,
-    /// spp of each mode's reference image.
-    #[arg(long, default_value_t = 512)]
+    /// spp of each mode's reference image: more than --max-spp (a reference no better
+    /// than the curve measures nothing), at most 1048576.
+    #[arg(long, default_value_t = 512, value_parser = RangedU64ValueParser::<usize>::new().range(2..=MAX_SPP as u64))]
     pub ref_spp: usize,
-    /// Modes to compare.
+    /// Modes to compare, each once: near, far, multiscale.
     #[arg(long, default_value = "near,far,multiscale")]
     pub modes: String,
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Independent renders (seeds) per spp: the speedup is reported pooled over them and
-    /// per repeat, since one 48x48 patch gives a ratio that swings by tens of percent.
-    #[arg(long, default_value_t = 4)]
+    /// per repeat, since one 48x48 patch gives a ratio that swings by tens of percent;
+    /// 1..=1000.
+    #[arg(long, default_value_t = 4, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_REPEATS as u64))]
     pub repeats: usize,
-    #[arg(long, default_value_t = 0)]
+    /// Worker threads (0 = all cores), at most 1024.
+    #[arg(long, default_value_t = 0, value_parser = RangedU64ValueParser::<usize>::new().range(0..=MAX_THREADS as u64))]
     pub threads: usize,
     /// Render with next-event estimation of the environment (MIS with BCSDF sampling).
     #[arg(long)]
     pub env_nee: bool,
-    /// Run the culling study instead (writes reports/render_culling.md).
-    #[arg(long)]
+    /// Run the culling study instead (writes render_culling.md to --out): multi-scale
+    /// only, one seed, at --max-spp; --modes, --ref-spp and --repeats do not apply.
+    #[arg(long, conflicts_with_all = ["modes", "ref_spp", "repeats"])]
     pub culling_study: bool,
     /// Output directory.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
 }
 
-fn size(s: &str) -> anyhow::Result<(usize, usize)> {
-    let (w, h) = s
-        .split_once('x')
-        .with_context(|| format!("'{s}': expected WxH"))?;
-    Ok((w.parse()?, h.parse()?))
-}
-
 pub fn run(a: Args) -> anyhow::Result<()> {
-    let (params, _) = FurParams::load(&a.params)?;
-    let (pw, ph) = size(&a.size)?;
-    let (fw, fh) = size(&a.frame)?;
-    if pw == 0 || ph == 0 || pw > fw || ph > fh {
-        bail!("--size {pw}x{ph} must be non-empty and fit in --frame {fw}x{fh}");
+    // Every option and the output paths are checked before the first render.
+    let (pw, ph) = super::parse_size("--size", &a.size, MAX_SIDE)?;
+    let (fw, fh) = super::parse_size("--frame", &a.frame, MAX_SIDE)?;
+    if pw > fw || ph > fh {
+        bail!("--size {pw}x{ph} must fit in --frame {fw}x{fh}");
     }
+    let mut modes: Vec<Mode> = Vec::new();
+    for m in a.modes.split(',') {
+        let m = Mode::parse(m.trim()).with_context(|| format!("--modes '{}'", a.modes))?;
+        if modes.contains(&m) {
+            bail!("--modes '{}': {} given twice", a.modes, m.name());
+        }
+        modes.push(m);
+    }
+    if !a.culling_study && a.ref_spp <= a.max_spp {
+        bail!(
+            "--ref-spp {} must be more than --max-spp {} (the reference must be better than \
+             every point of the curve)",
+            a.ref_spp,
+            a.max_spp
+        );
+    }
+    let names: &[&str] = if a.culling_study {
+        &["render_culling.md"]
+    } else {
+        &[
+            "render_convergence.csv",
+            "render_convergence.png",
+            "render_convergence.svg",
+            "render_convergence.md",
+        ]
+    };
+    let paths: Vec<PathBuf> = names.iter().map(|n| a.out.join(n)).collect();
+    crate::io::check_out_dir(&a.out)?;
+    for p in &paths {
+        crate::io::check_out_file(p)?;
+    }
+    let (params, _) = FurParams::load(&a.params)?;
     let base = RenderSettings {
         width: fw,
         height: fh,
@@ -71,7 +106,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         env_nee: a.env_nee,
         ..RenderSettings::default()
     };
-    let scene = Scene::build(&base.strand);
     if a.culling_study {
         let mut s = base.clone();
         s.spp = a.max_spp;
@@ -118,28 +152,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             100.0 * saved,
             100.0 * saved_table
         );
-        let p = a.out.join("render_culling.md");
-        crate::io::write_atomic(&p, md.as_bytes())?;
+        let p = &paths[0];
+        crate::io::write_atomic(p, md.as_bytes())?;
         outln!("wrote {}", p.display());
         return Ok(());
     }
-    let modes: Vec<Mode> = a
-        .modes
-        .split(',')
-        .map(Mode::parse)
-        .collect::<crate::Result<_>>()?;
-    if a.repeats == 0 {
-        anyhow::bail!("--repeats must be at least 1");
-    }
+    let scene = Scene::build(&base.strand);
     let spp = (a.max_spp, a.ref_spp);
     let c = convergence(&scene, &params, &base, &modes, spp, a.repeats, |m| {
         outln!("{m}")
     })?;
-    let csv = a.out.join("render_convergence.csv");
-    crate::io::write_atomic(&csv, c.to_csv().as_bytes())?;
-    plot_convergence(&c, &a.out.join("render_convergence.png"), false)?;
-    plot_convergence(&c, &a.out.join("render_convergence.svg"), true)?;
-    outln!("wrote {} (+ .png, .svg)", csv.display());
     for m in &modes {
         if let Some(v) = c.inefficiency(*m, 4) {
             outln!(
@@ -160,9 +182,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.threads,
         if a.env_nee { " --env-nee" } else { "" }
     );
-    let md = a.out.join("render_convergence.md");
-    crate::io::write_atomic(&md, c.to_markdown(&command, 4).as_bytes())?;
-    outln!("wrote {}", md.display());
+    // The report's files land together or not at all.
+    let [csv, png, svg, md] = [0, 1, 2, 3].map(|i| paths[i].clone());
+    let files = vec![
+        (csv.clone(), c.to_csv().into_bytes()),
+        (png.clone(), plot_convergence_bytes(&c, &png, false)?),
+        (svg.clone(), plot_convergence_bytes(&c, &svg, true)?),
+        (md.clone(), c.to_markdown(&command, 4).into_bytes()),
+    ];
+    crate::io::write_atomic_all(&files)?;
+    outln!("wrote {} (+ .png, .svg, .md)", csv.display());
     for fast in [Mode::Multiscale, Mode::Far] {
         if let Some(s) = c.speedup(Mode::Near, fast, 4) {
             outln!(

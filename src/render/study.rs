@@ -312,6 +312,16 @@ pub fn convergence(
 
 /// Plot RMSE versus time (log-log) per mode; `svg` chooses the backend.
 pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> crate::Result<()> {
+    crate::io::write_atomic(path, &plot_convergence_bytes(c, path, svg)?)
+}
+
+/// The bytes of [`plot_convergence`]'s file, for [`crate::io::write_atomic_all`] (`path`
+/// only names the target in errors).
+pub fn plot_convergence_bytes(
+    c: &Convergence,
+    path: &std::path::Path,
+    svg: bool,
+) -> crate::Result<Vec<u8>> {
     use plotters::prelude::*;
     super::output::register_font();
     let err = |e: String| crate::Error::file(path, format!("plotting failed: {e}"));
@@ -399,7 +409,7 @@ pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> c
             bounds,
         )
         .map_err(err)?;
-        crate::io::write_atomic(path, s.as_bytes())
+        Ok(s.into_bytes())
     } else {
         let mut buf = vec![0u8; 720 * 480 * 3];
         draw_chart(
@@ -413,7 +423,7 @@ pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> c
         let mut out = std::io::Cursor::new(Vec::new());
         img.write_to(&mut out, image::ImageFormat::Png)
             .map_err(|e| crate::Error::file(path, format!("PNG encoding failed: {e}")))?;
-        crate::io::write_atomic(path, out.get_ref())
+        Ok(out.into_inner())
     }
 }
 
@@ -457,7 +467,7 @@ pub fn culling_study(
     };
     let scene = fresh();
     let (full, t_full, s_full) = run(&scene, false, base.seed)?;
-    let (full2, _, _) = run(&scene, false, base.seed + 17)?;
+    let (full2, _, _) = run(&scene, false, base.seed.wrapping_add(17))?;
     let noise = full.rmse(&full2);
     let scene = fresh();
     let (cull, t_cull, s_cull) = run(&scene, true, base.seed)?;
