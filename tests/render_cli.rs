@@ -136,6 +136,18 @@ fn size_parser_is_shared_and_names_the_option() {
         refused(&o, "--size");
         assert!(stderr(&o).contains("1..=8192"), "{}", stderr(&o));
     }
+    // Each side allowed, the whole too large (~20 GB): refused before allocating.
+    let o = furfit(&[
+        "render",
+        "--params",
+        "red-fox",
+        "--size",
+        "8192x8192",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    refused(&o, "--size");
+    assert!(stderr(&o).contains("more than the limit"), "{}", stderr(&o));
     let rc = dir.path().join("rc");
     for (flag, v) in [("--size", "axb"), ("--frame", "16xb"), ("--frame", "0x16")] {
         let o = furfit(&["render-convergence", flag, v, "--out", rc.to_str().unwrap()]);

@@ -96,7 +96,12 @@ pub fn parse_size(opt: &str, s: &str, max: usize) -> anyhow::Result<(usize, usiz
             .filter(|n| (1..=max).contains(n))
     };
     match (side(w), side(h)) {
-        (Some(w), Some(h)) => Ok((w, h)),
+        (Some(w), Some(h)) if w * h <= crate::render::MAX_PIXELS => Ok((w, h)),
+        (Some(w), Some(h)) => Err(anyhow::anyhow!(
+            "{opt} '{s}': {} pixels, more than the limit of {} (e.g. 4096x4096)",
+            w * h,
+            crate::render::MAX_PIXELS
+        )),
         _ => Err(bad()),
     }
 }

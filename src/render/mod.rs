@@ -50,6 +50,10 @@ pub const MAX_SPP: usize = 1 << 20;
 pub const MAX_DEPTH: usize = 1024;
 /// Largest image side in pixels (`--size`, `--frame`).
 pub const MAX_SIDE: usize = 8192;
+/// Most pixels of one image (`--size`): a render holds ~300 bytes per pixel (beauty, five
+/// AOVs, accumulators), so 4096 x 4096 is ~5 GB; 8192 x 8192 (~20 GB) would abort on a
+/// 24 GB machine instead of failing with a message.
+pub const MAX_PIXELS: usize = 1 << 24;
 /// Largest key-light irradiance / environment radiance: with the exposure bound
 /// ([`output::MAX_EXPOSURE_EV`]) pixel values stay far inside the range where the tone
 /// map is finite (beyond it the ACES fit turns to inf/inf = NaN, an all-black image).
