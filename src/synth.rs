@@ -278,15 +278,7 @@ pub fn synthesize(
     let samples = deg
         .iter()
         .zip(&values)
-        .map(|(&(ti, tr, p), v)| Sample {
-            theta_i: ti,
-            theta_r: tr,
-            phi: p,
-            value: exposure * v.sum(),
-            sigma: None,
-            channel: 0,
-            phi_i: None,
-        })
+        .map(|(&(ti, tr, p), v)| Sample::new(ti, tr, p, exposure * v.sum()))
         .collect();
     let lobe_names: Vec<&str> = lobes.iter().map(|l| l.name()).collect();
     let mut prof = Profile {

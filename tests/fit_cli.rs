@@ -378,13 +378,9 @@ fn report_fails_when_a_part_is_skipped() {
     assert!(tmp.path().join("reports/nrmse.md").exists());
 }
 
-/// A fit made from other files than `measurements/<species>/`: the report plots the data
-/// the fit recorded (so a broken `measurements/<species>/` does not stop its Fig. 11) and
-/// does not pair that fit with the folder's model-vs-simulation entry.
-#[test]
-fn report_uses_the_data_a_fit_recorded() {
-    let tmp = tempfile::tempdir().unwrap();
-    let root = tmp.path();
+/// `measurements/mouse/` (theta_i -20, 20) and a fit `fits/mouse.json` made from other
+/// data of the same species, `lab/mouse.csv` (theta_i 0, 30).
+fn fit_lab_mouse(root: &Path) {
     make_species(root, "mouse");
     std::fs::create_dir_all(root.join("lab")).unwrap();
     let o = furfit()
@@ -400,6 +396,16 @@ fn report_uses_the_data_a_fit_recorded() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
+/// A fit made from other files than `measurements/<species>/`: the report plots the data
+/// the fit recorded (so a broken `measurements/<species>/` does not stop its Fig. 11) and
+/// does not pair that fit with the folder's model-vs-simulation entry.
+#[test]
+fn report_uses_the_data_a_fit_recorded() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    fit_lab_mouse(root);
     let o = furfit().current_dir(root).arg("report").output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
@@ -424,21 +430,7 @@ fn report_uses_the_data_a_fit_recorded() {
 fn report_refuses_data_that_changed_since_the_fit() {
     let tmp = tempfile::tempdir().unwrap();
     let root = tmp.path();
-    make_species(root, "mouse");
-    std::fs::create_dir_all(root.join("lab")).unwrap();
-    let o = furfit()
-        .current_dir(root)
-        .args(["synth", "--params", "mouse", "--theta-i", "0,30"])
-        .args(["--theta-r", "-60:60:10", "--phi", "-165:180:15"])
-        .args(["--out", "lab/mouse.csv"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = fit_cmd(root)
-        .args(["lab/mouse.csv", "--out", "fits/mouse.json"])
-        .output()
-        .unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    fit_lab_mouse(root);
     // Edited after the fit (one more valid row): refused.
     let lab = root.join("lab/mouse.csv");
     let mut text = std::fs::read_to_string(&lab).unwrap();

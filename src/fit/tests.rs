@@ -140,15 +140,12 @@ fn channel_data_is_independent_of_row_order() {
     for (k, ti) in [0.0, 30.0].into_iter().enumerate() {
         for j in 0..5 {
             for i in 0..7 {
-                samples.push(Sample {
-                    theta_i: ti,
-                    theta_r: -40.0 + 20.0 * j as f64,
-                    phi: -150.0 + 50.0 * i as f64,
-                    value: 1.0 + (k * 35 + j * 7 + i) as f64,
-                    sigma: None,
-                    channel: 0,
-                    phi_i: None,
-                });
+                samples.push(Sample::new(
+                    ti,
+                    -40.0 + 20.0 * j as f64,
+                    -150.0 + 50.0 * i as f64,
+                    1.0 + (k * 35 + j * 7 + i) as f64,
+                ));
             }
         }
     }

@@ -49,6 +49,20 @@ pub struct Sample {
 }
 
 impl Sample {
+    /// A channel-0 sample at `(theta_i, theta_r, phi)` (degrees) without sigma or
+    /// incident azimuth.
+    pub fn new(theta_i: f64, theta_r: f64, phi: f64, value: f64) -> Sample {
+        Sample {
+            theta_i,
+            theta_r,
+            phi,
+            value,
+            sigma: None,
+            channel: 0,
+            phi_i: None,
+        }
+    }
+
     /// A sample with usable signal: finite and strictly positive.
     pub fn is_valid(&self) -> bool {
         self.value.is_finite() && self.value > 0.0
@@ -742,15 +756,7 @@ mod tests {
     use super::*;
 
     fn at(theta_i: f64, theta_r: f64, phi: f64) -> Sample {
-        Sample {
-            theta_i,
-            theta_r,
-            phi,
-            value: 1.0,
-            sigma: None,
-            channel: 0,
-            phi_i: None,
-        }
+        Sample::new(theta_i, theta_r, phi, 1.0)
     }
 
     #[test]

@@ -648,15 +648,7 @@ mod tests {
     use super::*;
 
     fn sample(ti: f64, tr: f64, phi: f64, value: f64) -> Sample {
-        Sample {
-            theta_i: ti,
-            theta_r: tr,
-            phi,
-            value,
-            sigma: None,
-            channel: 0,
-            phi_i: None,
-        }
+        Sample::new(ti, tr, phi, value)
     }
 
     #[test]

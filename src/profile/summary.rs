@@ -89,15 +89,7 @@ mod tests {
     use super::*;
 
     fn s(phi: f64) -> Sample {
-        Sample {
-            theta_i: 0.0,
-            theta_r: 0.0,
-            phi,
-            value: 1.0,
-            sigma: None,
-            channel: 0,
-            phi_i: None,
-        }
+        Sample::new(0.0, 0.0, phi, 1.0)
     }
 
     #[test]
