@@ -82,6 +82,10 @@ fn csv_angle_out_of_range() {
 fn csv_infinite_value() {
     let e = csv_err(&format!("{HEAD}0,0,0,inf\n"));
     assert_at(&e, "bad.csv", 3, "column 4 (value)");
+    // 1e400 parses to inf: the message says why a finite-looking number is refused.
+    let e = csv_err(&format!("{HEAD}0,0,0,1\n0,0,10,1e400\n"));
+    assert_at(&e, "bad.csv", 4, "column 4 (value)");
+    assert!(e.contains("beyond the f64 range"), "{e}");
 }
 
 #[test]

@@ -625,7 +625,7 @@ pub(crate) fn check_measured(
     if value.is_infinite() {
         return Err((
             Field::Value,
-            format!("value {value} is infinite (mark a missing sample with NaN)"),
+            format!("value {value} is infinite or beyond the f64 range, 1.8e308 (mark a missing sample with NaN)"),
         ));
     }
     if let Some(s) = sigma {

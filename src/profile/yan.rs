@@ -110,7 +110,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                 return Err(perr(
                     line,
                     label(2),
-                    format!("value {v} is infinite (write ? for a missing value)"),
+                    format!("value {v} is infinite or beyond the f64 range, 1.8e308 (write ? for a missing value)"),
                 ));
             }
             v
