@@ -22,5 +22,15 @@ pub mod simulate;
 pub mod synth;
 
 pub use error::{Error, Result};
+
+/// The tool and the git revision it was built from (`build.rs`), as fit files, reports and
+/// simulated profiles record it.
+pub const TOOL_VERSION: &str = concat!(
+    "furfit ",
+    env!("CARGO_PKG_VERSION"),
+    " (git ",
+    env!("FURFIT_GIT_REV"),
+    ")"
+);
 pub use params::{FurParams, ParamId};
 pub use profile::{Profile, Sample};

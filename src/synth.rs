@@ -305,7 +305,7 @@ pub fn synthesize(
         );
         prof.set_meta("cull", format!("{}", opts.cull));
     }
-    prof.set_meta("furfit_version", env!("CARGO_PKG_VERSION"));
+    prof.set_meta("furfit_version", crate::TOOL_VERSION);
     prof
 }
 

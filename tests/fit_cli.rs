@@ -112,6 +112,12 @@ fn fit_then_report_end_to_end_and_deterministic() {
     ] {
         assert!(a.get(key).is_some(), "fit file lacks '{key}'");
     }
+    // The build is identified (git revision, or "unknown" outside a checkout).
+    let tool = a["tool_version"].as_str().unwrap();
+    assert!(
+        tool.starts_with("furfit ") && tool.contains("(git "),
+        "{tool}"
+    );
     // Same seed -> identical except wall time.
     let mut b = fit(root, "mouse", "fits/again.json", "7");
     strip_times(&mut a);

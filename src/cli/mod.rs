@@ -119,7 +119,7 @@ pub mod tables;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
-#[command(name = "furfit", version, about, long_about = None)]
+#[command(name = "furfit", version = concat!(env!("CARGO_PKG_VERSION"), " (git ", env!("FURFIT_GIT_REV"), ")"), about, long_about = None)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Command,

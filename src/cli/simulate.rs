@@ -220,10 +220,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
             .into(),
     ));
     meta.push(("command".into(), command.clone()));
-    meta.push((
-        "tool".into(),
-        format!("furfit {}", env!("CARGO_PKG_VERSION")),
-    ));
+    meta.push(("tool".into(), crate::TOOL_VERSION.to_string()));
     let prof = output::to_profile(&sim, &m, &meta);
     let count = |w| m.count(Some(w));
     let md = serde_json::json!({
@@ -231,7 +228,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "what": "Synthetic goniometric fiber profile from furfit's Monte Carlo virtual goniometer (explicit ray tracing through a 3-D double-cylinder fiber); NOT a measurement.",
         "species": species,
         "command": command,
-        "tool": format!("furfit {}", env!("CARGO_PKG_VERSION")),
+        "tool": crate::TOOL_VERSION.to_string(),
         "params": params.to_json_value(),
         "params_units": "angles in degrees, lengths per unit fiber radius",
         "seed": a.seed,

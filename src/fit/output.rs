@@ -124,7 +124,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "load": data.load,
             "notes": data.notes,
         },
-        "tool_version": concat!("furfit ", env!("CARGO_PKG_VERSION")),
+        "tool_version": crate::TOOL_VERSION,
         "seed": opts.seed,
         "trace": trace,
     })
