@@ -129,17 +129,17 @@ fn tiny_run(out: &std::path::Path, extra: &[&str]) -> std::process::Output {
 #[test]
 fn simulate_file_extension_picks_the_format() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("sim");
-    // The second run replaces the first one's metadata.json: --force.
-    for args in [&["--file", "p.csv"][..], &["--file", "p.npz", "--force"]] {
-        let o = tiny_run(&out, args);
+    // One folder each: a folder holds one simulation (its metadata.json describes it).
+    let (a, b) = (dir.path().join("a"), dir.path().join("b"));
+    for (out, name) in [(&a, "p.csv"), (&b, "p.npz")] {
+        let o = tiny_run(out, &["--file", name]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
     let opts = furfit::profile::LoadOptions::default();
-    let csv = furfit::profile::load_full(&out.join("p.csv"), &opts).unwrap();
-    let npz = furfit::profile::load_full(&out.join("p.npz"), &opts).unwrap();
+    let csv = furfit::profile::load_full(&a.join("p.csv"), &opts).unwrap();
+    let npz = furfit::profile::load_full(&b.join("p.npz"), &opts).unwrap();
     assert_eq!(npz.format, furfit::profile::Format::Npz);
-    assert!(std::fs::read(out.join("p.npz")).unwrap().starts_with(b"PK"));
+    assert!(std::fs::read(b.join("p.npz")).unwrap().starts_with(b"PK"));
     // Same seed, same numbers, whichever format holds them.
     assert_eq!(csv.profile.samples.len(), 2 * 9 * 6);
     assert_eq!(npz.profile.samples, csv.profile.samples);
@@ -301,6 +301,23 @@ fn simulate_replaces_only_its_own_earlier_output_and_only_with_force() {
     let o = tiny_run(&out, &["--seed", "9", "--force"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert_ne!(std::fs::read(out.join("profile.csv")).unwrap(), first);
+    // --force replaces only the profile the record describes: not a lab file copied in,
+    // and no second profile beside a record of the first.
+    let measured = "theta_i,theta_r,phi,value\n0,0,0,1\n";
+    std::fs::write(out.join("lab.csv"), measured).unwrap();
+    for name in ["lab.csv", "p.npz"] {
+        let o = tiny_run(&out, &["--file", name, "--force"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            !o.status.success() && err.contains("describes"),
+            "{name}: {err}"
+        );
+    }
+    assert_eq!(
+        std::fs::read_to_string(out.join("lab.csv")).unwrap(),
+        measured
+    );
+    assert!(!out.join("p.npz").exists());
 
     // A lab folder: a profile with no simulate record beside it.
     let lab = dir.path().join("lab");

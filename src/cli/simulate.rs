@@ -229,6 +229,8 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "species": species,
         "command": command,
         "tool": crate::TOOL_VERSION.to_string(),
+        // Which profile this record describes (simulate --force checks it).
+        "file": a.file,
         "params": params.to_json_value(),
         "params_units": "angles in degrees, lengths per unit fiber radius",
         "seed": a.seed,

@@ -386,9 +386,11 @@ pub fn is_profile_file(path: &Path) -> bool {
     path.is_file() && Format::from_path(path).is_ok()
 }
 
-/// Does this text read as a Yan-2015 profile? Its first line that is neither blank nor a
-/// `#` comment must be a data row: three whitespace-separated fields, each a number or `?`.
-/// A folder's `.txt`/`.dat` can be prose (`notes.txt`), which is skipped, not an error.
+/// Is this text meant as a Yan-2015 profile? Its first line that is neither blank nor a
+/// `#` comment starts with a number or `?` (the phi of a data row). A folder's
+/// `.txt`/`.dat` can be prose (`notes.txt`), which is skipped, not an error; a profile
+/// with a typo in its first row (`0 10 1,5`, `0, 10, 1`, a fourth column) still starts
+/// with a number, so it is read and its error reported, never silently left out.
 pub fn looks_like_yan(bytes: &[u8]) -> bool {
     for raw in split_lines(bytes) {
         let text = String::from_utf8_lossy(raw);
@@ -396,8 +398,11 @@ pub fn looks_like_yan(bytes: &[u8]) -> bool {
         if t.is_empty() || t.starts_with('#') {
             continue;
         }
-        let fields: Vec<&str> = t.split_whitespace().collect();
-        return fields.len() == 3 && fields.iter().all(|f| *f == "?" || f.parse::<f64>().is_ok());
+        let first = t
+            .split(|c: char| c.is_whitespace() || c == ',' || c == ';')
+            .next()
+            .unwrap_or("");
+        return first == "?" || first.parse::<f64>().is_ok();
     }
     false
 }
@@ -814,6 +819,12 @@ mod tests {
         std::fs::write(d.join("y.txt"), "# theta_i: 0\n0 10 1\n5 10 x\n").unwrap();
         let e = load_dir(d, &LoadOptions::default()).unwrap_err();
         assert!(e.to_string().contains("y.txt:3:"), "{e}");
+        // So is one whose FIRST row has a typo: read and reported, never skipped.
+        for first in ["0 10 1,5", "0, 10, 1", "0 10 1 7"] {
+            std::fs::write(d.join("y.txt"), format!("# theta_i: 0\n{first}\n5 10 2\n")).unwrap();
+            let e = load_dir(d, &LoadOptions::default()).unwrap_err();
+            assert!(e.to_string().contains("y.txt:2:"), "{first}: {e}");
+        }
     }
 
     #[test]

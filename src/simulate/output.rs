@@ -14,7 +14,7 @@ use super::measure::Measured;
 use super::SimResult;
 use crate::error::{Error, Result};
 use crate::profile::{self, Profile, Sample};
-use std::path::{Component, Path, PathBuf};
+use std::path::{Component, Path};
 
 /// `x` rounded to `digits` significant digits.
 fn round_sig(x: f64, digits: usize) -> f64 {
@@ -79,38 +79,47 @@ pub fn check_file_name(name: &str) -> Result<()> {
 }
 
 /// Check before any work that writing `dir/file_name` and `dir/metadata.json` loses
-/// nothing: where either exists, `force` must be given and `dir/metadata.json` must record
-/// an earlier `furfit simulate` run (its `command`), so a lab profile or a hand-written
-/// metadata file is never replaced, not even with `--force`.
+/// nothing: where either exists, `force` must be given, `dir/metadata.json` must record an
+/// earlier `furfit simulate` run (its `command`), and that run's profile (its `file`;
+/// `profile.csv` in records from before the field) must be `file_name`. So a lab profile
+/// or a hand-written metadata file is never replaced, not even with `--force`, and a
+/// profile is never left beside a `metadata.json` that describes another run.
 pub fn check_replace(dir: &Path, file_name: &str, force: bool) -> Result<()> {
     crate::io::check_out_dir(dir)?;
     let meta = dir.join("metadata.json");
-    let existing: Vec<PathBuf> = [dir.join(file_name), meta.clone()]
-        .into_iter()
-        .filter(|p| p.exists())
-        .collect();
-    let Some(first) = existing.first() else {
+    let target = dir.join(file_name);
+    let Some(first) = [&target, &meta].into_iter().find(|p| p.exists()) else {
         return Ok(());
     };
     if !force {
         return Err(Error::file(
             first,
-            "exists; simulate would replace it (give --force to replace an earlier furfit              simulation, or choose another --out)",
+            "exists; simulate would replace it (give --force to replace an earlier furfit \
+             simulation, or choose another --out)",
         ));
     }
-    let simulated = crate::io::read_json(&meta)
-        .ok()
-        .and_then(|v| {
-            v["command"]
-                .as_str()
-                .map(|c| c.starts_with("furfit simulate"))
-        })
-        .unwrap_or(false);
-    if !simulated {
+    let record = crate::io::read_json(&meta).ok().filter(|v| {
+        v["command"]
+            .as_str()
+            .is_some_and(|c| c.starts_with("furfit simulate"))
+    });
+    let Some(record) = record else {
         return Err(Error::file(
             first,
             format!(
-                "exists and {} does not record a furfit simulate run: not replaced, even with                  --force (move it away first)",
+                "exists and {} does not record a furfit simulate run: not replaced, even with \
+                 --force (move it away first)",
+                meta.display()
+            ),
+        ));
+    };
+    let recorded = record["file"].as_str().unwrap_or("profile.csv");
+    if recorded != file_name && (target.exists() || dir.join(recorded).exists()) {
+        return Err(Error::file(
+            first,
+            format!(
+                "{} describes the simulated profile {recorded}, not {file_name}: not replaced, \
+                 even with --force (use --file {recorded}, or another --out)",
                 meta.display()
             ),
         ));
