@@ -591,3 +591,22 @@ fn fit_refuses_an_axis_option_no_input_reads() {
     );
     assert!(!tmp.path().join("fits/x.json").exists());
 }
+
+/// `fit --all` checks every output before the first fit: a non-fit file in the way of the
+/// last species used to stop the run after all the others were fitted.
+#[test]
+fn fit_all_checks_every_output_first() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    make_species(root, "zebra");
+    std::fs::create_dir_all(root.join("fits")).unwrap();
+    std::fs::write(root.join("fits/zebra.json"), "{\"mine\": true}").unwrap();
+    let o = furfit()
+        .current_dir(root)
+        .args(["fit", "--all", "--starts", "8", "--lm-starts", "1"])
+        .output()
+        .unwrap();
+    fails_with(o, &["zebra.json", "not a furfit fit file"]);
+    assert!(!root.join("fits/mouse.json").exists());
+}

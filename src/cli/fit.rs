@@ -136,6 +136,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let formats: Vec<_> = loaded.iter().flat_map(|l| l.formats()).collect();
     load.check_used(&formats)?;
+    // Every output too, so `--all` cannot stop at the n-th species after n - 1 fits.
+    for job in &jobs {
+        crate::fit::job::check_out(&job.out)?;
+    }
     for (job, inputs) in jobs.iter().zip(&loaded) {
         // What inspect would say about the data (duplicates, a radians warning) is said
         // before the fit, which may take long or fail because of it.

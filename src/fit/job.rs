@@ -168,7 +168,7 @@ pub fn load_options_from_json(v: &Value) -> LoadOptions {
 /// Refuse an output path that is not a `.json` file, or that holds anything but an earlier
 /// fit (a species' `metadata.json` with the true parameters, a parameter file, a
 /// directory): a fit must never overwrite data. Inputs are profiles, never `.json`.
-fn check_out(out: &Path) -> Result<()> {
+pub fn check_out(out: &Path) -> Result<()> {
     if out.extension().and_then(|e| e.to_str()) != Some("json") {
         return Err(Error::file(out, "a fit file must end in .json"));
     }

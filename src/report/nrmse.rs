@@ -11,6 +11,27 @@ use serde_json::Value;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
+/// The loader options a fit file records, as the build that wrote it applied them. Before
+/// the build was identified in `tool_version` (`furfit 0.1.0` without `(git ...)`), the
+/// conventions `flip_phi`, `phi_offset` and `flip_theta_r` converted Yan-2015 files only,
+/// yet were recorded for any input: for a fit of CSV / npz files alone they are dropped,
+/// or the report would plot converted data under a fit of unconverted data.
+fn legacy_load(v: &Value, files: &[PathBuf]) -> crate::profile::LoadOptions {
+    let mut load = crate::fit::job::load_options_from_json(&v["data"]["load"]);
+    let identified = v["tool_version"]
+        .as_str()
+        .is_some_and(|t| t.contains("(git "));
+    let any_yan = files
+        .iter()
+        .any(|f| crate::profile::Format::from_path(f).ok() == Some(crate::profile::Format::Yan));
+    if !identified && !any_yan {
+        load.flip_phi = false;
+        load.flip_theta_r = false;
+        load.phi_offset = 0.0;
+    }
+    load
+}
+
 /// The parts of a fit file the reports use.
 #[derive(Clone, Debug)]
 pub struct FitFile {
@@ -65,7 +86,8 @@ impl FitFile {
                 })
                 .unwrap_or_default()
         };
-        let files = recorded("path").into_iter().map(PathBuf::from).collect();
+        let files: Vec<PathBuf> = recorded("path").into_iter().map(PathBuf::from).collect();
+        let load = legacy_load(&v, &files);
         let sha256 = recorded("sha256");
         let trace = v["trace"]
             .as_array()
@@ -103,7 +125,7 @@ impl FitFile {
             synthetic: v["data"]["synthetic"].as_bool().unwrap_or(false),
             files,
             sha256,
-            load: crate::fit::job::load_options_from_json(&v["data"]["load"]),
+            load,
             channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
             trace,
             wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
@@ -454,4 +476,36 @@ pub fn write_fit_reports(
     crate::io::write_atomic(&p, model_vs_sim::markdown(&entries).as_bytes())?;
     sum.written.push(p);
     Ok(sum)
+}
+
+#[cfg(test)]
+mod legacy_tests {
+    use super::*;
+
+    /// Fit files from before the identified builds recorded the convention options for
+    /// CSV / npz inputs without applying them: the report drops them there, and only there.
+    #[test]
+    fn legacy_conventions_apply_to_yan_only() {
+        let fit = |tool: &str, file: &str| {
+            let v = serde_json::json!({
+                "tool_version": tool,
+                "data": {"load": {"flip_phi": true, "phi_offset": 90.0, "flip_theta_r": true}},
+            });
+            (v, vec![PathBuf::from(file)])
+        };
+        for (tool, file, kept) in [
+            ("furfit 0.1.0", "a.csv", false),
+            ("furfit 0.1.0", "a.npz", false),
+            ("furfit 0.1.0", "a.txt", true),
+            ("furfit 0.1.0 (git 0123456789ab)", "a.csv", true),
+        ] {
+            let (v, files) = fit(tool, file);
+            let l = legacy_load(&v, &files);
+            assert_eq!(
+                (l.flip_phi, l.flip_theta_r, l.phi_offset != 0.0),
+                (kept, kept, kept),
+                "{tool} {file}"
+            );
+        }
+    }
 }
