@@ -217,12 +217,13 @@ fn render_checks_output_paths_before_rendering() {
     assert!(!o.status.success());
     assert!(stderr(&o).contains("contact.png"), "{}", stderr(&o));
     assert!(stdout(&o).is_empty(), "{}", stdout(&o));
-    // A fit named like the sheet, whose path is a directory: "nothing was written" is true.
+    // A sheet path named like a fit's render (fit sheet.json -> sheet.png) clashes with it:
+    // refused before any render, whether that path is a directory or free.
     std::fs::create_dir(out.join("sheet.png")).unwrap();
     let o = all("sheet.png");
     assert!(!o.status.success());
     assert!(stderr(&o).contains("sheet.png"), "{}", stderr(&o));
-    // ... and when the path is free, the sheet would overwrite that fit's render: refused.
+    // ... and when it is free (the sheet would overwrite that fit's render).
     std::fs::remove_dir(out.join("sheet.png")).unwrap();
     let o = all("sheet.png");
     assert!(!o.status.success());
@@ -267,7 +268,8 @@ fn render_convergence_validates_before_any_work() {
         (&["--repeats", "0"], "--repeats"),
         (&["--modes", "near,near"], "--modes"),
         (&["--modes", "near,bogus"], "--modes"),
-        // Options the culling study ignores, an unknown mode among them.
+        // Options the culling study ignores conflict with it (refused by the parser,
+        // whatever their value).
         (&["--culling-study", "--modes", "bogus"], "--modes"),
         (&["--culling-study", "--repeats", "1"], "--repeats"),
         (&["--threads", "100000"], "--threads"),

@@ -72,7 +72,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if a.all && (!a.inputs.is_empty() || a.out.is_some()) {
         anyhow::bail!(
-            "--all fits every folder under --measurements into --fits: give no input files              and no --out with it"
+            "--all fits every folder under --measurements into --fits: give no input files and no --out with it"
         );
     }
     // 0 = all cores, as for render.

@@ -84,9 +84,14 @@ impl LoadArgs {
 }
 
 /// Parse an image size `WxH` (or `WXH`) given to option `opt` (e.g. `--size`); each side
-/// must be in `1..=max`. Shared by `render` and `render-convergence` so both read and
+/// must be in `1..=max` and the whole at most `max_pixels`. Shared by `render` and `render-convergence` so both read and
 /// refuse sizes alike.
-pub fn parse_size(opt: &str, s: &str, max: usize) -> anyhow::Result<(usize, usize)> {
+pub fn parse_size(
+    opt: &str,
+    s: &str,
+    max: usize,
+    max_pixels: usize,
+) -> anyhow::Result<(usize, usize)> {
     let bad = || anyhow::anyhow!("{opt} '{s}': expected WxH with width and height in 1..={max}");
     let (w, h) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let side = |v: &str| {
@@ -96,11 +101,10 @@ pub fn parse_size(opt: &str, s: &str, max: usize) -> anyhow::Result<(usize, usiz
             .filter(|n| (1..=max).contains(n))
     };
     match (side(w), side(h)) {
-        (Some(w), Some(h)) if w * h <= crate::render::MAX_PIXELS => Ok((w, h)),
+        (Some(w), Some(h)) if w * h <= max_pixels => Ok((w, h)),
         (Some(w), Some(h)) => Err(anyhow::anyhow!(
-            "{opt} '{s}': {} pixels, more than the limit of {} (e.g. 4096x4096)",
-            w * h,
-            crate::render::MAX_PIXELS
+            "{opt} '{s}': {} pixels, more than the limit of {max_pixels} (e.g. 4096x4096)",
+            w * h
         )),
         _ => Err(bad()),
     }

@@ -6,7 +6,7 @@ use crate::render::bsdf::{Mode, Tint};
 use crate::render::math::V3;
 use crate::render::scene::{DirectionalLight, Environment, MAX_FIBERS};
 use crate::render::{output, render_scene, RenderSettings, Scene};
-use crate::render::{MAX_DEPTH, MAX_RADIANCE, MAX_SIDE, MAX_SPP};
+use crate::render::{MAX_DEPTH, MAX_PIXELS, MAX_RADIANCE, MAX_SIDE, MAX_SPP};
 use anyhow::{bail, Context};
 use clap::builder::RangedU64ValueParser;
 use std::path::{Path, PathBuf};
@@ -35,7 +35,7 @@ pub struct Args {
     /// Samples per pixel, 1..=1048576.
     #[arg(long, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
     pub spp: usize,
-    /// Image size WxH (or WXH), each side 1..=8192.
+    /// Image size WxH (or WXH), each side 1..=8192 and at most 4096 x 4096 pixels in all.
     #[arg(long, default_value = "512x512")]
     pub size: String,
     /// Lobes to render: R,TT,TRT,TTs,TRTs or all.
@@ -115,7 +115,7 @@ fn parse_list(what: &str, s: &str) -> anyhow::Result<Vec<f64>> {
 
 /// The render settings of `a`, every option checked (integer ranges are checked by clap).
 pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
-    let (width, height) = super::parse_size("--size", &a.size, MAX_SIDE)?;
+    let (width, height) = super::parse_size("--size", &a.size, MAX_SIDE, MAX_PIXELS)?;
     // Checked here, not by clap's `requires`: a default-false flag satisfies that.
     if a.fits_dir.is_some() && !a.all {
         bail!("--fits-dir is only read with --all (give --all, or drop --fits-dir)");
@@ -281,7 +281,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         vec![(name, p)]
     };
     // Every output path is checked before the (possibly long) renders, so a bad --out
-    // fails at once and a failure never leaves some species written and others not.
+    // fails at once, before anything is written (a render that fails later still leaves
+    // the species finished before it).
     let outs: Vec<PathBuf> = jobs
         .iter()
         .map(|(name, _)| {

@@ -6,7 +6,7 @@ use super::render::MAX_THREADS;
 use crate::params::FurParams;
 use crate::render::bsdf::Mode;
 use crate::render::study::{convergence, culling_study, plot_convergence_bytes};
-use crate::render::{RenderSettings, Scene, MAX_SIDE, MAX_SPP};
+use crate::render::{RenderSettings, Scene, MAX_PIXELS, MAX_SIDE, MAX_SPP};
 use anyhow::{bail, Context};
 use clap::builder::RangedU64ValueParser;
 use std::path::PathBuf;
@@ -25,8 +25,8 @@ pub struct Args {
     /// Full frame the patch is cut from (sets the pixel footprint), each side 1..=8192.
     #[arg(long, default_value = "512x512")]
     pub frame: String,
-    /// Largest spp of the curves (powers of two from 1), 1..=1048576; with
-    /// --culling-study, the spp of its renders.
+    /// Largest spp of the curves (powers of two from 1; below --ref-spp), or with
+    /// --culling-study the spp of its renders; at most 1048576.
     #[arg(long, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
     pub max_spp: usize,
     /// spp of each mode's reference image: more than --max-spp (a reference no better
@@ -60,8 +60,9 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     // Every option and the output paths are checked before the first render.
-    let (pw, ph) = super::parse_size("--size", &a.size, MAX_SIDE)?;
-    let (fw, fh) = super::parse_size("--frame", &a.frame, MAX_SIDE)?;
+    let (pw, ph) = super::parse_size("--size", &a.size, MAX_SIDE, MAX_PIXELS)?;
+    // Only the --size patch is rendered: the frame only sets the pixel footprint.
+    let (fw, fh) = super::parse_size("--frame", &a.frame, MAX_SIDE, usize::MAX)?;
     if pw > fw || ph > fh {
         bail!("--size {pw}x{ph} must fit in --frame {fw}x{fh}");
     }

@@ -38,7 +38,7 @@ pub struct Args {
     /// Random seed (paths and measurement effects).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Worker threads (default: all cores). The output does not depend on it.
+    /// Worker threads (default or 0: all cores). The output does not depend on it.
     #[arg(long)]
     pub threads: Option<usize>,
     /// Detector floor: values below this fraction of the peak are invalid (0 = off).
@@ -109,9 +109,7 @@ fn progress_bar(total: u64) -> indicatif::ProgressBar {
 pub fn run(a: Args) -> anyhow::Result<()> {
     let mut pool = rayon::ThreadPoolBuilder::new();
     if let Some(t) = a.threads {
-        if t == 0 {
-            bail!("--threads must be >= 1");
-        }
+        // 0 = all cores (rayon's default), as for fit and render.
         pool = pool.num_threads(t);
     }
     let pool = pool.build().context("building the thread pool")?;
