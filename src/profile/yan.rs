@@ -119,15 +119,8 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
         if !phi.is_finite() {
             return Err(perr(line, label(0), "phi + offset is not finite".into()));
         }
-        samples.push(Sample {
-            theta_i: 0.0,
-            theta_r,
-            phi,
-            value,
-            sigma: None,
-            channel: 0,
-            phi_i: None,
-        });
+        // theta_i is set below, from the file's comment or --theta-i.
+        samples.push(Sample::new(0.0, theta_r, phi, value));
         lines.push(line);
     }
     let opt_theta_i = match &opts.theta_i {
