@@ -79,8 +79,13 @@ pub fn markdown(entries: &[Entry]) -> String {
          (`measurements/<species>/`, true parameters in its `metadata.json`). \
          \"NRMSE at truth\" evaluates the far-field model (8/5 segments) at the TRUE \
          parameters with the optimal exposure: it is the model's own error against this \
-         simulation, the floor no fit of the same parameterisation has to reach. \
-         \"NRMSE of fit\" is from `fits/<species>.json` when that fit was made from this folder.\n"
+         simulation. A fit usually does better by moving parameters away from the truth to \
+         absorb that error, which is why fitted and true values differ. \
+         \"NRMSE of fit\" is from `fits/<species>.json` when that fit was made from this \
+         folder. SE is the fit's linearised standard error, s^2 (J^T J)^-1: it assumes \
+         independent residuals, but here they are mostly model error, correlated between \
+         neighbouring samples, so it understates the real spread, most on shallow \
+         directions (equally good fits can differ by more than one SE there).\n"
     );
     if entries.is_empty() {
         s.push_str("No species folder with a metadata.json `params` object was found.\n");
