@@ -610,3 +610,31 @@ fn fit_all_checks_every_output_first() {
     fails_with(o, &["zebra.json", "not a furfit fit file"]);
     assert!(!root.join("fits/mouse.json").exists());
 }
+
+/// `report` run from another directory (`--fits`, `--measurements`, `--out` given): the
+/// fits' recorded relative paths are found from the project folder above `fits/`, so
+/// each fit is still paired with its data.
+#[test]
+fn report_from_another_directory_finds_the_recorded_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path().join("project");
+    make_species(&root, "mouse");
+    fit(&root, "mouse", "fits/mouse.json", "1");
+    let elsewhere = tmp.path().join("elsewhere");
+    std::fs::create_dir_all(&elsewhere).unwrap();
+    let o = furfit()
+        .current_dir(&elsewhere)
+        .arg("report")
+        .arg("--fits")
+        .arg(root.join("fits"))
+        .arg("--measurements")
+        .arg(root.join("measurements"))
+        .arg("--out")
+        .arg(root.join("reports"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
+    let row = mvs.lines().find(|l| l.starts_with("| mouse |")).unwrap();
+    assert!(!row.contains("no fit"), "{row}");
+}

@@ -86,7 +86,20 @@ impl FitFile {
                 })
                 .unwrap_or_default()
         };
-        let files: Vec<PathBuf> = recorded("path").into_iter().map(PathBuf::from).collect();
+        // Recorded as given to `furfit fit`, usually relative to the project folder: read
+        // from here, else from the folder above the fits folder (`report --fits
+        // /elsewhere/fits` run from another directory).
+        let project = path.parent().and_then(Path::parent);
+        let files: Vec<PathBuf> = recorded("path")
+            .into_iter()
+            .map(PathBuf::from)
+            .map(|f| match project {
+                Some(root) if f.is_relative() && !f.exists() && root.join(&f).exists() => {
+                    root.join(f)
+                }
+                _ => f,
+            })
+            .collect();
         let load = legacy_load(&v, &files);
         let sha256 = recorded("sha256");
         let trace = v["trace"]
