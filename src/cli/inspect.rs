@@ -50,7 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 continue;
             }
         };
-        formats.extend(l.files.iter().map(|(_, f)| *f));
+        formats.extend(l.files.iter().map(|f| f.format));
         if k > 0 {
             outln!();
         }

@@ -9,7 +9,7 @@
 use super::output::{fit_json, DataInfo};
 use super::{channel_data, fit_data, FitOptions, FitOutcome, Progress};
 use crate::error::{Error, Result};
-use crate::profile::{self, Format, LoadOptions, Profile};
+use crate::profile::{self, Format, LoadOptions, Profile, ReadFile};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -80,8 +80,8 @@ pub fn data_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
 #[derive(Clone, Debug)]
 pub struct LoadedInputs {
     pub profile: Profile,
-    /// The files read and their formats (folders expanded).
-    pub files: Vec<(PathBuf, Format)>,
+    /// The files read (folders expanded).
+    pub files: Vec<ReadFile>,
     /// The loaders' notes, each naming its file (`inspect` prints the same ones).
     pub notes: Vec<String>,
 }
@@ -89,7 +89,7 @@ pub struct LoadedInputs {
 impl LoadedInputs {
     /// The formats of the files read (for [`LoadOptions::check_used`]).
     pub fn formats(&self) -> Vec<Format> {
-        self.files.iter().map(|(_, f)| *f).collect()
+        self.files.iter().map(|f| f.format).collect()
     }
 }
 
@@ -223,11 +223,11 @@ pub fn fit_loaded(
 ) -> Result<(Value, Vec<ChannelSummary>)> {
     check_out(&job.out)?;
     let prof = &inputs.profile;
-    let mut file_info = Vec::new();
-    for (f, _) in &inputs.files {
-        let bytes = std::fs::read(f).map_err(|e| Error::io(f, e))?;
-        file_info.push((f.display().to_string(), crate::io::sha256_hex(&bytes)));
-    }
+    let file_info: Vec<(String, String)> = inputs
+        .files
+        .iter()
+        .map(|f| (f.path.display().to_string(), f.sha256.clone()))
+        .collect();
     let n_ch = prof.n_channels();
     let name_of = |c: usize| prof.channels.get(c).cloned().unwrap_or_default();
     let primary = (0..n_ch)

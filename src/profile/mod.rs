@@ -268,14 +268,22 @@ fn apply_convention(profile: &mut Profile, opts: &LoadOptions, path: &Path) -> R
     Ok(())
 }
 
+/// One file a loader read: its path, format and the SHA-256 of the bytes it parsed (what
+/// a fit file records, so the digest is of exactly the data fitted).
+#[derive(Clone, Debug)]
+pub struct ReadFile {
+    pub path: PathBuf,
+    pub format: Format,
+    pub sha256: String,
+}
+
 /// A loaded profile with what the loader noticed on the way.
 #[derive(Clone, Debug)]
 pub struct Loaded {
     pub profile: Profile,
     pub format: Format,
-    /// The files read and their formats (one for [`load_full`], the folder's for
-    /// [`load_dir`]).
-    pub files: Vec<(PathBuf, Format)>,
+    /// The files read (one for [`load_full`], the folder's for [`load_dir`]).
+    pub files: Vec<ReadFile>,
     /// Things the loader did that a user should know about (e.g. identical duplicate
     /// samples collapsed into one). Never errors: those are returned as `Err`.
     pub notes: Vec<String>,
@@ -309,7 +317,11 @@ pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     Ok(Loaded {
         profile,
         format,
-        files: vec![(path.to_path_buf(), format)],
+        files: vec![ReadFile {
+            path: path.to_path_buf(),
+            format,
+            sha256: crate::io::sha256_hex(&bytes),
+        }],
         notes,
     })
 }
