@@ -1264,12 +1264,23 @@ impl<'a> FarSlice<'a> {
         if !self.cull {
             return phis.iter().map(|&phi| self.eval(phi)).collect();
         }
-        let (wrapped, order, sorted) = sorted_phis(phis);
-        let grid = UniformGrid::detect(&sorted);
-        let mut out = vec![LobeValues::default(); phis.len()];
+        self.eval_list(&PhiList::new(phis))
+    }
+
+    /// [`Self::eval_many`] (with culling) on a prepared list.
+    fn eval_list(&self, list: &PhiList) -> Vec<LobeValues> {
+        let PhiList {
+            wrapped,
+            order,
+            sorted,
+            grid,
+        } = list;
+        // The grid step in table bins, if the scattered lobes can be read along the rows.
+        let row_step = grid.as_ref().and_then(|g| self.row_steps(g));
+        let mut out = vec![LobeValues::default(); wrapped.len()];
         // Per-lobe sums in sorted order (contiguous for the sweeps), added to `out` through
         // `order`; each phi's terms are added in the same order as by `eval`.
-        let mut s = vec![0.0; phis.len()];
+        let mut s = vec![0.0; wrapped.len()];
         // Node form of the current Phi piece (poly_gauss_nodes), reused across pieces.
         let mut phi_nodes: Vec<(f64, f64)> = Vec::new();
         for part in &self.parts {
@@ -1279,7 +1290,7 @@ impl<'a> FarSlice<'a> {
                 for pc in &part.unsc[p] {
                     let (lo, hi) = pc.range();
                     // The node form of a Phi piece, built once for both sides.
-                    let phi_swept = match (pc, &grid) {
+                    let phi_swept = match (pc, grid) {
                         (Piece::Phi { lo, len, c, l0, l }, Some(g))
                             if g.step <= SWEEP_MAX_STEP * beta =>
                         {
@@ -1305,7 +1316,7 @@ impl<'a> FarSlice<'a> {
                         // its closed form costs an erf pair or (short pieces, distant phi)
                         // a Gauss-Legendre rule of exponentials; a third of grid synthesis
                         // went there (red fox).
-                        let sweep = match (pc, &grid) {
+                        let sweep = match (pc, grid) {
                             (Piece::Gl { nodes, .. }, Some(g))
                                 if g.step <= SWEEP_MAX_STEP * beta =>
                             {
@@ -1369,18 +1380,16 @@ impl<'a> FarSlice<'a> {
                     }
                 }
             }
-            match &grid {
-                Some(g) if self.row_steps(g).is_some() => {
-                    self.add_rows_sweep(part, g, &order, &mut s, &mut out);
-                }
-                Some(g) if self.scattered_tabulated(part) => {
-                    self.add_scattered_sweep(part, g, &order, &mut s, &mut out);
-                    for (o, &phi) in out.iter_mut().zip(&wrapped) {
+            match (grid, row_step) {
+                (Some(g), Some(m)) => self.add_rows_sweep(part, g, m, order, &mut s, &mut out),
+                (Some(g), None) if self.scattered_tabulated(part) => {
+                    self.add_scattered_sweep(part, g, order, &mut s, &mut out);
+                    for (o, &phi) in out.iter_mut().zip(wrapped) {
                         self.add_psi_pieces(part, phi, o);
                     }
                 }
                 _ => {
-                    for (o, &phi) in out.iter_mut().zip(&wrapped) {
+                    for (o, &phi) in out.iter_mut().zip(wrapped) {
                         self.add_scattered(part, phi, o);
                     }
                 }
@@ -1394,21 +1403,20 @@ impl<'a> FarSlice<'a> {
     /// [`Self::eval_many`] for a slice built to serve one grid of `phi` (grid synthesis,
     /// the renderer's tables): tabulates the scattered nodes' `C^N` first when there are
     /// [`TABULATE_MIN_PHI`] or more `phi` and the grid does not let the slice read the
-    /// table's rows along it ([`Self::sweeps_table_rows`]).
+    /// table's rows along it ([`Self::add_rows_sweep`], which needs no tabulation).
     pub fn eval_grid(mut self, phis: &[f64]) -> Vec<LobeValues> {
-        if phis.len() >= TABULATE_MIN_PHI && !self.sweeps_table_rows(phis) {
+        let list = self.cull.then(|| PhiList::new(phis));
+        let reads_rows = list
+            .as_ref()
+            .and_then(|l| l.grid.as_ref())
+            .is_some_and(|g| self.row_steps(g).is_some());
+        if phis.len() >= TABULATE_MIN_PHI && !reads_rows {
             self.tabulate_scattered();
         }
-        self.eval_many(phis)
-    }
-
-    /// Whether [`Self::eval_many`] at `phis` reads the scattered lobes along the medulla
-    /// table's rows ([`Self::add_rows_sweep`]: an evenly spaced grid whose step is a whole
-    /// number of `psi` bins), which needs no [`Self::tabulate_scattered`].
-    pub fn sweeps_table_rows(&self, phis: &[f64]) -> bool {
-        self.cull
-            && UniformGrid::detect(&sorted_phis(phis).2)
-                .is_some_and(|g| self.row_steps(&g).is_some())
+        match list {
+            Some(l) => self.eval_list(&l),
+            None => phis.iter().map(|&phi| self.eval(phi)).collect(),
+        }
     }
 
     /// The width `beta_p` of unscattered lobe `p` and the half-width of the window of
@@ -1543,11 +1551,12 @@ impl<'a> FarSlice<'a> {
         &self,
         part: &Part,
         g: &UniformGrid,
+        m: i64,
         order: &[usize],
         s: &mut [f64],
         out: &mut [LobeValues],
     ) {
-        let (Some(rows), Some(m)) = (self.cn_rows(), self.row_steps(g)) else {
+        let Some(rows) = self.cn_rows() else {
             return;
         };
         // Row weights read with steps +m and -m.
@@ -1660,14 +1669,29 @@ fn hidden_mass_bound(dev: f64, nodes: [Node; 5], value: impl Fn(&Node) -> f64) -
     }
 }
 
-/// `phis` wrapped to `[-pi, pi]`, the order that sorts them (ties by index) and the sorted
-/// values.
-fn sorted_phis(phis: &[f64]) -> (Vec<f64>, Vec<usize>, Vec<f64>) {
-    let wrapped: Vec<f64> = phis.iter().map(|&phi| wrap_angle(phi)).collect();
-    let mut order: Vec<usize> = (0..phis.len()).collect();
-    order.sort_by(|&a, &b| wrapped[a].total_cmp(&wrapped[b]).then(a.cmp(&b)));
-    let sorted = order.iter().map(|&i| wrapped[i]).collect();
-    (wrapped, order, sorted)
+/// A list of `phi` prepared for [`FarSlice::eval_many`]: wrapped to `[-pi, pi]`, the order
+/// that sorts them (ties by index), the sorted values and their even spacing, if any.
+struct PhiList {
+    wrapped: Vec<f64>,
+    order: Vec<usize>,
+    sorted: Vec<f64>,
+    grid: Option<UniformGrid>,
+}
+
+impl PhiList {
+    fn new(phis: &[f64]) -> PhiList {
+        let wrapped: Vec<f64> = phis.iter().map(|&phi| wrap_angle(phi)).collect();
+        let mut order: Vec<usize> = (0..phis.len()).collect();
+        order.sort_by(|&a, &b| wrapped[a].total_cmp(&wrapped[b]).then(a.cmp(&b)));
+        let sorted: Vec<f64> = order.iter().map(|&i| wrapped[i]).collect();
+        let grid = UniformGrid::detect(&sorted);
+        PhiList {
+            wrapped,
+            order,
+            sorted,
+            grid,
+        }
+    }
 }
 
 /// `v` with negative rounding dips set to 0 (see [`FarSlice::eval`]).
