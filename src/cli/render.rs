@@ -226,15 +226,29 @@ fn with_suffix(out: &Path, suffix: &str, ext: &str) -> PathBuf {
     out.with_file_name(format!("{stem}{suffix}.{ext}"))
 }
 
+/// What one output file of a render holds.
+#[derive(Clone, Copy)]
+enum Image {
+    /// The tone-mapped beauty PNG.
+    Png,
+    /// The linear beauty EXR.
+    Exr,
+    /// A lobe's tone-mapped AOV PNG.
+    Aov(Lobe),
+}
+
 /// The files one render writes: the PNG, the linear EXR beside it and the AOVs.
-fn outputs(out: &Path, s: &RenderSettings, aovs: bool) -> Vec<(Option<Lobe>, PathBuf)> {
+fn outputs(out: &Path, s: &RenderSettings, aovs: bool) -> Vec<(Image, PathBuf)> {
     let mut v = vec![
-        (None, out.to_path_buf()),
-        (None, with_suffix(out, "", "exr")),
+        (Image::Png, out.to_path_buf()),
+        (Image::Exr, with_suffix(out, "", "exr")),
     ];
     if aovs {
         for l in Lobe::ALL.into_iter().filter(|&l| s.lobes.contains(l)) {
-            v.push((Some(l), with_suffix(out, &format!("_{}", l.name()), "png")));
+            v.push((
+                Image::Aov(l),
+                with_suffix(out, &format!("_{}", l.name()), "png"),
+            ));
         }
     }
     v
@@ -341,11 +355,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         // The PNG, the EXR and the AOVs are written as one: all or none.
         let files = outputs(out, &s, !a.no_aovs)
             .into_iter()
-            .map(|(lobe, p)| {
-                let bytes = match lobe {
-                    Some(l) => output::png_bytes(&r.lobes[l.index()], a.exposure, &p)?,
-                    None if p == *out => output::png_bytes(&r.beauty, a.exposure, &p)?,
-                    None => output::exr_bytes(&r.beauty, &p)?,
+            .map(|(image, p)| {
+                let bytes = match image {
+                    Image::Png => output::png_bytes(&r.beauty, a.exposure, &p)?,
+                    Image::Exr => output::exr_bytes(&r.beauty, &p)?,
+                    Image::Aov(l) => output::png_bytes(&r.lobes[l.index()], a.exposure, &p)?,
                 };
                 Ok((p, bytes))
             })
