@@ -62,20 +62,6 @@ pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<Vec<Job>> {
         .collect())
 }
 
-/// The profile files behind the inputs (folders expanded as [`profile::load_dir`] reads
-/// them), sorted per input.
-pub fn data_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    let mut out = Vec::new();
-    for p in inputs {
-        if p.is_dir() {
-            out.extend(profile::dir_profile_files(p)?.0);
-        } else {
-            out.push(p.clone());
-        }
-    }
-    Ok(out)
-}
-
 /// The inputs of a fit, loaded and merged.
 #[derive(Clone, Debug)]
 pub struct LoadedInputs {

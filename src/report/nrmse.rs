@@ -157,13 +157,13 @@ impl FitFile {
             .unwrap_or_else(|| self.species.clone())
     }
 
-    /// Where the report reloads this fit's data: the files the fit recorded when they all
-    /// still exist, else `measurements/<species>/`; either only if its files have the
-    /// recorded SHA-256 digests, so a figure never shows a fit over other data than it was
-    /// fitted to (fit files without digests are taken on trust).
-    fn data_inputs(&self, measurements: &Path) -> Result<Vec<PathBuf>> {
-        let (inputs, files) = if !self.files.is_empty() && self.files.iter().all(|p| p.is_file()) {
-            (self.files.clone(), self.files.clone())
+    /// This fit's data, reloaded with its loader options: the files the fit recorded when
+    /// they all still exist, else `measurements/<species>/`; either only if the files read
+    /// have the recorded SHA-256 digests, so a figure never shows a fit over other data
+    /// than it was fitted to (fit files without digests are taken on trust).
+    fn load_data(&self, measurements: &Path) -> Result<crate::Profile> {
+        let inputs = if !self.files.is_empty() && self.files.iter().all(|p| p.is_file()) {
+            self.files.clone()
         } else {
             let dir = measurements.join(&self.species);
             if !dir.is_dir() {
@@ -172,19 +172,15 @@ impl FitFile {
                     dir.display()
                 )));
             }
-            let files = crate::fit::job::data_files(std::slice::from_ref(&dir))?;
-            (vec![dir], files)
+            vec![dir]
         };
+        let loaded = crate::fit::job::load_inputs_full(&inputs, &self.load)?;
         if self.sha256.len() == self.files.len() && !self.sha256.is_empty() {
-            let mut have = Vec::new();
-            for f in &files {
-                let bytes = std::fs::read(f).map_err(|e| Error::io(f, e))?;
-                have.push(crate::io::sha256_hex(&bytes));
-            }
-            let (mut a, mut b) = (have, self.sha256.clone());
-            a.sort();
-            b.sort();
-            if a != b {
+            let mut have: Vec<&str> = loaded.files.iter().map(|f| f.sha256.as_str()).collect();
+            let mut want: Vec<&str> = self.sha256.iter().map(String::as_str).collect();
+            have.sort_unstable();
+            want.sort_unstable();
+            if have != want {
                 let what = inputs
                     .iter()
                     .map(|p| p.display().to_string())
@@ -197,7 +193,7 @@ impl FitFile {
                 )));
             }
         }
-        Ok(inputs)
+        Ok(loaded.profile)
     }
 
     /// Whether every file the fit recorded lies in `dir` (so its loader options apply to
@@ -427,10 +423,10 @@ pub fn write_fit_reports(
             .push(out.join(format!("fit_error_vs_time.{ext}")));
     }
     for f in &fits {
-        let prof = f
-            .data_inputs(measurements)
-            .and_then(|inputs| crate::fit::job::load_inputs(&inputs, &f.load));
-        match prof.and_then(|p| fig11::write(f, &p, out)) {
+        match f
+            .load_data(measurements)
+            .and_then(|p| fig11::write(f, &p, out))
+        {
             Ok(paths) => sum.written.extend(paths),
             Err(e) => sum.skipped.push((f.label(), format!("fig11: {e}"))),
         }
