@@ -101,23 +101,23 @@ pub struct GridPlan {
 
 impl GridPlan {
     pub fn new(points: &[(f64, f64, f64)]) -> GridPlan {
-        let mut td_index: HashMap<u64, usize> = HashMap::new();
-        let mut phi_index: Vec<HashMap<u64, usize>> = Vec::new();
+        // The azimuthal model depends on theta_d only through cos theta_d
+        // (`FurModel::azimuthal`), so theta_d and -theta_d share one slice: a grid
+        // symmetric about theta_i = theta_r costs up to half.
+        let tds: Vec<f64> = points
+            .iter()
+            .map(|&(ti, tr, _)| theta_d(ti, tr).abs())
+            .collect();
+        let (reps, td_group) = merge_rounding_twins(&tds);
+        let mut phi_index: Vec<HashMap<u64, usize>> = vec![HashMap::new(); reps.len()];
         let mut pair_index: HashMap<(u64, u64), usize> = HashMap::new();
         let mut plan = GridPlan {
             points: points.to_vec(),
+            groups: reps.into_iter().map(|td| (td, Vec::new())).collect(),
             ..GridPlan::default()
         };
-        for &(ti, tr, phi) in points {
-            // The azimuthal model depends on theta_d only through cos theta_d
-            // (`FurModel::azimuthal`), so theta_d and -theta_d share one slice: a grid
-            // symmetric about theta_i = theta_r costs up to half.
-            let td = theta_d(ti, tr).abs();
-            let g = *td_index.entry(td.to_bits()).or_insert_with(|| {
-                plan.groups.push((td, Vec::new()));
-                phi_index.push(HashMap::new());
-                plan.groups.len() - 1
-            });
+        for (&(ti, tr, phi), &td) in points.iter().zip(&tds) {
+            let g = td_group[&td.to_bits()];
             // N_p is even and 2 pi-periodic in phi (far_field_is_even_in_phi), so phi and
             // -phi share one evaluation: a symmetric grid costs half.
             let phi_n = wrap_angle(phi).abs();
@@ -135,6 +135,11 @@ impl GridPlan {
             plan.where_m.push(m);
         }
         plan
+    }
+
+    /// The number of distinct `|theta_d|` slices the plan evaluates.
+    pub fn slices(&self) -> usize {
+        self.groups.len()
     }
 
     pub fn len(&self) -> usize {
@@ -234,6 +239,34 @@ impl GridPlan {
                 mv.mul(&n[g][k])
             })
     }
+}
+
+/// `|theta_d|` values closer than this (radians) are one goniometer configuration.
+///
+/// `theta_d = (theta_r - theta_i) / 2` of angles converted from degrees carries a rounding
+/// error of a few `1e-16` rad that depends on the pair: on the 4 x 61 x 181 throughput grid
+/// the 99 distinct `theta_d` came out as 159 bit patterns, each costing its own slice. A
+/// shift of `1e-14` rad changes `N_p` by ~1e-14 of itself for ordinary parameters (its
+/// `theta_d` scale is a degree or more), far below the far field's `tol`.
+pub const THETA_D_MERGE: f64 = 1e-14;
+
+/// The distinct values of `v` with those within [`THETA_D_MERGE`] of a smaller one merged
+/// (in ascending order; each cluster is represented by its smallest value and spans at
+/// most `THETA_D_MERGE`), and the cluster index of each value's bit pattern.
+fn merge_rounding_twins(v: &[f64]) -> (Vec<f64>, HashMap<u64, usize>) {
+    let mut sorted = v.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted.dedup_by(|a, b| a.to_bits() == b.to_bits());
+    let mut reps: Vec<f64> = Vec::new();
+    let mut index = HashMap::with_capacity(sorted.len());
+    for x in sorted {
+        match reps.last() {
+            Some(&r) if x - r <= THETA_D_MERGE => {}
+            _ => reps.push(x),
+        }
+        index.insert(x.to_bits(), reps.len() - 1);
+    }
+    (reps, index)
 }
 
 /// Longitudinal terms of one `(theta_i, theta_r)` pair ([`GridPlan::longitudinal_terms`]):
@@ -347,5 +380,38 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn plan_merges_rounding_twins_of_theta_d() {
+        // The throughput grid's 99 distinct theta_d (whole and half degrees, 0..52.5)
+        // arrive as more bit patterns; the plan gives each configuration one slice.
+        let pts = crate::report::far_error::throughput_grid();
+        let raw: std::collections::HashSet<u64> = pts
+            .iter()
+            .map(|&(ti, tr, _)| theta_d(ti, tr).abs().to_bits())
+            .collect();
+        assert!(raw.len() > 99, "the grid no longer shows rounding twins");
+        let plan = GridPlan::new(&pts);
+        assert_eq!(plan.slices(), 99);
+        // Every point's slice sits within THETA_D_MERGE of its own theta_d, and the
+        // slices are genuinely distinct configurations (a quarter degree apart at least).
+        for (&(ti, tr, _), &(g, _)) in pts.iter().zip(&plan.where_n) {
+            assert!((plan.groups[g].0 - theta_d(ti, tr).abs()).abs() <= THETA_D_MERGE);
+        }
+        for w in plan.groups.windows(2) {
+            assert!(w[1].0 - w[0].0 > 0.25f64.to_radians());
+        }
+    }
+
+    #[test]
+    fn merge_keeps_values_apart_beyond_the_threshold() {
+        let a = 0.3;
+        let v = [a, a + 0.5 * THETA_D_MERGE, a + 3.0 * THETA_D_MERGE, 0.1];
+        let (reps, index) = merge_rounding_twins(&v);
+        // 0.1 alone; a and its twin; a + 3 THETA_D_MERGE is its own configuration.
+        assert_eq!(reps, vec![0.1, a, a + 3.0 * THETA_D_MERGE]);
+        assert_eq!(index[&v[0].to_bits()], index[&v[1].to_bits()]);
+        assert_ne!(index[&v[0].to_bits()], index[&v[2].to_bits()]);
     }
 }
