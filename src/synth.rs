@@ -9,7 +9,7 @@
 //! less than one full evaluation per sample. Results do not depend on the thread count.
 
 use crate::model::azimuthal::wrap_angle;
-use crate::model::far::FarOptions;
+use crate::model::far::{Decisions, FarOptions, FarSlice};
 use crate::model::geometry::theta_d;
 use crate::model::medulla::front_back_lerp;
 use crate::model::{AzimuthalSlice, FurModel, Lobe, LobeSet, LobeValues};
@@ -170,6 +170,37 @@ impl GridPlan {
     /// `N_p` of the lobes in `lobes` (others 0) per distinct `(theta_d, phi)`, indexed
     /// `[group][phi]`; parallel over `theta_d`. Each lobe's value does not depend on which
     /// other lobes are asked for, so terms of different lobe sets can be merged.
+    /// The far-field [`Self::azimuthal_terms`] recording each slice's refinement
+    /// decisions, or with `replay` (one [`Decisions`] per slice, as recorded) taking them
+    /// instead: the fitter's finite differences replay the decisions of the point they
+    /// differentiate at, so a tolerance-mode split tipped by the step cannot swamp the
+    /// derivative. Without `replay` the terms equal [`Self::azimuthal_terms`] bit for bit.
+    pub fn far_terms_taped(
+        &self,
+        model: &FurModel,
+        lobes: LobeSet,
+        opts: &FarOptions,
+        replay: Option<&[Decisions]>,
+    ) -> (Vec<Vec<LobeValues>>, Vec<Decisions>) {
+        let lobes = lobes.intersect(model.active_lobes());
+        self.groups
+            .par_iter()
+            .enumerate()
+            .map(|(g, (td, phis))| {
+                if lobes.is_empty() {
+                    return (
+                        vec![LobeValues::default(); phis.len()],
+                        Decisions::default(),
+                    );
+                }
+                let az = model.azimuthal(*td);
+                let (slice, rec) =
+                    FarSlice::far_taped(&az, lobes, opts, replay.and_then(|r| r.get(g)));
+                (slice.eval_grid(phis), rec)
+            })
+            .unzip()
+    }
+
     pub fn azimuthal_terms(
         &self,
         model: &FurModel,

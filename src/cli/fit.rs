@@ -1,7 +1,7 @@
 //! `furfit fit <profile-file-or-species-folder>... [--out fits/<species>.json] ...`
 
 use crate::fit::job::{fit_loaded, jobs_for_all, load_inputs_full, species_name, Job};
-use crate::fit::{forward::parse_segments, FitOptions};
+use crate::fit::FitOptions;
 use crate::FurParams;
 use anyhow::Context;
 use std::path::PathBuf;
@@ -29,9 +29,8 @@ pub struct Args {
     pub all: bool,
     #[arg(long, default_value = "measurements")]
     pub measurements: PathBuf,
-    /// Far-field segments `N,M` (unscattered, scattered); default 8,5 (seed Sec. 5.1).
-    #[arg(long)]
-    pub segments: Option<String>,
+    #[command(flatten)]
+    pub far: super::FarArgs,
     /// Start point: a preset name, a parameter JSON or a fit JSON (used as one of the starts).
     #[arg(long)]
     pub init: Option<String>,
@@ -91,9 +90,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         weighted: a.weighted,
         ..FitOptions::default()
     };
-    if let Some(s) = &a.segments {
-        opts.far = parse_segments(s)?;
-    }
+    opts.far = a.far.options()?;
     if let Some(init) = &a.init {
         let (p, _) = FurParams::load(init)?;
         opts.init = Some(p.to_file_units());

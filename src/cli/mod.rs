@@ -1,6 +1,7 @@
 //! Command-line interface: one file per subcommand, each a thin layer that parses
 //! arguments, calls the library and prints. Errors go to stderr with a non-zero exit.
 
+use crate::model::far::{FarOptions, SCATTERED_STEP_STRICT};
 use clap::{Parser, Subcommand};
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -107,6 +108,87 @@ pub fn parse_size(
             w * h
         )),
         _ => Err(bad()),
+    }
+}
+
+/// Far-field settings of `synth` and `fit` (one parser, so the two agree).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct FarArgs {
+    /// Initial segments `N,M` (unscattered, scattered) or `N` for both; default 8,5 (seed
+    /// Sec. 5.1). With `--tol none` they are the fixed segmentation.
+    #[arg(long)]
+    pub segments: Option<String>,
+    /// Refinement tolerance of the far field, relative to each lobe's peak (default 1e-4);
+    /// `none` for the fixed segmentation of `--segments` (the paper's 8,5 by default).
+    #[arg(long)]
+    pub tol: Option<String>,
+    /// Tolerance mode: largest change of the scattered direction per node-quadrature
+    /// segment, in radians, or `strict` (0.001). Only the one-bin TRTs segments at a
+    /// caustic of the scattered direction use node quadrature (elsewhere the medulla
+    /// table is integrated exactly), so the default 0.15 leaves them whole.
+    #[arg(long)]
+    pub scattered_step: Option<String>,
+}
+
+impl FarArgs {
+    /// The far-field options these arguments ask for (defaults: [`FarOptions::default`]).
+    pub fn options(&self) -> anyhow::Result<FarOptions> {
+        use anyhow::Context;
+        let mut opts = FarOptions::default();
+        if let Some(s) = &self.segments {
+            let parse = |t: &str| -> anyhow::Result<usize> {
+                let n: usize = t
+                    .trim()
+                    .parse()
+                    .with_context(|| format!("--segments '{s}': '{t}' is not a count"))?;
+                if n == 0 || n > 4096 {
+                    anyhow::bail!("--segments '{s}': counts must be in 1..=4096");
+                }
+                Ok(n)
+            };
+            match s.split(',').collect::<Vec<_>>().as_slice() {
+                [n] => {
+                    opts.n_unscattered = parse(n)?;
+                    opts.n_scattered = opts.n_unscattered;
+                }
+                [n, m] => {
+                    opts.n_unscattered = parse(n)?;
+                    opts.n_scattered = parse(m)?;
+                }
+                _ => anyhow::bail!("--segments '{s}': expected N or N,M"),
+            }
+        }
+        if let Some(t) = &self.tol {
+            opts.tol = if t.trim().eq_ignore_ascii_case("none") {
+                None
+            } else {
+                let v: f64 = t
+                    .trim()
+                    .parse()
+                    .with_context(|| format!("--tol '{t}' is not a number"))?;
+                if !(v > 0.0 && v < 1.0) {
+                    anyhow::bail!("--tol must be in (0, 1) or 'none', got {v}");
+                }
+                Some(v)
+            };
+        }
+        if let Some(t) = &self.scattered_step {
+            opts.scattered_step = if t.trim().eq_ignore_ascii_case("strict") {
+                SCATTERED_STEP_STRICT
+            } else {
+                let v: f64 = t
+                    .trim()
+                    .parse()
+                    .with_context(|| format!("--scattered-step '{t}' is not a number"))?;
+                if !(v > 0.0 && v <= 1.0) {
+                    anyhow::bail!(
+                        "--scattered-step must be in (0, 1] radians or 'strict', got {v}"
+                    );
+                }
+                v
+            };
+        }
+        Ok(opts)
     }
 }
 

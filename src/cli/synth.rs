@@ -1,11 +1,9 @@
 //! `furfit synth`: synthesize a profile from parameters on an angle grid.
 
 use crate::grid::{check_grid_size, parse_phi_grid, parse_theta_grid};
-use crate::model::far::{FarOptions, SCATTERED_STEP_STRICT};
 use crate::model::LobeSet;
 use crate::synth::{self, ModelKind};
 use crate::FurParams;
-use anyhow::Context;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -31,19 +29,8 @@ pub struct Args {
     /// Exposure scale k (default: the parameter file's, else 1).
     #[arg(long)]
     pub exposure: Option<f64>,
-    /// Initial segments `N,M` (unscattered, scattered); default 8,5.
-    #[arg(long)]
-    pub segments: Option<String>,
-    /// Refinement tolerance (relative to the lobe peak); `none` for the paper's fixed
-    /// segmentation. Default 1e-4.
-    #[arg(long)]
-    pub tol: Option<String>,
-    /// Tolerance mode: largest change of the scattered direction per node-quadrature
-    /// segment, in radians, or `strict` (0.001). Only the one-bin TRTs segments at a
-    /// caustic of the scattered direction use node quadrature (elsewhere the medulla
-    /// table is integrated exactly), so the default 0.15 leaves them whole.
-    #[arg(long)]
-    pub scattered_step: Option<String>,
+    #[command(flatten)]
+    pub far: super::FarArgs,
     /// Output file (.csv).
     #[arg(long)]
     pub out: PathBuf,
@@ -73,57 +60,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if !(exposure.is_finite() && exposure > 0.0) {
         anyhow::bail!("--exposure must be a finite number > 0, got {exposure}");
     }
-    let mut opts = FarOptions::default();
-    if let Some(s) = &a.segments {
-        let parts: Vec<&str> = s.split(',').collect();
-        let parse = |t: &str| -> anyhow::Result<usize> {
-            let n: usize = t
-                .trim()
-                .parse()
-                .with_context(|| format!("--segments '{s}': '{t}' is not a count"))?;
-            if n == 0 || n > 4096 {
-                anyhow::bail!("--segments '{s}': counts must be in 1..=4096");
-            }
-            Ok(n)
-        };
-        match parts.as_slice() {
-            [n] => {
-                opts.n_unscattered = parse(n)?;
-                opts.n_scattered = opts.n_unscattered;
-            }
-            [n, m] => {
-                opts.n_unscattered = parse(n)?;
-                opts.n_scattered = parse(m)?;
-            }
-            _ => anyhow::bail!("--segments '{s}': expected N or N,M"),
-        }
-    }
-    if let Some(t) = &a.tol {
-        opts.tol = if t.eq_ignore_ascii_case("none") {
-            None
-        } else {
-            let v: f64 = t
-                .parse()
-                .with_context(|| format!("--tol '{t}' is not a number"))?;
-            if !(v > 0.0 && v < 1.0) {
-                anyhow::bail!("--tol must be in (0, 1) or 'none', got {v}");
-            }
-            Some(v)
-        };
-    }
-    if let Some(t) = &a.scattered_step {
-        opts.scattered_step = if t.eq_ignore_ascii_case("strict") {
-            SCATTERED_STEP_STRICT
-        } else {
-            let v: f64 = t
-                .parse()
-                .with_context(|| format!("--scattered-step '{t}' is not a number"))?;
-            if !(v > 0.0 && v <= 1.0) {
-                anyhow::bail!("--scattered-step must be in (0, 1] radians or 'strict', got {v}");
-            }
-            v
-        };
-    }
+    let opts = a.far.options()?;
     let t0 = std::time::Instant::now();
     let mut prof = synth::synthesize(&params, &ti, &tr, &phi, kind, lobes, exposure, &opts);
     let dt = t0.elapsed().as_secs_f64();

@@ -5,43 +5,12 @@
 //! All model evaluations of the fitter go through [`predict_points`]; it is the single
 //! place that calls into the model, so the fitter never re-implements any physics.
 
-use crate::model::far::FarOptions;
+use crate::model::far::{Decisions, FarOptions};
 use crate::model::{FurModel, LobeSet, LobeValues};
 use crate::params::FurParams;
 use crate::params::ParamId;
 use crate::synth::{GridPlan, ModelKind, PairTerms};
 use std::sync::{Arc, OnceLock};
-
-/// Parse `--segments N,M` (unscattered, scattered; or one `N` for both) into the paper's
-/// fixed-segmentation far field ([`FarOptions::paper`] with those counts). The fitter uses a
-/// fixed segmentation, not the tolerance-driven refinement, so the model is the same smooth
-/// function of the parameters everywhere (finite-difference Jacobians see no refinement
-/// switching).
-pub fn parse_segments(s: &str) -> crate::Result<FarOptions> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    let num = |t: &str| -> crate::Result<usize> {
-        match t.parse::<usize>() {
-            Ok(n) if (1..=4096).contains(&n) => Ok(n),
-            _ => Err(crate::Error::Invalid(format!(
-                "--segments: '{t}' is not a segment count in 1..=4096"
-            ))),
-        }
-    };
-    let (a, b) = match parts.as_slice() {
-        [a] => (num(a)?, num(a)?),
-        [a, b] => (num(a)?, num(b)?),
-        _ => {
-            return Err(crate::Error::Invalid(format!(
-                "--segments: expected N or N,M, found '{s}'"
-            )))
-        }
-    };
-    Ok(FarOptions {
-        n_unscattered: a,
-        n_scattered: b,
-        ..FarOptions::paper()
-    })
-}
 
 /// Goniometer points `(theta_i, theta_r, phi)` in radians, with their grid structure
 /// ([`GridPlan`]) found on first use and kept, since a fit evaluates the same points
@@ -120,6 +89,8 @@ pub fn predict_points(
 pub struct ModelTerms {
     n: Vec<Vec<LobeValues>>,
     m: Vec<PairTerms>,
+    /// Each slice's far-field refinement decisions, replayed by [`Self::with_change`].
+    decisions: Arc<Vec<Decisions>>,
 }
 
 impl ModelTerms {
@@ -127,17 +98,21 @@ impl ModelTerms {
     pub fn new(params: &FurParams, points: &Points, far: &FarOptions) -> ModelTerms {
         let model = FurModel::new(params);
         let plan = points.plan();
+        let (n, decisions) = plan.far_terms_taped(&model, LobeSet::ALL, far, None);
         ModelTerms {
-            n: plan.azimuthal_terms(&model, LobeSet::ALL, ModelKind::Far, far),
+            n,
             m: plan.longitudinal_terms(&model, LobeSet::ALL),
+            decisions: Arc::new(decisions),
         }
     }
 
     /// The terms at `params`, which differ from the parameters of `self` only in
-    /// `changed`: the azimuthal terms that cannot depend on `changed`
-    /// ([`FurModel::azimuthal_dependence`]) are reused, the rest recomputed. Equal to
-    /// [`ModelTerms::new`] at `params` (tested), at a fraction of the cost for `alpha`,
-    /// `beta_m` and `g`.
+    /// `changed` (a finite-difference step): the azimuthal terms that cannot depend on
+    /// `changed` ([`FurModel::azimuthal_dependence`]) are reused, the rest recomputed with
+    /// the far field's refinement decisions of `self` replayed ([`Decisions`]), so the
+    /// terms are a smooth function of the step. Equal to [`ModelTerms::new`] at `params`
+    /// unless the step tips a refinement decision (tested), at a fraction of the cost for
+    /// `alpha`, `beta_m` and `g`.
     pub fn with_change(
         &self,
         params: &FurParams,
@@ -145,15 +120,23 @@ impl ModelTerms {
         points: &Points,
         far: &FarOptions,
     ) -> ModelTerms {
-        let dep = FurModel::azimuthal_dependence(changed);
-        if dep == LobeSet::ALL {
-            return ModelTerms::new(params, points, far);
-        }
+        self.with_lobes(params, FurModel::azimuthal_dependence(changed), points, far)
+    }
+
+    /// [`Self::with_change`] recomputing the azimuthal terms of the lobes in `dep` (with
+    /// the decisions of `self` replayed) and reusing the others.
+    pub fn with_lobes(
+        &self,
+        params: &FurParams,
+        dep: LobeSet,
+        points: &Points,
+        far: &FarOptions,
+    ) -> ModelTerms {
         let model = FurModel::new(params);
         let plan = points.plan();
         let mut n = self.n.clone();
         if dep != LobeSet::NONE {
-            let fresh = plan.azimuthal_terms(&model, dep, ModelKind::Far, far);
+            let (fresh, _) = plan.far_terms_taped(&model, dep, far, Some(&self.decisions));
             for (row, new_row) in n.iter_mut().zip(&fresh) {
                 for (v, nv) in row.iter_mut().zip(new_row) {
                     for l in dep.iter() {
@@ -165,6 +148,7 @@ impl ModelTerms {
         ModelTerms {
             n,
             m: plan.longitudinal_terms(&model, LobeSet::ALL),
+            decisions: self.decisions.clone(),
         }
     }
 

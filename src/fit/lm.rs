@@ -9,8 +9,20 @@
 //! method", IMM-REP-1999-05). The Jacobian is recomputed only after an accepted step.
 //!
 //! Termination (besides argmin's `max_iters`): `||J^T r||_inf <= gtol`; an accepted step
-//! with `||delta|| <= xtol (||u|| + xtol)`; an accepted step whose relative cost reduction
-//! is `<= ftol`; or the damping exceeding `1e16` (no further descent possible).
+//! with `||delta|| <= xtol (||u|| + xtol)`; the damping exceeding `1e16` (no further
+//! descent possible); and either an accepted step whose relative cost reduction is
+//! `<= ftol` or, with [`LevenbergMarquardt::step_se`] set, a Gauss-Newton step to the
+//! local optimum that moves no coordinate by more than that many of its standard errors.
+//! The relative-cost test stops wherever progress per step is slow, which on a flat valley
+//! of a least-squares fit can be more than one standard error short of the optimum; the
+//! standard-error test measures the remaining distance in the statistic a user reads: with
+//! `H = J^T J`, `g = J^T r` and the residual variance `s^2 = |r|^2 / (n - p - 1)`, each
+//! coordinate's Gauss-Newton step `(-H^+ g)_j` against its standard error
+//! `sqrt(s^2 H^+_jj)`. Coordinates the data does not determine (loading on a singular
+//! direction of `H`, below `1e-10` of the largest, or with a standard error above
+//! [`LevenbergMarquardt::max_se`]) are left out, as the uncertainty estimate flags them:
+//! driven towards a bound through a bounded map, such a coordinate keeps a step of a
+//! fixed size in its (growing) standard error and would never pass.
 //!
 //! With [`LevenbergMarquardt::broyden`] on, an accepted step updates the Jacobian by
 //! Broyden's rank-one secant formula `J += (r_new - r - J delta) delta^T / |delta|^2`
@@ -63,6 +75,12 @@ pub struct LevenbergMarquardt {
     pub gtol: f64,
     pub xtol: f64,
     pub ftol: f64,
+    /// Stop when the Gauss-Newton step moves no determined coordinate by more than this
+    /// many of its standard errors (replaces the `ftol` test; see the module doc).
+    pub step_se: Option<f64>,
+    /// Coordinates whose standard error exceeds this are not determined by the data and
+    /// left out of the `step_se` test (they may crawl towards a bound forever).
+    pub max_se: f64,
     /// Initial damping relative to `max diag(J^T J)` (Nielsen's `tau`).
     pub tau: f64,
     mu: f64,
@@ -89,6 +107,8 @@ impl LevenbergMarquardt {
             gtol: 1e-10,
             xtol: 1e-8,
             ftol: 1e-6,
+            step_se: None,
+            max_se: f64::INFINITY,
             tau: 1e-3,
             mu: 0.0,
             nu: 2.0,
@@ -133,6 +153,64 @@ impl LevenbergMarquardt {
         };
         self.scale = Some(s.clone());
         s
+    }
+}
+
+/// The largest step of a determined coordinate in its own standard errors,
+/// `max_j |delta_j| / SE_j`, for the Gauss-Newton step `delta = -H^+ g` and the linearised
+/// covariance `s^2 H^+` (module doc). Coordinates loading on a singular direction or with
+/// `SE_j > max_se` are not determined by the data and left out (0 when none is left).
+fn gauss_newton_step_se(
+    jtj: &DMatrix<f64>,
+    grad: &DVector<f64>,
+    r: &DVector<f64>,
+    max_se: f64,
+) -> f64 {
+    let (n, p) = (r.len(), grad.len());
+    let s2 = r.norm_squared() / n.saturating_sub(p + 1).max(1) as f64;
+    let svd = jtj.clone().svd(true, false);
+    let Some(u) = svd.u else {
+        return f64::INFINITY;
+    };
+    let smax = svd.singular_values.max();
+    let mut pinv = DMatrix::zeros(p, p);
+    let mut null_load = vec![0.0; p];
+    for (k, &sv) in svd.singular_values.iter().enumerate() {
+        let col = u.column(k);
+        if sv > 1e-10 * smax && sv > 0.0 {
+            pinv += col * col.transpose() / sv;
+        } else {
+            for j in 0..p {
+                null_load[j] += col[j] * col[j];
+            }
+        }
+    }
+    // The determined coordinates, and their Gauss-Newton step with the others held: an
+    // undetermined coordinate's own step (towards a bound, say) drags correlated ones
+    // along in the full step without changing the cost, so only the conditional step
+    // says how far the determined ones are from their optimum.
+    let se: Vec<f64> = (0..p)
+        .map(|j| (s2 * pinv[(j, j)]).max(0.0).sqrt())
+        .collect();
+    let det: Vec<usize> = (0..p)
+        .filter(|&j| null_load[j] <= 1e-6 && se[j] <= max_se)
+        .collect();
+    if det.is_empty() {
+        return 0.0;
+    }
+    let h_cc = DMatrix::from_fn(det.len(), det.len(), |a, b| jtj[(det[a], det[b])]);
+    let g_c = DVector::from_fn(det.len(), |a, _| grad[det[a]]);
+    let Some(delta) = h_cc.cholesky().map(|c| -c.solve(&g_c)) else {
+        return f64::INFINITY;
+    };
+    let worst = det
+        .iter()
+        .zip(delta.iter())
+        .fold(0.0f64, |w, (&j, d)| w.max(d.abs() / se[j].max(1e-300)));
+    if worst.is_finite() {
+        worst
+    } else {
+        f64::INFINITY
     }
 }
 
@@ -191,6 +269,12 @@ where
             return self.refresh(problem, state, u, r, cost);
         }
         let jtj = jac.transpose() * &jac;
+        if let (Some(tol), true) = (self.step_se, self.fresh) {
+            if gauss_newton_step_se(&jtj, &grad, &r, self.max_se) <= tol {
+                self.converged = Some("Gauss-Newton step below tolerance (standard errors)");
+                return Ok((with_point(state, u, r, jac, grad, cost), None));
+            }
+        }
         let d = self.update_scale(&jtj);
         let mut a = jtj.clone();
         for i in 0..a.nrows() {
@@ -219,7 +303,7 @@ where
             self.nu = 2.0;
             let converged = if delta.norm() <= self.xtol * (u.norm() + self.xtol) {
                 Some("step below tolerance")
-            } else if cost - cost_new <= self.ftol * cost {
+            } else if self.step_se.is_none() && cost - cost_new <= self.ftol * cost {
                 Some("relative cost change below tolerance")
             } else {
                 None

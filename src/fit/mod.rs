@@ -74,9 +74,15 @@ pub struct FitOptions {
     /// Weight residuals by the relative standard error `sigma/value` (every sample needs
     /// one; [`channel_data`] refuses otherwise).
     pub weighted: bool,
-    /// Relative cost change that ends the final LM run (default 1e-6, Ceres'
-    /// `function_tolerance`).
+    /// Relative cost change that ends the final LM run when `step_se` is `None` (Ceres'
+    /// `function_tolerance` 1e-6).
     pub ftol: f64,
+    /// The final LM run ends when its Gauss-Newton step moves no parameter the data
+    /// determines by more than this many standard errors (default 0.1: refits from other
+    /// starts or after rounding-level changes then agree to a fraction of a standard
+    /// error; the relative-cost test stopped up to ~1.5 standard errors short on flat
+    /// valleys). See [`lm`].
+    pub step_se: Option<f64>,
     /// Broyden updates of the Jacobian after accepted LM steps ([`lm`]; a run still only
     /// stops on a finite-difference Jacobian).
     pub broyden: bool,
@@ -90,11 +96,12 @@ impl Default for FitOptions {
             n_sub: 1500,
             n_best: 4,
             max_iters: 100,
-            far: FarOptions::paper(),
+            far: FarOptions::default(),
             init: None,
             layout: ParamLayout::all_free(),
             weighted: false,
             ftol: 1e-6,
+            step_se: Some(0.1),
             broyden: true,
         }
     }
@@ -191,12 +198,15 @@ fn run_lm(
     u0: DVector<f64>,
     max_iters: u64,
     ftol: f64,
+    step_se: Option<f64>,
     broyden: bool,
     clock: Instant,
 ) -> Result<RunResult> {
     let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far);
     let mut lm = LevenbergMarquardt::new(clock);
     lm.ftol = ftol;
+    lm.step_se = step_se;
+    lm.max_se = uncertainty::MAX_SE_U;
     lm.broyden = broyden;
     let res = Executor::new(&prob, lm)
         .configure(|s| s.param(u0).max_iters(max_iters))
@@ -291,7 +301,18 @@ pub fn fit_data(
     } else {
         data.clone()
     };
-    let sub = LogResidualProblem::new(&sub_data, layout.clone(), opts.far);
+    // The subsample stage only chooses the basin (the polish on all samples settles the
+    // optimum), so it runs on the fixed initial segmentation: smooth in the parameters
+    // and several times cheaper than the tolerance mode the polish uses.
+    let sub_far = if use_sub {
+        FarOptions {
+            tol: None,
+            ..opts.far
+        }
+    } else {
+        opts.far
+    };
+    let sub = LogResidualProblem::new(&sub_data, layout.clone(), sub_far);
 
     // 1. Global stage.
     let mut cands: Vec<[f64; N_PARAMS]> = Vec::new();
@@ -360,12 +381,17 @@ pub fn fit_data(
         .map(|&i| {
             // On a subsample the runs only choose the basin (the polish on all samples
             // converges tightly), so they stop at a looser relative cost change.
-            let ftol = if use_sub { SUBSAMPLE_FTOL } else { opts.ftol };
+            let (ftol, step_se) = if use_sub {
+                (SUBSAMPLE_FTOL, None)
+            } else {
+                (opts.ftol, opts.step_se)
+            };
             run_lm(
                 &sub,
                 scored[i].2.clone(),
                 opts.max_iters,
                 ftol,
+                step_se,
                 opts.broyden,
                 clock,
             )
@@ -393,6 +419,7 @@ pub fn fit_data(
             best_run.u,
             opts.max_iters,
             opts.ftol,
+            opts.step_se,
             opts.broyden,
             clock,
         )?;

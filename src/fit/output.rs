@@ -107,7 +107,11 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
                     .map(|id| (id.spec().name.to_string(), serde_json::json!(v[id.index()])))
                     .collect::<serde_json::Map<_, _>>()
             }),
+            // The far field fitted: initial segments, and the tolerance (null: the fixed
+            // segmentation) with its scattered step.
             "segments": {"unscattered": opts.far.n_unscattered, "scattered": opts.far.n_scattered},
+            "tol": opts.far.tol,
+            "scattered_step": opts.far.scattered_step,
             "weighted": opts.weighted,
             "wall_time_s": out.wall_time_s,
             "model_time_s": out.model_time_s,

@@ -382,8 +382,8 @@ pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::pa
         .iter()
         .position(|c| *c == fit.channel)
         .unwrap_or(0);
-    let far = FarOptions::paper();
-    let sls = slices(profile, channel, fit, &far);
+    // The far field the fit was made with, so the figure shows what was fitted.
+    let sls = slices(profile, channel, fit, &fit.far);
     if sls.is_empty() {
         return Err(Error::Invalid(format!(
             "{}: profile has no samples to plot",

@@ -6,6 +6,7 @@
 //! Also home of [`FitFile`], the reader of `fits/*.json` shared by the fit reports.
 
 use crate::error::{Error, Result};
+use crate::model::far::FarOptions;
 use crate::params::{preset_record, FurParams, ParamId};
 use serde_json::Value;
 use std::fmt::Write as _;
@@ -55,6 +56,29 @@ pub struct FitFile {
     pub unconstrained: Vec<String>,
     /// Standard errors (file units) per parameter, `None` if fixed/infinite.
     pub se: [Option<f64>; 10],
+    /// The far field the fit used (`solver.segments`, `.tol`, `.scattered_step`; fits
+    /// written before `tol` was recorded used the fixed segmentation).
+    pub far: FarOptions,
+}
+
+/// The far-field options a fit file records (see [`FitFile::far`]).
+fn recorded_far(solver: &Value) -> FarOptions {
+    let d = FarOptions::default();
+    let count = |key: &str, default: usize| {
+        solver["segments"][key]
+            .as_u64()
+            .map_or(default, |n| n.clamp(1, 4096) as usize)
+    };
+    FarOptions {
+        n_unscattered: count("unscattered", d.n_unscattered),
+        n_scattered: count("scattered", d.n_scattered),
+        tol: solver["tol"].as_f64().filter(|t| *t > 0.0 && *t < 1.0),
+        scattered_step: solver["scattered_step"]
+            .as_f64()
+            .filter(|s| *s > 0.0 && *s <= 1.0)
+            .unwrap_or(d.scattered_step),
+        ..d
+    }
 }
 
 impl FitFile {
@@ -144,6 +168,7 @@ impl FitFile {
             wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
             unconstrained,
             se,
+            far: recorded_far(&v["solver"]),
         })
     }
 

@@ -276,8 +276,85 @@ pub struct SliceStats {
     pub capped: LobeSet,
 }
 
+/// The refinement decisions of one slice build, per part and lobe, in the order taken
+/// ([`FarSlice::far_taped`]). Replayed by the build of a nearby parameter set, they give
+/// it the same segments and rules, so the far field is a smooth function of the
+/// parameters around the recording one: a tolerance-mode build decides splits and rules
+/// by comparing error estimates with budgets, and a finite-difference step that tips one
+/// comparison would change the value by up to `tol` of the lobe's peak, far more than the
+/// step's own effect.
+#[derive(Clone, Debug, Default)]
+pub struct Decisions(Vec<[Vec<u32>; 5]>);
+
+/// Records or replays one lobe's decisions ([`Decisions`]).
+enum Tape<'d> {
+    Off,
+    Record(Vec<u32>),
+    /// The recorded decisions and the next one to read.
+    Replay(&'d [u32], usize),
+}
+
+/// Marks a structural fact on a tape (see [`Tape::fact`]).
+const FACT: u32 = 1 << 31;
+
+impl Tape<'_> {
+    /// An accuracy decision (split or accept, which rule): `computed` when recording or
+    /// off, the recorded one when replaying.
+    fn choose(&mut self, computed: u32) -> u32 {
+        match self {
+            Tape::Off => computed,
+            Tape::Record(v) => {
+                v.push(computed);
+                computed
+            }
+            Tape::Replay(log, at) => match log.get(*at) {
+                Some(&x) if x & FACT == 0 => {
+                    *at += 1;
+                    x
+                }
+                _ => {
+                    *self = Tape::Off;
+                    computed
+                }
+            },
+        }
+    }
+
+    fn choose_bool(&mut self, computed: bool) -> bool {
+        self.choose(computed as u32) != 0
+    }
+
+    /// A structural fact the build cannot override (is `Phi` monotone across the
+    /// segment?): always `computed`. A replay that meets a different fact than recorded
+    /// is out of step with the recording and goes on computing its own decisions.
+    fn fact(&mut self, computed: bool) -> bool {
+        let code = FACT | computed as u32;
+        match self {
+            Tape::Off => {}
+            Tape::Record(v) => v.push(code),
+            Tape::Replay(log, at) => {
+                if log.get(*at) == Some(&code) {
+                    *at += 1;
+                } else {
+                    *self = Tape::Off;
+                }
+            }
+        }
+        computed
+    }
+}
+
+/// What a build does with decisions.
+#[derive(Clone, Copy)]
+enum TapeMode<'d> {
+    Off,
+    Record,
+    Replay(&'d Decisions),
+}
+
 /// Refinement state of one lobe of one part.
-struct Refine {
+struct Refine<'d> {
+    tape: Tape<'d>,
     /// Error budget (`None`: the paper's fixed segmentation).
     budget: Option<f64>,
     /// Scattered lobes: a segment whose integrated error `e len` is below this (a
@@ -295,16 +372,17 @@ struct Refine {
     reach: Vec<f64>,
 }
 
-impl Refine {
+impl Refine<'_> {
     /// Take one bisection: the children's depth, or `None` (and mark the lobe capped)
     /// when the depth or split limit is reached.
     fn split(&mut self, depth: u32) -> Option<u32> {
-        if depth >= MAX_DEPTH || self.splits_left == 0 {
+        let allowed = depth < MAX_DEPTH && self.splits_left > 0;
+        if self.tape.choose_bool(allowed) {
+            self.splits_left = self.splits_left.saturating_sub(1);
+            Some(depth + 1)
+        } else {
             self.capped = true;
             None
-        } else {
-            self.splits_left -= 1;
-            Some(depth + 1)
         }
     }
 }
@@ -313,6 +391,21 @@ impl<'a> FarSlice<'a> {
     /// The far field `1/2 integral_{-1}^{1}` (Eq. 22).
     pub fn far(az: &AzimuthalSlice<'a>, lobes: LobeSet, opts: &FarOptions) -> Self {
         Self::build(az, lobes, opts, &[(0.0, 1.0, true, true)], 0.5, None)
+    }
+
+    /// [`FarSlice::far`] that records its refinement decisions, or with `replay` takes
+    /// those of an earlier build instead of deciding afresh ([`Decisions`]; a replay that
+    /// falls out of step with its recording decides the rest itself). Without `replay` it
+    /// equals [`FarSlice::far`] bit for bit, and returns what it decided; with `replay` the
+    /// returned decisions are empty.
+    pub fn far_taped(
+        az: &AzimuthalSlice<'a>,
+        lobes: LobeSet,
+        opts: &FarOptions,
+        replay: Option<&Decisions>,
+    ) -> (Self, Decisions) {
+        let mode = replay.map_or(TapeMode::Record, TapeMode::Replay);
+        Self::build_taped(az, lobes, opts, &[(0.0, 1.0, true, true)], 0.5, None, mode)
     }
 
     /// [`FarSlice::far`] evaluated at one `phi` only (a single call). With culling on,
@@ -384,6 +477,20 @@ impl<'a> FarSlice<'a> {
         weight: f64,
         target: Option<f64>,
     ) -> Self {
+        Self::build_taped(az, lobes, opts, ranges, weight, target, TapeMode::Off).0
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    fn build_taped(
+        az: &AzimuthalSlice<'a>,
+        lobes: LobeSet,
+        opts: &FarOptions,
+        ranges: &[(f64, f64, bool, bool)],
+        weight: f64,
+        target: Option<f64>,
+        mode: TapeMode,
+    ) -> (Self, Decisions) {
+        let mut decisions = Decisions::default();
         let lobes = lobes.intersect(az.model.active_lobes());
         let bn = az.model.params.beta_n;
         let mut fs = FarSlice {
@@ -515,7 +622,16 @@ impl<'a> FarSlice<'a> {
                         b[l.index()] / (mult * TAU)
                     }
                 });
+                let tape = match mode {
+                    TapeMode::Off => Tape::Off,
+                    TapeMode::Record => Tape::Record(Vec::new()),
+                    TapeMode::Replay(d) => {
+                        d.0.get(k)
+                            .map_or(Tape::Off, |lobes| Tape::Replay(&lobes[l.index()], 0))
+                    }
+                };
                 let mut rf = Refine {
+                    tape,
                     budget: bud,
                     small: budget.map_or(0.0, |b| b[l.index()] / (mult * SMALL_SEGMENTS)),
                     splits_left: MAX_SPLITS,
@@ -540,10 +656,16 @@ impl<'a> FarSlice<'a> {
                 if rf.capped {
                     fs.capped = fs.capped.with(l);
                 }
+                if let Tape::Record(v) = rf.tape {
+                    if decisions.0.len() <= k {
+                        decisions.0.resize_with(k + 1, Default::default);
+                    }
+                    decisions.0[k][l.index()] = v;
+                }
             }
             fs.parts.push(part);
         }
-        fs
+        (fs, decisions)
     }
 
     /// Node values at `u`.
@@ -706,14 +828,17 @@ impl<'a> FarSlice<'a> {
         let ph = [n0.phi[p], nm.phi[p], n1.phi[p]];
         let lo = ph.iter().cloned().fold(f64::INFINITY, f64::min);
         let hi = ph.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
-        let narrow = hi - lo <= GL_SPAN_SIGMAS * beta;
+        // Taped decisions ([`Decisions`]): the facts first, then the thresholds.
+        let monotone = rf.tape.fact(same_sign && hi > lo);
+        let narrow = rf.tape.choose_bool(hi - lo <= GL_SPAN_SIGMAS * beta);
+        let phi_fit = monotone && rf.tape.choose_bool(dmin >= RATIO_MIN * dmax);
         let quarter = |s: &Self| {
             (
                 s.node_with(0.5 * (n0.u + nm.u), false),
                 s.node_with(0.5 * (nm.u + n1.u), false),
             )
         };
-        if same_sign && dmin >= RATIO_MIN * dmax && hi > lo {
+        if phi_fit {
             // Phi-space fit, oriented so that x = Phi - lo increases.
             let mut nodes = [n0, nm, n1];
             if d[0] < 0.0 {
@@ -750,7 +875,7 @@ impl<'a> FarSlice<'a> {
             e = e.max(hidden_mass_bound(dev, [n0, nm, n1, q1, q3], |n| {
                 Self::g_exact(n, p)
             }));
-            if e <= b {
+            if rf.tape.choose_bool(e <= b) {
                 out.push(piece);
             } else if narrow {
                 // The Gaussian is resolved across the whole segment: refine in u for GL
@@ -770,7 +895,7 @@ impl<'a> FarSlice<'a> {
                 let (q1, q3) = quarter(self);
                 self.build_narrow(p, n0, nm, n1, q1, q3, depth, rf, out);
             } else {
-                out.push(self.gl_piece(p, n0, n1, lo, hi, false));
+                out.push(self.gl_piece(p, n0, n1, lo, hi, false, &mut rf.tape));
             }
             return;
         }
@@ -780,7 +905,7 @@ impl<'a> FarSlice<'a> {
                 self.build_unsc(p, n0, q1, nm, depth, rf, out);
                 self.build_unsc(p, nm, q3, n1, depth, rf, out);
             }
-            None => out.push(self.gl_piece(p, n0, n1, lo, hi, false)),
+            None => out.push(self.gl_piece(p, n0, n1, lo, hi, false, &mut rf.tape)),
         }
     }
 
@@ -862,15 +987,15 @@ impl<'a> FarSlice<'a> {
         let hi = ph.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         // The piece built for the agreement check, kept in case no split is allowed.
         let mut checked = None;
-        if e * len * norm > b {
+        if rf.tape.choose_bool(e * len * norm > b) {
             // The prefactor's quadratic is a sufficient test, not a necessary one: the
             // 16-point rule also stands when it agrees with the 8-point rule to within the
             // budget at every probe (the 8-point rule's error bounds its own, far smaller
             // one). Not where the log-attenuation bends sharply (`hidden_mass_bound`):
             // there both rules may miss the same spike.
-            if dev <= LAM_DEV_MAX {
-                let (piece, err) = self.gl_piece_with(p, n0, n1, lo, hi, true, true);
-                if err <= b {
+            if rf.tape.choose_bool(dev <= LAM_DEV_MAX) {
+                let (piece, err) = self.gl_piece_with(p, n0, n1, lo, hi, true, true, &mut rf.tape);
+                if rf.tape.choose_bool(err <= b) {
                     out.push(piece);
                     return;
                 }
@@ -890,14 +1015,28 @@ impl<'a> FarSlice<'a> {
                 return;
             }
         }
-        out.push(checked.unwrap_or_else(|| self.gl_piece(p, n0, n1, lo, hi, true)));
+        let piece = match checked {
+            Some(piece) => piece,
+            None => self.gl_piece(p, n0, n1, lo, hi, true, &mut rf.tape),
+        };
+        out.push(piece);
     }
 
     /// Gauss-Legendre piece of lobe `p` over `[n0.u, n1.u]` whose nodes' `Phi` span
     /// `[lo, hi]`, with [`GL_NODES`] nodes, or in tolerance mode with `few_ok` with
     /// [`GL_NODES_FEW`] where those give the same lobe (see there).
-    fn gl_piece(&self, p: usize, n0: Node, n1: Node, lo: f64, hi: f64, few_ok: bool) -> Piece {
-        self.gl_piece_with(p, n0, n1, lo, hi, few_ok, false).0
+    #[allow(clippy::too_many_arguments)]
+    fn gl_piece(
+        &self,
+        p: usize,
+        n0: Node,
+        n1: Node,
+        lo: f64,
+        hi: f64,
+        few_ok: bool,
+        tape: &mut Tape,
+    ) -> Piece {
+        self.gl_piece_with(p, n0, n1, lo, hi, few_ok, false, tape).0
     }
 
     /// [`Self::gl_piece`] and, in tolerance mode with `estimate`, the largest difference of
@@ -914,6 +1053,7 @@ impl<'a> FarSlice<'a> {
         hi: f64,
         few_ok: bool,
         estimate: bool,
+        tape: &mut Tape,
     ) -> (Piece, f64) {
         let full = self.gl_nodes(p, n0.u, n1.u, GL_NODES);
         let beta = self.betas[p];
@@ -923,7 +1063,7 @@ impl<'a> FarSlice<'a> {
                 .fold((lo, hi), |(a, b), &(ph, _)| (a.min(ph), b.max(ph)))
         };
         let (flo, fhi) = range(&full);
-        let few_fits = few_ok && fhi - flo <= GL_FEW_SPAN_SIGMAS * beta;
+        let few_fits = few_ok && tape.choose_bool(fhi - flo <= GL_FEW_SPAN_SIGMAS * beta);
         let mut err = f64::INFINITY;
         let nodes = match self.tol {
             Some(tol) if estimate || few_fits => {
@@ -955,7 +1095,7 @@ impl<'a> FarSlice<'a> {
                     peak = peak.max(c * x.abs());
                 }
                 err = diff / (beta * TAU.sqrt());
-                if few_fits && diff <= GL_FEW_REL * tol * peak {
+                if few_fits && tape.choose_bool(diff <= GL_FEW_REL * tol * peak) {
                     few
                 } else {
                     full
@@ -1033,8 +1173,9 @@ impl<'a> FarSlice<'a> {
             (a.min(v.abs()), b.max(v.abs()))
         });
         let span = (n1.phis[k] - n0.phis[k]).abs();
-        if !(monotone && dmin >= RATIO_MIN * dmax && span > 0.0) {
-            if span <= rows.bin_width() {
+        let monotone = rf.tape.fact(monotone && span > 0.0);
+        if !(monotone && rf.tape.choose_bool(dmin >= RATIO_MIN * dmax)) {
+            if rf.tape.choose_bool(span <= rows.bin_width()) {
                 self.build_scat(l, n0, nm, n1, depth, rf, out);
             } else if let Some(depth) = rf.split(depth) {
                 self.build_psi(l, n0, q1, nm, depth, rf, out);
@@ -1052,7 +1193,8 @@ impl<'a> FarSlice<'a> {
             (phi_hi - n.phis[k], [w, w * t])
         };
         let [a, b, c] = [dens(&n0), dens(&nm), dens(&n1)];
-        if span < PSI_MIN_SPAN || (b.0 - a.0) * (c.0 - b.0) <= 0.0 {
+        let folds = rf.tape.fact((b.0 - a.0) * (c.0 - b.0) <= 0.0);
+        if rf.tape.choose_bool(span < PSI_MIN_SPAN) || folds {
             // Phi^s constant to rounding across the segment: no quadratic in Phi^s through
             // the nodes (see PSI_MIN_SPAN).
             self.build_scat(l, n0, nm, n1, depth, rf, out);
@@ -1071,7 +1213,7 @@ impl<'a> FarSlice<'a> {
                 }
             }
             let err = e[0] * (span * rows.peak).min(1.1) + e[1] * span * rows.gap(row);
-            if err > bud * len_u && err > rf.small {
+            if rf.tape.choose_bool(err > bud * len_u && err > rf.small) {
                 if let Some(depth) = rf.split(depth) {
                     self.build_psi(l, n0, q1, nm, depth, rf, out);
                     self.build_psi(l, nm, q3, n1, depth, rf, out);
@@ -1116,7 +1258,8 @@ impl<'a> FarSlice<'a> {
             // depth-first and, once it ran out, leave the rest of the range coarse. The
             // pieces may still be bisected for their fit. Few pieces (the default step)
             // are left to bisection, which adapts to a non-uniform `Phi^s`.
-            let pieces = (dps / self.max_dps()).ceil().clamp(1.0, MAX_PSI_PIECES) as usize;
+            let pieces = (dps / self.max_dps()).ceil().clamp(1.0, MAX_PSI_PIECES) as u32;
+            let pieces = rf.tape.choose(pieces).max(1) as usize;
             if pieces > BISECT_PSI_PIECES {
                 let at = |j: usize| n0.u + len * j as f64 / pieces as f64;
                 let mut a = n0;
@@ -1152,7 +1295,7 @@ impl<'a> FarSlice<'a> {
                     e = e.max((fit - q.pre[i] * q.frac * q.lam[i].exp()).abs());
                 }
                 let fit_poor = e > b && e * len > rf.small;
-                if fit_poor || dps > self.max_dps() {
+                if rf.tape.choose_bool(fit_poor || dps > self.max_dps()) {
                     if let Some(depth) = rf.split(depth) {
                         self.build_scat(l, n0, q1, nm, depth, rf, out);
                         self.build_scat(l, nm, q3, n1, depth, rf, out);
@@ -1928,7 +2071,7 @@ mod tests {
                 let (u0, u1) = (0.3, 0.3 + du);
                 let (n0, n1) = (fs.node(u0), fs.node(u1));
                 let (lo, hi) = (n0.phi[p].min(n1.phi[p]), n0.phi[p].max(n1.phi[p]));
-                let (piece, err) = fs.gl_piece_with(p, n0, n1, lo, hi, false, true);
+                let (piece, err) = fs.gl_piece_with(p, n0, n1, lo, hi, false, true, &mut Tape::Off);
                 let Piece::Gl { nodes, .. } = &piece else {
                     panic!("not a GL piece")
                 };

@@ -739,3 +739,61 @@ fn single_phi_build_equals_full_slice_exactly() {
         }
     }
 }
+
+/// Count of each piece kind of a slice, the structure a replay must keep.
+fn structure(fs: &FarSlice) -> (usize, usize, usize) {
+    let s = fs.stats();
+    (s.unscattered_segments, s.gl_segments, s.scattered_segments)
+}
+
+/// Replayed decisions ([`Decisions`]) keep a slice's segments across a parameter step that
+/// changes a fresh tolerance-mode build's segments, and the value then moves smoothly.
+/// Scans eta in steps of 1e-6 until a fresh build's segment counts change between two
+/// neighbours (a tipped decision), then replays the decisions of the lower one at the
+/// upper one: same counts as the lower, and a value change in line with the step before
+/// (a fresh build's change across a tipped decision is up to `tol` of the peak instead).
+#[test]
+fn replayed_decisions_keep_the_segments_across_a_tipped_split() {
+    let v = FurParams::preset("red-fox").unwrap().to_file_units();
+    let opts = FarOptions::default();
+    let td = 0.3;
+    let phis: Vec<f64> = (0..46).map(|k| (4.0 * k as f64).to_radians()).collect();
+    let build = |eta: f64, replay: Option<&Decisions>| {
+        let mut v = v;
+        v[0] = eta;
+        let m = FurModel::new(&params(v));
+        let az = m.azimuthal(td);
+        let (fs, rec) = FarSlice::far_taped(&az, LobeSet::ALL, &opts, replay);
+        (structure(&fs), fs.eval_grid(&phis), rec)
+    };
+    let sum = |vals: &[LobeValues]| vals.iter().map(|x| x.sum()).sum::<f64>();
+    let eta0 = v[0];
+    let h = 1e-6;
+    let mut prev = build(eta0, None);
+    let mut prev_step = f64::NAN;
+    let mut found = false;
+    for k in 1..20_000 {
+        let eta = eta0 + k as f64 * h;
+        let cur = build(eta, None);
+        if cur.0 != prev.0 && prev_step.is_finite() {
+            let (rs, rv, _) = build(eta, Some(&prev.2));
+            assert_eq!(rs, prev.0, "eta {eta}: replay changed the segments");
+            let smooth = (sum(&rv) - sum(&prev.1)).abs();
+            let peak = prev.1.iter().map(|x| x.sum()).fold(0.0, f64::max);
+            // The step before was smooth: the replayed change must be of its size (a
+            // factor 3 for the curvature over two steps, plus rounding of the sums).
+            assert!(
+                smooth <= 3.0 * prev_step + 1e-12 * peak,
+                "eta {eta}: replayed change {smooth:.3e}, previous step {prev_step:.3e}"
+            );
+            found = true;
+            break;
+        }
+        prev_step = (sum(&cur.1) - sum(&prev.1)).abs();
+        prev = cur;
+    }
+    assert!(
+        found,
+        "no tipped decision within 0.02 of eta: the test checks nothing"
+    );
+}
