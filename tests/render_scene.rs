@@ -261,3 +261,79 @@ fn cli_render_refuses_bad_out_fit_and_camera() {
         assert!(!dir.path().join(f).exists(), "{f} was written");
     }
 }
+
+/// A fit with r, g, b channels is rendered with each channel's own fitted absorption
+/// (issue: "colour from per-channel absorption where the fit has channels"): channels
+/// that all equal the primary fit render exactly as `--tint grey` does, and more
+/// absorption in the blue channel darkens blue and leaves red and green (up to noise).
+#[test]
+fn cli_render_takes_colour_from_rgb_fit_channels() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = fur().to_json_value();
+    let channel = |name: &str, params: &serde_json::Value| serde_json::json!({"params": params, "exposure": 1.0, "data": {"channel": name}});
+    let write_fit = |file: &str, b_params: &serde_json::Value| {
+        let fit = serde_json::json!({
+            "params": p, "exposure": 1.0,
+            "channels": [channel("r", &p), channel("g", &p), channel("b", b_params)],
+        });
+        let path = dir.path().join(file);
+        std::fs::write(&path, fit.to_string()).unwrap();
+        path
+    };
+    let mut darker = p.clone();
+    darker["sigma_c_a"] = serde_json::json!(20.0);
+    let same = write_fit("same.json", &p);
+    let blue = write_fit("blue.json", &darker);
+    let render = |extra: &[&str], out: &str| {
+        let out = dir.path().join(out);
+        let st = std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
+            .args(["render", "--size", "16x16", "--spp", "2", "--fibers", "60"])
+            .args(["--threads", "1", "--no-aovs"])
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(
+            st.status.success(),
+            "{}",
+            String::from_utf8_lossy(&st.stderr)
+        );
+        (
+            image::open(&out).unwrap().to_rgb8(),
+            String::from_utf8_lossy(&st.stderr).into_owned(),
+        )
+    };
+    let (grey, _) = render(
+        &["--params", same.to_str().unwrap(), "--tint", "grey"],
+        "g.png",
+    );
+    let (from_fit, note) = render(&["--fit", same.to_str().unwrap()], "s.png");
+    assert!(note.contains("r, g, b channel absorption"), "{note}");
+    assert_eq!(grey.as_raw(), from_fit.as_raw());
+    let (b, _) = render(&["--fit", blue.to_str().unwrap()], "b.png");
+    // Over the pixels that show fiber (where the blue channel changed; the background
+    // does not depend on the fit).
+    let fiber: Vec<usize> = (0..grey.as_raw().len() / 3)
+        .filter(|&i| grey.as_raw()[3 * i + 2] != b.as_raw()[3 * i + 2])
+        .collect();
+    assert!(fiber.len() > 10, "only {} fiber pixels", fiber.len());
+    let sum = |img: &image::RgbImage, c: usize| {
+        fiber
+            .iter()
+            .map(|&i| img.as_raw()[3 * i + c] as f64)
+            .sum::<f64>()
+    };
+    let ratio: Vec<f64> = (0..3).map(|c| sum(&b, c) / sum(&grey, c)).collect();
+    eprintln!("channel mean ratios {ratio:?}");
+    // Importance sampling follows all three channels, so r and g see other paths (noise,
+    // a few per cent at this size), but only blue absorbs more.
+    assert!(
+        ratio[2] < 0.8,
+        "blue absorption had little effect: {ratio:?}"
+    );
+    assert!(
+        ratio[..2].iter().all(|r| (0.9..1.1).contains(r)),
+        "r or g moved: {ratio:?}"
+    );
+}

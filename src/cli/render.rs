@@ -68,9 +68,10 @@ pub struct Args {
     #[arg(long, default_value = "0.34,0.10")]
     pub env: String,
     /// Per-channel absorption ratios r,g,b applied to sigma_c_a and sigma_m_a, or
-    /// `melanin` (default, eumelanin-like) or `grey`.
-    #[arg(long, default_value = "melanin")]
-    pub tint: String,
+    /// `melanin` (eumelanin-like) or `grey`. Default: a fit with r, g, b channels gives
+    /// each colour channel its own fitted absorption; anything else gets `melanin`.
+    #[arg(long)]
+    pub tint: Option<String>,
     /// Exposure in stops applied before the tone map, -64..=64.
     #[arg(long, default_value_t = 0.0)]
     pub exposure: f64,
@@ -137,7 +138,7 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
             a.env
         ),
     };
-    let tint = match a.tint.as_str() {
+    let tint = match a.tint.as_deref().unwrap_or("melanin") {
         "melanin" => Tint::default(),
         "grey" | "gray" => Tint::GREY,
         s => {
@@ -145,7 +146,7 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
             if v.len() != 3 || v.iter().any(|x| *x < 0.0) {
                 bail!("--tint: expected melanin, grey or three non-negative ratios r,g,b");
             }
-            Tint([v[0], v[1], v[2]])
+            Tint::Ratios([v[0], v[1], v[2]])
         }
     };
     // One message per flag, naming the value given (NaN fails every test).
@@ -256,7 +257,8 @@ fn outputs(out: &Path, s: &RenderSettings, aovs: bool) -> Vec<(Image, PathBuf)> 
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let s = settings_from(&a)?;
-    let jobs: Vec<(String, FurParams)> = if a.all {
+    // (name, parameters, the fit file's r, g, b channels when it has them)
+    let jobs: Vec<(String, FurParams, Option<Tint>)> = if a.all {
         let dir = a.fits_dir.clone().unwrap_or_else(|| "fits".into());
         let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
             .with_context(|| format!("reading {}", dir.display()))?
@@ -272,7 +274,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .map(|f| {
                 let (p, _) = FurParams::load(&f.to_string_lossy())?;
                 let name = f.file_stem().unwrap().to_string_lossy().into_owned();
-                Ok((name, p))
+                Ok((name, p, fit_colour(f)?))
             })
             .collect::<anyhow::Result<_>>()?
     } else {
@@ -292,14 +294,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or(spec.clone());
-        vec![(name, p)]
+        let colour = match &a.fit {
+            Some(f) => fit_colour(Path::new(f))?,
+            None => None,
+        };
+        vec![(name, p, colour)]
     };
     // Every output path is checked before the (possibly long) renders, so a bad --out
     // fails at once, before anything is written (a render that fails later still leaves
     // the species finished before it).
     let outs: Vec<PathBuf> = jobs
         .iter()
-        .map(|(name, _)| {
+        .map(|(name, _, _)| {
             if a.all {
                 a.out.with_file_name(format!("{name}.png"))
             } else {
@@ -311,7 +317,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.all {
         taken.push((a.out.clone(), "the contact sheet"));
     }
-    for ((name, _), out) in jobs.iter().zip(&outs) {
+    for ((name, _, _), out) in jobs.iter().zip(&outs) {
         for (_, p) in outputs(out, &s, !a.no_aovs) {
             if let Some((_, owner)) = taken.iter().find(|(q, _)| *q == p) {
                 bail!(
@@ -338,9 +344,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         s.mode.name()
     );
     let mut tiles = Vec::new();
-    for ((name, p), out) in jobs.iter().zip(&outs) {
+    for ((name, p, colour), out) in jobs.iter().zip(&outs) {
         for n in crate::model::FurModel::table_notes(p) {
             eprintln!("note: {name}: {n}");
+        }
+        // An explicit --tint wins; else a fit's own r, g, b absorption, else the default.
+        let mut s = s.clone();
+        match (colour, &a.tint) {
+            (Some(t), None) => {
+                s.tint = *t;
+                eprintln!("note: {name}: colour from the fit's r, g, b channel absorption");
+            }
+            (Some(_), Some(t)) => {
+                eprintln!("note: {name}: --tint {t} replaces the fit's r, g, b absorption")
+            }
+            (None, None) => {
+                eprintln!("note: {name}: no r, g, b channels: default eumelanin-like tint (--tint)")
+            }
+            (None, Some(_)) => {}
         }
         let r = render_scene(&scene, p, &s)?;
         outln!(
@@ -379,4 +400,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         outln!("wrote contact sheet {}", a.out.display());
     }
     Ok(())
+}
+
+/// The colour of a fit file with r, g, b channels ([`Tint::from_fit_channels`]).
+fn fit_colour(path: &Path) -> anyhow::Result<Option<Tint>> {
+    let v: serde_json::Value = crate::io::read_json(path)?;
+    Tint::from_fit_channels(&v).with_context(|| format!("--fit {}", path.display()))
 }

@@ -148,23 +148,100 @@ pub fn lobe_sum(v: &LobeRgb) -> Rgb {
     s
 }
 
-/// Per-channel absorption ratios applied to `sigma_c_a` and `sigma_m_a` (scattering,
+/// The colour of the fiber: per-channel absorption `sigma_c_a`, `sigma_m_a` (scattering,
 /// geometry and roughness are shared by the channels).
 ///
 /// The default is a eumelanin-like tint: the relative eumelanin absorption at R, G, B of
 /// d'Eon et al. 2011 / Chiang et al. 2016 (`0.419 : 0.697 : 1.37`), normalised so the
-/// green channel keeps the fitted value. A fit made per channel should pass its own ratios.
+/// green channel keeps the fitted value. A fit with r, g, b channels gives each channel
+/// its own fitted absorption ([`Tint::Absorption`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Tint(pub [f64; 3]);
+pub enum Tint {
+    /// Ratios r, g, b applied to both absorption coefficients of the parameters.
+    Ratios([f64; 3]),
+    /// Absorption per channel r, g, b, replacing the parameters' own.
+    Absorption {
+        sigma_c_a: [f64; 3],
+        sigma_m_a: [f64; 3],
+    },
+}
 
 impl Default for Tint {
     fn default() -> Self {
-        Tint([0.419 / 0.697, 1.0, 1.37 / 0.697])
+        Tint::Ratios([0.419 / 0.697, 1.0, 1.37 / 0.697])
     }
 }
 
 impl Tint {
-    pub const GREY: Tint = Tint([1.0, 1.0, 1.0]);
+    pub const GREY: Tint = Tint::Ratios([1.0, 1.0, 1.0]);
+
+    /// `params` with channel `c`'s absorption.
+    pub fn apply(&self, params: &FurParams, c: usize) -> FurParams {
+        let mut p = *params;
+        match self {
+            Tint::Ratios(r) => {
+                p.sigma_c_a *= r[c];
+                p.sigma_m_a *= r[c];
+            }
+            Tint::Absorption {
+                sigma_c_a,
+                sigma_m_a,
+            } => {
+                p.sigma_c_a = sigma_c_a[c];
+                p.sigma_m_a = sigma_m_a[c];
+            }
+        }
+        p
+    }
+
+    /// Bit patterns identifying the tint (a cache key).
+    pub fn key(&self) -> [u64; 7] {
+        let (tag, a, b) = match *self {
+            Tint::Ratios(r) => (0, r, [0.0; 3]),
+            Tint::Absorption {
+                sigma_c_a,
+                sigma_m_a,
+            } => (1, sigma_c_a, sigma_m_a),
+        };
+        let mut k = [tag; 7];
+        for i in 0..3 {
+            k[1 + i] = a[i].to_bits();
+            k[4 + i] = b[i].to_bits();
+        }
+        k
+    }
+
+    /// The colour of a fit file with channels named r, g, b (or red, green, blue; any
+    /// case): each channel's fitted absorption. `Ok(None)` for a fit without such
+    /// channels; an error names the channel whose parameters are invalid.
+    pub fn from_fit_channels(v: &serde_json::Value) -> crate::Result<Option<Tint>> {
+        let Some(chs) = v["channels"].as_array() else {
+            return Ok(None);
+        };
+        let mut found: [Option<FurParams>; 3] = [None; 3];
+        for ch in chs {
+            let name = ch["data"]["channel"]
+                .as_str()
+                .unwrap_or("")
+                .to_ascii_lowercase();
+            let slot = match name.as_str() {
+                "r" | "red" => 0,
+                "g" | "green" => 1,
+                "b" | "blue" => 2,
+                _ => continue,
+            };
+            let (p, _) = FurParams::from_json_value(ch)
+                .map_err(|e| crate::Error::Invalid(format!("fit channel '{name}': {e}")))?;
+            found[slot] = Some(p);
+        }
+        let [Some(r), Some(g), Some(b)] = found else {
+            return Ok(None);
+        };
+        Ok(Some(Tint::Absorption {
+            sigma_c_a: [r.sigma_c_a, g.sigma_c_a, b.sigma_c_a],
+            sigma_m_a: [r.sigma_m_a, g.sigma_m_a, b.sigma_m_a],
+        }))
+    }
 }
 
 /// A sampled light-side direction.
@@ -269,12 +346,7 @@ fn trunc_sample(mu: f64, s: f64, (qa, qb): (f64, f64), u: f64) -> f64 {
 
 impl FiberBsdf {
     pub fn new(params: &FurParams, tint: Tint, lobes: LobeSet) -> FiberBsdf {
-        let models = [0, 1, 2].map(|c| {
-            let mut p = *params;
-            p.sigma_c_a *= tint.0[c];
-            p.sigma_m_a *= tint.0[c];
-            FurModel::new(&p)
-        });
+        let models = [0, 1, 2].map(|c| FurModel::new(&tint.apply(params, c)));
         let lobes = lobes.intersect(models[0].active_lobes());
         FiberBsdf {
             models,

@@ -200,7 +200,7 @@ impl RenderOutput {
 }
 
 /// What a far-field table depends on: parameters, tint, lobes and the culling flag.
-type TableKey = ([u64; 10], [u64; 3], LobeSet, bool);
+type TableKey = ([u64; 10], [u64; 7], LobeSet, bool);
 
 /// Prepared scene (geometry is reused across renders of a study), with the far-field
 /// tables of the parameter sets rendered so far (a study renders one set many times).
@@ -243,7 +243,7 @@ impl Scene {
                 params.l,
             ]
             .map(f64::to_bits),
-            s.tint.0.map(f64::to_bits),
+            s.tint.key(),
             bsdf.lobes(),
             s.far_cull,
         );
