@@ -166,9 +166,9 @@ pub struct FitOutcome {
     /// Model evaluations x samples (for throughput figures).
     pub sample_evaluations: u64,
     /// Estimated seconds inside the model: evaluations x the wall time of one evaluation
-    /// measured alone after the solve (fastest of three). An upper estimate: a
-    /// finite-difference column counts as a full evaluation though most recompute only the
-    /// terms their parameter changes.
+    /// measured alone after the solve (fastest of three), a finite-difference column
+    /// counted at the mean column cost of the final Jacobian (most recompute only the
+    /// terms their parameter changes).
     pub model_time_s: f64,
     pub starts_global: usize,
     pub starts_lm: usize,
@@ -188,6 +188,7 @@ struct RunResult {
     termination: String,
     trace: Vec<TracePoint>,
     evals: u64,
+    fd_columns: u64,
 }
 
 /// One LM run from `u0` on `shared`'s data. The run gets its own problem instance (its own
@@ -228,6 +229,7 @@ fn run_lm(
         trace: res.solver.trace.clone(),
         u,
         evals: prob.evals.load(Ordering::Relaxed),
+        fd_columns: prob.fd_columns.load(Ordering::Relaxed),
     })
 }
 
@@ -274,6 +276,15 @@ pub fn fit_data(
     if data.len() <= n_free + 1 {
         return Err(Error::Invalid(format!(
             "{} valid sample(s) for {n_free} free parameter(s) + the exposure: a fit needs more samples than unknowns",
+            data.len()
+        )));
+    }
+    // The NRMSE (MODEL.md) divides by the log range of the data, 0 for a flat profile:
+    // no fit quality can be stated, and a goniometric profile never is flat.
+    if data.ln_y.iter().all(|&v| v == data.ln_y[0]) {
+        return Err(Error::Invalid(format!(
+            "all {} valid samples have the same value: the NRMSE is normalised by the \
+             range of ln(value), which is 0, so the fit could not be judged",
             data.len()
         )));
     }
@@ -400,6 +411,8 @@ pub fn fit_data(
     let mut runs: Vec<RunResult> = runs.into_iter().collect::<Result<_>>()?;
     sub.evals
         .fetch_add(runs.iter().map(|r| r.evals).sum(), Ordering::Relaxed);
+    sub.fd_columns
+        .fetch_add(runs.iter().map(|r| r.fd_columns).sum(), Ordering::Relaxed);
     let best = (0..runs.len())
         .min_by(|&a, &b| runs[a].cost.total_cmp(&runs[b].cost).then(a.cmp(&b)))
         .expect("at least one start");
@@ -424,6 +437,8 @@ pub fn fit_data(
             clock,
         )?;
         full.evals.fetch_add(polish.evals, Ordering::Relaxed);
+        full.fd_columns
+            .fetch_add(polish.fd_columns, Ordering::Relaxed);
         let offset = best_run.iters;
         let n = data.len() as f64;
         trace.extend(polish.trace.iter().map(|t| TraceEntry {
@@ -468,19 +483,27 @@ fn finish(
 ) -> Result<FitOutcome> {
     // The solve's evaluations; those below (residuals, Jacobian for the uncertainty,
     // timing) are not part of it.
-    let full_evals = full.evals.load(Ordering::Relaxed);
-    let sub_evals = if std::ptr::eq(full, sub) {
-        0
+    let counts = |p: &LogResidualProblem| {
+        (
+            p.evals.load(Ordering::Relaxed),
+            p.fd_columns.load(Ordering::Relaxed),
+        )
+    };
+    let (full_evals, full_cols) = counts(full);
+    let (sub_evals, sub_cols) = if std::ptr::eq(full, sub) {
+        (0, 0)
     } else {
-        sub.evals.load(Ordering::Relaxed)
+        counts(sub)
     };
     // Evaluated through the cache, so the Jacobian below reuses this evaluation.
     let (r, lk) = full.evaluate_at(&u);
+    let t_jac = Instant::now();
     let jac = if u.is_empty() {
         nalgebra::DMatrix::zeros(data.len(), 0)
     } else {
         full.jacobian_at(&u)
     };
+    let t_jac = t_jac.elapsed().as_secs_f64();
     let unc = uncertainty::estimate(&opts.layout, &u, &jac, &r);
     let params = opts.layout.params(u.as_slice());
     params.validate()?;
@@ -501,9 +524,18 @@ fn finish(
     let (nrmse, _) = problem::nrmse(&m, &data.ln_y, data.range);
     let sample_evaluations = full_evals * data.len() as u64 + sub_evals * sub.data.len() as u64;
     // Time in the model, estimated as evaluations x the time of one evaluation measured
-    // alone (concurrent evaluations during the solve make per-call timers overlap).
+    // alone (concurrent evaluations during the solve make per-call timers overlap). A
+    // finite-difference column recomputes only the terms its parameter changes: it costs
+    // the Jacobian's time above per column, a share `col_cost` of a full evaluation
+    // (taken as the same share on the subsample).
     let t_sub = if sub_evals > 0 { time_min3(sub).0 } else { 0.0 };
-    let model_time_s = full_evals as f64 * t_full + sub_evals as f64 * t_sub;
+    let col_cost = if u.is_empty() || t_full <= 0.0 {
+        1.0
+    } else {
+        (t_jac / u.len() as f64 / t_full).min(1.0)
+    };
+    let cost = |evals: u64, cols: u64| (evals - cols) as f64 + cols as f64 * col_cost;
+    let model_time_s = cost(full_evals, full_cols) * t_full + cost(sub_evals, sub_cols) * t_sub;
     Ok(FitOutcome {
         params,
         exposure: lk.exp(),

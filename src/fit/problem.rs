@@ -199,6 +199,8 @@ pub struct LogResidualProblem<'a> {
     pub far: FarOptions,
     /// Model evaluations (one per residual vector), including finite-difference columns.
     pub evals: AtomicU64,
+    /// Of those, finite-difference columns (most recompute only part of the model).
+    pub fd_columns: AtomicU64,
     /// Last `(u, r, terms)` computed, so the Jacobian reuses the residuals and model terms
     /// of its base point.
     last: Mutex<Option<Cached>>,
@@ -217,6 +219,7 @@ impl<'a> LogResidualProblem<'a> {
             layout,
             far,
             evals: AtomicU64::new(0),
+            fd_columns: AtomicU64::new(0),
             last: Mutex::new(None),
         }
     }
@@ -292,6 +295,7 @@ impl<'a> LogResidualProblem<'a> {
                 up[j] += h;
                 let h = up[j] - u[j];
                 self.evals.fetch_add(1, Ordering::Relaxed);
+                self.fd_columns.fetch_add(1, Ordering::Relaxed);
                 let params = self.layout.params(up.as_slice());
                 let terms = base.with_change(&params, free[j], &self.data.points, &self.far);
                 (self.residuals_of(&self.values(&terms)).0 - r0) / h

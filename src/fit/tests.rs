@@ -173,3 +173,15 @@ fn channel_data_is_independent_of_row_order() {
     assert_eq!(da.points, db.points);
     assert_eq!(da.ln_y, db.ln_y);
 }
+
+/// A flat profile has no log range to normalise the NRMSE by: the fit says so instead of
+/// reporting an NRMSE over a substituted range.
+#[test]
+fn flat_profile_is_refused() {
+    let pts = small_points();
+    let data = FitData::new(pts.clone(), &vec![0.5; pts.len()], None);
+    let e = fit_data(&data, &FitOptions::default(), None)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("same value") && e.contains("range"), "{e}");
+}

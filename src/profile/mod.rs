@@ -492,7 +492,8 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
 }
 
 /// Merge profiles into one: channels are matched by name (the union, in order of first
-/// appearance; a part with one unnamed channel contributes to channel 0 of the merge),
+/// appearance; parts with one unnamed channel merge with each other, and mixing them with
+/// named channels is an error: which channel they belong to is not known),
 /// metadata entries are concatenated with exact repeats dropped, samples concatenated. A sample present in two parts with a different value is an error naming
 /// both sources; identical copies are collapsed (their count is returned).
 pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
@@ -507,10 +508,21 @@ pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
                 .unwrap_or_else(|| "<memory>".into())
         })
         .collect();
+    let unnamed = parts.iter().position(|p| p.channels.is_empty());
+    let named = parts.iter().position(|p| !p.channels.is_empty());
+    if let (Some(u), Some(n)) = (unnamed, named) {
+        return Err(Error::Invalid(format!(
+            "{} has no channel name but {} names its channels ({}): say which channel the \
+             unnamed samples are (a `channel` column) or fit the files separately",
+            sources[u],
+            sources[n],
+            parts[n].channels.join(", ")
+        )));
+    }
     for (k, part) in parts.into_iter().enumerate() {
         let mut map = Vec::new();
         if part.channels.is_empty() {
-            // One unnamed channel: it is channel 0 of the merge.
+            // One unnamed channel, merged with the other unnamed parts.
             map.push(0);
         }
         for name in &part.channels {
@@ -774,6 +786,30 @@ mod tests {
 
     fn at(theta_i: f64, theta_r: f64, phi: f64) -> Sample {
         Sample::new(theta_i, theta_r, phi, 1.0)
+    }
+
+    /// An unnamed channel merged with named ones used to land silently in the first named
+    /// channel; now it is an error naming both files. Unnamed parts still merge together.
+    #[test]
+    fn merge_refuses_unnamed_with_named_channels() {
+        let part = |src: &str, channels: &[&str], phi: f64| Profile {
+            samples: vec![at(0.0, 10.0, phi)],
+            channels: channels.iter().map(|c| c.to_string()).collect(),
+            source: Some(src.into()),
+            ..Default::default()
+        };
+        let e = merge(vec![
+            part("rg.csv", &["r"], 0.0),
+            part("plain.csv", &[], 5.0),
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("plain.csv") && e.contains("rg.csv") && e.contains('r'),
+            "{e}"
+        );
+        let (m, _) = merge(vec![part("a.csv", &[], 0.0), part("b.csv", &[], 5.0)]).unwrap();
+        assert_eq!((m.samples.len(), m.channels.len()), (2, 0));
     }
 
     #[test]
