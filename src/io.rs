@@ -198,15 +198,82 @@ pub fn read_json(path: &Path) -> Result<serde_json::Value> {
     parse_json(&text, path)
 }
 
-/// Parse JSON text read from `path`; a syntax error names the file, line and column.
+/// Parse JSON text read from `path`; a syntax error, or a key repeated in one object
+/// (serde_json would silently keep the last: `"l": 0.68, "l": 0.7`), names the file, line
+/// and column.
 pub fn parse_json(text: &str, path: &Path) -> Result<serde_json::Value> {
-    serde_json::from_str(text).map_err(|e| Error::Parse {
-        file: path.into(),
-        line: e.line(),
-        // serde_json counts columns from 1 but reports 0 at the start of a line.
-        column: format!("column {}", e.column().max(1)),
-        msg: format!("invalid JSON: {e}"),
-    })
+    serde_json::from_str::<UniqueKeys>(text)
+        .map(|u| u.0)
+        .map_err(|e| Error::Parse {
+            file: path.into(),
+            line: e.line(),
+            // serde_json counts columns from 1 but reports 0 at the start of a line.
+            column: format!("column {}", e.column().max(1)),
+            msg: format!("invalid JSON: {e}"),
+        })
+}
+
+/// A JSON value read with every object's keys checked to be distinct ([`parse_json`]).
+struct UniqueKeys(serde_json::Value);
+
+impl<'de> serde::Deserialize<'de> for UniqueKeys {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        d.deserialize_any(UniqueKeysVisitor)
+    }
+}
+
+struct UniqueKeysVisitor;
+
+impl<'de> serde::de::Visitor<'de> for UniqueKeysVisitor {
+    type Value = UniqueKeys;
+
+    fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+        f.write_str("a JSON value")
+    }
+    fn visit_bool<E>(self, v: bool) -> std::result::Result<UniqueKeys, E> {
+        Ok(UniqueKeys(v.into()))
+    }
+    fn visit_i64<E>(self, v: i64) -> std::result::Result<UniqueKeys, E> {
+        Ok(UniqueKeys(v.into()))
+    }
+    fn visit_u64<E>(self, v: u64) -> std::result::Result<UniqueKeys, E> {
+        Ok(UniqueKeys(v.into()))
+    }
+    fn visit_f64<E>(self, v: f64) -> std::result::Result<UniqueKeys, E> {
+        Ok(UniqueKeys(v.into()))
+    }
+    fn visit_str<E>(self, v: &str) -> std::result::Result<UniqueKeys, E> {
+        Ok(UniqueKeys(v.into()))
+    }
+    fn visit_unit<E>(self) -> std::result::Result<UniqueKeys, E> {
+        Ok(UniqueKeys(serde_json::Value::Null))
+    }
+    fn visit_seq<A: serde::de::SeqAccess<'de>>(
+        self,
+        mut seq: A,
+    ) -> std::result::Result<UniqueKeys, A::Error> {
+        let mut v = Vec::new();
+        while let Some(UniqueKeys(x)) = seq.next_element()? {
+            v.push(x);
+        }
+        Ok(UniqueKeys(v.into()))
+    }
+    fn visit_map<A: serde::de::MapAccess<'de>>(
+        self,
+        mut map: A,
+    ) -> std::result::Result<UniqueKeys, A::Error> {
+        let mut m = serde_json::Map::new();
+        while let Some(k) = map.next_key::<String>()? {
+            if m.contains_key(&k) {
+                return Err(serde::de::Error::custom(format!(
+                    "key \"{k}\" appears twice in one object"
+                )));
+            }
+            let UniqueKeys(v) = map.next_value()?;
+            m.insert(k, v);
+        }
+        Ok(UniqueKeys(m.into()))
+    }
 }
 
 /// Content hash (SHA-256, lower-case hex) of a byte string; fits record the hash of the data
@@ -220,6 +287,23 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A key given twice in one object is an error naming the line (serde_json alone keeps
+    /// the last value); the same key in two objects is fine.
+    #[test]
+    fn json_keys_repeated_in_one_object_are_refused() {
+        let p = Path::new("p.json");
+        let e = parse_json("{\"l\": 0.68,\n \"l\": 0.7}", p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("p.json:2") && e.contains("\"l\" appears twice"),
+            "{e}"
+        );
+        let v = parse_json("{\"a\": {\"l\": 1}, \"b\": [{\"l\": 2.5}, null, true]}", p).unwrap();
+        assert_eq!(v["b"][0]["l"], 2.5);
+        assert_eq!(v["a"]["l"], 1);
+    }
 
     #[test]
     fn out_checks_name_the_file_in_the_way() {

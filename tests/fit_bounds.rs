@@ -63,7 +63,9 @@ fn featureless_data_gives_in_bound_fits() {
     // log range and is refused) that no parameter set reproduces: roughness is pushed to
     // its maximum, absorption toward 0 or infinity.
     let pts = grid();
-    let y: Vec<f64> = (0..pts.len()).map(|i| 1.0 + 0.01 * (i % 7) as f64).collect();
+    let y: Vec<f64> = (0..pts.len())
+        .map(|i| 1.0 + 0.01 * (i % 7) as f64)
+        .collect();
     let fit = fit_data(&FitData::new(pts, &y, None), &quick(), None).unwrap();
     assert_inside(&fit.params);
     assert!(fit.nrmse.is_finite());

@@ -610,8 +610,14 @@ pub(crate) fn check_angle(name: &str, v: f64, limit: f64) -> std::result::Result
         return Err(format!("{name} must be a finite angle, found {v}"));
     }
     if v < -limit || v > limit {
+        // 1e300 in scientific notation, not as 301 digits.
+        let shown = if v.abs() < 1e6 {
+            format!("{v}")
+        } else {
+            format!("{v:e}")
+        };
         return Err(format!(
-            "{name} = {v} deg is out of range [-{limit}, {limit}]"
+            "{name} = {shown} deg is out of range [-{limit}, {limit}]"
         ));
     }
     Ok(v + 0.0)

@@ -81,8 +81,13 @@ impl NpyHeader {
 
 /// Parse and sanity-check an `.npy` header against the data that follows it.
 fn npy_header(bytes: &[u8]) -> std::result::Result<NpyHeader, String> {
-    if bytes.len() < 10 || &bytes[..6] != b"\x93NUMPY" {
+    const MAGIC: &[u8] = b"\x93NUMPY";
+    let n = bytes.len().min(MAGIC.len());
+    if bytes[..n] != MAGIC[..n] {
         return Err("not an .npy array (bad magic bytes)".into());
+    }
+    if bytes.len() < 10 {
+        return Err("truncated .npy header".into());
     }
     let (hlen, start): (usize, usize) = match bytes[6] {
         1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
@@ -130,7 +135,13 @@ fn npy_header(bytes: &[u8]) -> std::result::Result<NpyHeader, String> {
         );
     }
     let h = NpyHeader { descr, shape };
-    let (_, size) = h.kind();
+    let (kind, size) = h.kind();
+    if !matches!(kind, 'f' | 'i' | 'u' | 'b') {
+        return Err(format!(
+            "unsupported dtype '{}' (profile arrays are float, integer or bool)",
+            h.descr
+        ));
+    }
     let need = h
         .shape
         .iter()
@@ -673,6 +684,26 @@ mod tests {
         assert_eq!(back.metadata, p.metadata);
         // Deterministic bytes.
         assert_eq!(to_bytes(&back).unwrap(), bytes);
+    }
+
+    /// A complex array and a truncated header are named as such (they were reported as
+    /// "truncated or corrupt" and "bad magic bytes").
+    #[test]
+    fn complex_dtype_and_truncated_header_are_named() {
+        let mut hdr = b"\x93NUMPY\x01\x00".to_vec();
+        let text = "{'descr': '<c16', 'fortran_order': False, 'shape': (2,), }";
+        let pad = 64 - (hdr.len() + 2 + text.len() + 1) % 64;
+        let text = format!("{text}{}\n", " ".repeat(pad));
+        hdr.extend((text.len() as u16).to_le_bytes());
+        hdr.extend(text.as_bytes());
+        hdr.extend([0u8; 32]);
+        let e = npy_header(&hdr).unwrap_err();
+        assert!(e.contains("unsupported dtype '<c16'"), "{e}");
+        let e = npy_header(b"\x93NUMPY\x01").unwrap_err();
+        assert!(e.contains("truncated"), "{e}");
+        assert!(npy_header(b"PK\x03\x04 not npy")
+            .unwrap_err()
+            .contains("magic"));
     }
 
     #[test]

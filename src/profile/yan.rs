@@ -85,6 +85,15 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             continue;
         }
         let fields: Vec<&str> = t.split_whitespace().collect();
+        if fields.len() < 3 && t.contains(',') {
+            return Err(perr(
+                line,
+                "column 1".into(),
+                "fields separated by commas: a Yan-2015 file separates phi, theta and value \
+                 by spaces or tabs (a comma-separated profile is read as CSV when named .csv)"
+                    .into(),
+            ));
+        }
         if fields.len() != 3 {
             return Err(perr(
                 line,
@@ -137,6 +146,10 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             )))
         }
     };
+    // Before the incident angle: a file without data says so, not that theta_i is missing.
+    if samples.is_empty() {
+        return Err(Error::file(path, "no data rows (phi theta value)"));
+    }
     let theta_i = match (file_theta_i, opt_theta_i) {
         (Some((f, l)), Some(o)) if f != o => {
             return Err(perr(
@@ -154,9 +167,6 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             ))
         }
     };
-    if samples.is_empty() {
-        return Err(Error::file(path, "no data rows (phi theta value)"));
-    }
     for s in &mut samples {
         s.theta_i = theta_i;
     }
@@ -254,5 +264,22 @@ mod tests {
         assert!(e.starts_with("y.txt:1: column 4"), "{e}");
         let e = p("0 95 1\n", &o).unwrap_err().to_string();
         assert!(e.contains("out of range"), "{e}");
+    }
+
+    /// A comma-separated row, an empty file and a huge angle get messages that say what is
+    /// wrong (they said "column 2: expected 3 fields", "no incident angle" and printed 301
+    /// digits).
+    #[test]
+    fn commas_empty_files_and_huge_angles_are_named() {
+        let e = p("# theta_i: 10\n0,10,1\n", &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("y.txt:2") && e.contains("commas"), "{e}");
+        let e = p("", &LoadOptions::default()).unwrap_err().to_string();
+        assert!(e.contains("no data rows"), "{e}");
+        let e = p("# theta_i: 10\n1e300 10 1\n", &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("1e300") && e.len() < 200, "{e}");
     }
 }
