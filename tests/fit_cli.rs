@@ -638,3 +638,34 @@ fn report_from_another_directory_finds_the_recorded_data() {
     let row = mvs.lines().find(|l| l.starts_with("| mouse |")).unwrap();
     assert!(!row.contains("no fit"), "{row}");
 }
+
+/// The global stage's counts are bounded, named with their bound, and checked before the
+/// data is even read (`--starts 1000000000` aborted on a failed allocation).
+#[test]
+fn fit_start_counts_are_bounded_before_any_work() {
+    let tmp = tempfile::tempdir().unwrap();
+    for (args, needles) in [
+        (
+            ["--starts", "1000000000"],
+            ["--starts 1000000000", "at most 1000000"],
+        ),
+        (
+            ["--lm-starts", "1025"],
+            ["--lm-starts 1025", "at most 1024"],
+        ),
+        (
+            ["--subsample", "10000001"],
+            ["--subsample 10000001", "at most 10000000"],
+        ),
+    ] {
+        let o = furfit()
+            .current_dir(tmp.path())
+            .args(["fit", "missing.csv", "--out", "o.json"])
+            .args(args)
+            .output()
+            .unwrap();
+        assert_eq!(o.status.code(), Some(1), "{args:?}");
+        fails_with(o, &needles);
+    }
+    assert!(!tmp.path().join("o.json").exists());
+}

@@ -6,6 +6,12 @@ use crate::FurParams;
 use anyhow::Context;
 use std::path::PathBuf;
 
+/// Largest `--starts`: the global stage keeps every scored start (about 0.25 KB each,
+/// 0.25 GB at the cap; each costs one evaluation on the subsample, milliseconds).
+const MAX_STARTS: u64 = 1_000_000;
+/// Largest `--lm-starts`: each is a full Levenberg-Marquardt run on the subsample.
+const MAX_LM_STARTS: u64 = 1024;
+
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Profile files (.csv, .npz, .npy, Yan .txt) and/or species folders; all are merged
@@ -37,13 +43,15 @@ pub struct Args {
     /// Fix a parameter, `name=value` in file units (e.g. `kappa=0`); repeatable.
     #[arg(long = "fix", value_name = "NAME=VALUE")]
     pub fix: Vec<String>,
-    /// Halton starts in the global stage (scored with the ten presets and --init).
+    /// Halton starts in the global stage (scored with the ten presets and --init), at
+    /// most 1000000.
     #[arg(long, default_value_t = 128)]
     pub starts: usize,
-    /// Best-scored starts that run Levenberg-Marquardt (at least 1; --init runs in addition).
+    /// Best-scored starts that run Levenberg-Marquardt, 1..=1024 (--init runs in addition).
     #[arg(long, default_value_t = 4)]
     pub lm_starts: usize,
-    /// Samples in the subsample of the global stage (at least 10).
+    /// Samples in the subsample of the global stage, 10..=10000000 (more than the data
+    /// holds: all of it).
     #[arg(long, default_value_t = 1500)]
     pub subsample: usize,
     /// Iteration cap per LM run (at least 1).
@@ -60,13 +68,19 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    for (name, v, min) in [
-        ("--lm-starts", a.lm_starts as u64, 1),
-        ("--subsample", a.subsample as u64, 10),
-        ("--max-iters", a.max_iters, 1),
+    // A subsample above the grid limit would not be a subsample of any profile.
+    let max_sub = crate::grid::MAX_GRID_SAMPLES as u64;
+    for (name, v, min, max) in [
+        ("--starts", a.starts as u64, 0, MAX_STARTS),
+        ("--lm-starts", a.lm_starts as u64, 1, MAX_LM_STARTS),
+        ("--subsample", a.subsample as u64, 10, max_sub),
+        ("--max-iters", a.max_iters, 1, u64::MAX),
     ] {
         if v < min {
             anyhow::bail!("{name} {v}: must be at least {min}");
+        }
+        if v > max {
+            anyhow::bail!("{name} {v}: must be at most {max}");
         }
     }
     if a.all && (!a.inputs.is_empty() || a.out.is_some()) {
