@@ -669,3 +669,22 @@ fn fit_start_counts_are_bounded_before_any_work() {
     }
     assert!(!tmp.path().join("o.json").exists());
 }
+
+/// `--threads` has render's bound (100000 hung spawning threads). The run also has an
+/// error of its own (`--lm-starts 0`), so without the bound it fails fast, without the name.
+#[test]
+fn fit_threads_are_bounded() {
+    let o = furfit()
+        .args([
+            "fit",
+            "missing.csv",
+            "--lm-starts",
+            "0",
+            "--threads",
+            "100000",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    fails_with(o, &["--threads", "100000", "0..=1024"]);
+}

@@ -335,3 +335,19 @@ fn simulate_replaces_only_its_own_earlier_output_and_only_with_force() {
     );
     assert!(!lab.join("metadata.json").exists());
 }
+
+/// `--threads` has render's bound (100000 hung spawning threads). `--out` is left out, so
+/// without the bound the run fails fast on the missing option instead of hanging.
+#[test]
+fn simulate_threads_are_bounded() {
+    let o = furfit()
+        .args(["simulate", "--params", "red-fox", "--threads", "100000"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--threads") && err.contains("100000") && err.contains("0..=1024"),
+        "{err}"
+    );
+}

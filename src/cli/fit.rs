@@ -26,8 +26,8 @@ pub struct Args {
     /// Seed of the subsample and the Halton scrambling (same seed, same fit).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Worker threads (default or 0: all cores).
-    #[arg(long)]
+    /// Worker threads (default or 0: all cores), at most 1024.
+    #[arg(long, value_parser = super::threads_parser())]
     pub threads: Option<usize>,
     /// Fit every species folder under --measurements (one species after another, each
     /// using all --threads, so the total thread count stays --threads).

@@ -111,6 +111,15 @@ pub fn parse_size(
     }
 }
 
+/// Largest `--threads` of every command: rayon spawns them all up front, so a huge count
+/// would exhaust the process's threads, or hang spawning them, before any work.
+pub const MAX_THREADS: usize = 1024;
+
+/// The parser of every command's `--threads` (0 = all cores), so all bound it alike.
+pub fn threads_parser() -> clap::builder::RangedU64ValueParser<usize> {
+    clap::builder::RangedU64ValueParser::new().range(0..=MAX_THREADS as u64)
+}
+
 /// Far-field settings of `synth` and `fit` (one parser, so the two agree).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct FarArgs {

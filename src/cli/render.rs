@@ -11,10 +11,6 @@ use anyhow::{bail, Context};
 use clap::builder::RangedU64ValueParser;
 use std::path::{Path, PathBuf};
 
-/// Largest `--threads`: rayon spawns them all up front, so a huge count would fail only
-/// after the scene is built (or exhaust the process's threads).
-pub const MAX_THREADS: usize = 1024;
-
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Fit file (fits/X.json) to render.
@@ -44,7 +40,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Worker threads (0 = all cores), at most 1024.
-    #[arg(long, default_value_t = 0, value_parser = RangedU64ValueParser::<usize>::new().range(0..=MAX_THREADS as u64))]
+    #[arg(long, default_value_t = 0, value_parser = super::threads_parser())]
     pub threads: usize,
     #[arg(long, default_value_t = 3.0)]
     pub cam_dist: f64,

@@ -2,7 +2,6 @@
 //! lock, the equal-quality speedup of multi-scale over near field, and (with
 //! `--culling-study`) the time saved by far-field culling with its image difference.
 
-use super::render::MAX_THREADS;
 use crate::params::FurParams;
 use crate::render::bsdf::Mode;
 use crate::render::study::{convergence, culling_study, plot_convergence_bytes};
@@ -44,7 +43,7 @@ pub struct Args {
     #[arg(long, default_value_t = 4, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_REPEATS as u64))]
     pub repeats: usize,
     /// Worker threads (0 = all cores), at most 1024.
-    #[arg(long, default_value_t = 0, value_parser = RangedU64ValueParser::<usize>::new().range(0..=MAX_THREADS as u64))]
+    #[arg(long, default_value_t = 0, value_parser = super::threads_parser())]
     pub threads: usize,
     /// Render with next-event estimation of the environment (MIS with BCSDF sampling).
     #[arg(long)]

@@ -38,8 +38,9 @@ pub struct Args {
     /// Random seed (paths and measurement effects).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Worker threads (default or 0: all cores). The output does not depend on it.
-    #[arg(long)]
+    /// Worker threads (default or 0: all cores), at most 1024. The output does not depend
+    /// on it.
+    #[arg(long, value_parser = super::threads_parser())]
     pub threads: Option<usize>,
     /// Detector floor: values below this fraction of the peak are invalid (0 = off).
     #[arg(long, default_value_t = 0.0)]
