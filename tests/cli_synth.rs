@@ -101,6 +101,27 @@ fn synth_rejects_bad_input() {
         .unwrap();
     assert!(!st.status.success());
     assert!(String::from_utf8_lossy(&st.stderr).contains("XX"));
+    // A negative exposure reaches synth's own check (clap took it for a flag).
+    let st = furfit()
+        .args([
+            "synth",
+            "--params",
+            "cat",
+            "--theta-i",
+            "0",
+            "--theta-r",
+            "0",
+        ])
+        .args(["--phi", "0", "--exposure", "-1", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(
+        err.contains("--exposure must be a finite number > 0"),
+        "{err}"
+    );
     assert!(!out.exists());
 }
 

@@ -300,3 +300,39 @@ fn render_convergence_validates_before_any_work() {
         assert!(rc.join(format!("render_convergence.{f}")).is_file(), "{f}");
     }
 }
+
+/// Negative values of the options that take them (the documented default of
+/// `--light-dir` among them) reach the parser, not clap's "unexpected argument '-2'";
+/// out of range, the option's own check names its bound.
+#[test]
+fn negative_values_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = render(
+        dir.path(),
+        &[
+            "--exposure",
+            "-2",
+            "--cam-elev",
+            "-10",
+            "--cam-azim",
+            "-45",
+            "--light-dir",
+            "-0.5,0.6,0.62",
+        ],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(dir.path().join("r.png").exists());
+    std::fs::remove_file(dir.path().join("r.png")).unwrap();
+    for (flag, v, bound) in [
+        ("--cam-dist", "-1", "> 0"),
+        ("--fov", "-5", "(0, 170)"),
+        ("--light-intensity", "-1", "0..="),
+        ("--footprint-scale", "-1", ">= 0"),
+        ("--env", "-1,0.1", "0..="),
+    ] {
+        let o = render(dir.path(), &[flag, v]);
+        refused(&o, flag);
+        assert!(stderr(&o).contains(bound), "{flag}: {}", stderr(&o));
+    }
+    assert!(!dir.path().join("r.png").exists());
+}

@@ -351,3 +351,33 @@ fn simulate_threads_are_bounded() {
         "{err}"
     );
 }
+
+/// A negative value reaches the option's own check (which names its bound), not clap's
+/// "unexpected argument".
+#[test]
+fn simulate_negative_values_name_their_bound() {
+    let dir = tempfile::tempdir().unwrap();
+    for (flag, v, bound) in [
+        ("--floor", "-0.1", "[0, 1)"),
+        ("--drop", "-0.1", "[0, 1)"),
+        ("--noise-above", "-1", "[0, 1)"),
+        ("--wedge", "-5", "[0, 90)"),
+        ("--mult-noise", "-1", ">= 0"),
+        ("--shot-photons", "-1", "> 0"),
+        ("--ellipse", "-0.5", "(0, 1]"),
+        ("--medulla-eta", "-1.5", "(1, 3]"),
+        ("--rel-noise", "-0.1", "(0, 1)"),
+    ] {
+        let o = furfit()
+            .args(["simulate", "--params", "red-fox", "--theta-i", "0"])
+            .args(["--theta-r", "-10,10", "--phi", "-10,10"])
+            .args([flag, v, "--out"])
+            .arg(dir.path().join("s"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{flag}: {err}");
+        assert!(err.contains(flag) && err.contains(bound), "{flag}: {err}");
+    }
+    assert!(!dir.path().join("s").exists());
+}

@@ -42,34 +42,34 @@ pub struct Args {
     /// Worker threads (0 = all cores), at most 1024.
     #[arg(long, default_value_t = 0, value_parser = super::threads_parser())]
     pub threads: usize,
-    #[arg(long, default_value_t = 3.0)]
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub cam_dist: f64,
     /// Camera elevation in degrees.
-    #[arg(long, default_value_t = 10.0)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub cam_elev: f64,
     /// Camera azimuth in degrees about the vertical.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub cam_azim: f64,
     /// Vertical field of view in degrees.
-    #[arg(long, default_value_t = 26.0)]
+    #[arg(long, default_value_t = 26.0, allow_negative_numbers = true)]
     pub fov: f64,
     /// Direction toward the key light, x,y,z.
-    #[arg(long, default_value = "-0.5,0.6,0.62")]
+    #[arg(long, default_value = "-0.5,0.6,0.62", allow_hyphen_values = true)]
     pub light_dir: String,
     /// Key light irradiance, 0..=1e6 (0 = no key light).
-    #[arg(long, default_value_t = 2.5)]
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
     pub light_intensity: f64,
     /// Environment radiance: one value (constant) or TOP,BOTTOM (vertical grey gradient),
     /// each in 0..=1e6.
-    #[arg(long, default_value = "0.34,0.10")]
+    #[arg(long, default_value = "0.34,0.10", allow_hyphen_values = true)]
     pub env: String,
     /// Per-channel absorption ratios r,g,b applied to sigma_c_a and sigma_m_a, or
     /// `melanin` (eumelanin-like) or `grey`. Default: a fit with r, g, b channels gives
     /// each colour channel its own fitted absorption; anything else gets `melanin`.
-    #[arg(long)]
+    #[arg(long, allow_hyphen_values = true)]
     pub tint: Option<String>,
     /// Exposure in stops applied before the tone map, -64..=64.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f64,
     /// Number of fibers in the test lock, 1..=100000 (building the scene takes about 45 KB
     /// of memory per fiber: 4.5 GB at the cap).
@@ -79,7 +79,7 @@ pub struct Args {
     #[arg(long, default_value_t = 16, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_DEPTH as u64))]
     pub max_depth: usize,
     /// Multiplier of the pixel coverage (0 = near field, large = far field).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
     pub footprint_scale: f64,
     /// Evaluate the far field / multi-scale term with the analytic engine at every query
     /// instead of the per-render table (exact, much slower).

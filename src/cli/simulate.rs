@@ -27,10 +27,10 @@ pub struct Args {
     pub paths: u64,
     /// Instead of --paths: choose the path count (from a pilot run) so that the median
     /// relative standard error of bins above --noise-above x peak is this fraction.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub rel_noise: Option<f64>,
     /// Threshold (fraction of the peak) for --rel-noise.
-    #[arg(long, default_value_t = 1e-3)]
+    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
     pub noise_above: f64,
     /// Upper bound on the paths per incidence angle chosen by --rel-noise.
     #[arg(long, default_value_t = 200_000_000)]
@@ -43,26 +43,26 @@ pub struct Args {
     #[arg(long, value_parser = super::threads_parser())]
     pub threads: Option<usize>,
     /// Detector floor: values below this fraction of the peak are invalid (0 = off).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub floor: f64,
     /// Half-angle (degrees) of the cone around the light direction where the camera would
     /// occlude the beam; samples there are invalid (0 = off).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub wedge: f64,
     /// Fraction of samples dropped at random (invalid).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub drop: f64,
     /// Shot noise: photons counted at the profile peak (off by default).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub shot_photons: Option<f64>,
     /// Multiplicative log-normal noise std (0 = off).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub mult_noise: f64,
     /// Elliptical cross-section: axis ratio minor/major in (0, 1] (Marschner 2003's a).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub ellipse: Option<f64>,
     /// Medulla IOR (default: equal to eta, index matched).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub medulla_eta: Option<f64>,
     /// Output directory (e.g. measurements/red-fox/).
     #[arg(long, required_unless_present = "bench")]
@@ -128,7 +128,11 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         .species
         .clone()
         .or_else(|| crate::params::preset_record(&spec).map(|p| p.name.to_string()));
-    for (name, v) in [("--floor", a.floor), ("--drop", a.drop)] {
+    for (name, v) in [
+        ("--floor", a.floor),
+        ("--drop", a.drop),
+        ("--noise-above", a.noise_above),
+    ] {
         if !(0.0..1.0).contains(&v) {
             bail!("{name} {v}: must be in [0, 1)");
         }

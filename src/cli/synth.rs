@@ -27,7 +27,7 @@ pub struct Args {
     #[arg(long, default_value = "all")]
     pub lobes: String,
     /// Exposure scale k (default: the parameter file's, else 1).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f64>,
     #[command(flatten)]
     pub far: super::FarArgs,
