@@ -318,6 +318,10 @@ pub fn grid_points(theta_i: &[f64], theta_r: &[f64], phi: &[f64]) -> Vec<(f64, f
     pts
 }
 
+/// The `source` metadata of every synthesized profile: `synth --force` replaces only a
+/// file that carries it.
+pub const SOURCE: &str = "synthetic: furfit synth (model prediction, no noise)";
+
 /// Synthesize a profile on the grid `theta_i x theta_r x phi` (degrees), value
 /// `exposure * sum_{p in lobes} M_p N_p`. The metadata says it is synthetic and records
 /// the parameters, model, lobes and options. `params` must be validated.
@@ -350,10 +354,7 @@ pub fn synthesize(
         ..Default::default()
     };
     prof.set_meta("synthetic", "true");
-    prof.set_meta(
-        "source",
-        "synthetic: furfit synth (model prediction, no noise)",
-    );
+    prof.set_meta("source", SOURCE);
     prof.set_meta("params", params.to_json_value().to_string());
     prof.set_meta("exposure", format!("{exposure}"));
     prof.set_meta("model", model_kind.name());

@@ -272,3 +272,76 @@ fn long_jobs_refuse_an_out_under_a_file_first() {
         assert!(err.contains("regular is not a directory"), "{cmd:?}: {err}");
     }
 }
+
+/// `--out` is checked before any work: a directory or an extension that picks no format
+/// is refused, and an existing file is replaced only with `--force` and only if synth
+/// wrote it (a measured profile is not replaced, even with `--force`).
+#[test]
+fn synth_replaces_only_its_own_profiles_and_only_with_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let synth = |out: &std::path::Path, extra: &[&str]| {
+        furfit()
+            .args([
+                "synth",
+                "--params",
+                "cat",
+                "--theta-i",
+                "0",
+                "--theta-r",
+                "0",
+            ])
+            .args(["--phi", "0,90"])
+            .args(extra)
+            .arg("--out")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let refused = |o: &std::process::Output, needles: &[&str]| {
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        for n in needles {
+            assert!(err.contains(n), "'{n}' not in {err}");
+        }
+        assert!(
+            o.stdout.is_empty(),
+            "{}",
+            String::from_utf8_lossy(&o.stdout)
+        );
+    };
+    let out = dir.path().join("s.csv");
+    assert!(synth(&out, &[]).status.success());
+    let first = std::fs::read(&out).unwrap();
+    refused(
+        &synth(&out, &["--exposure", "2"]),
+        &["--out", "s.csv", "exists", "--force"],
+    );
+    assert_eq!(std::fs::read(&out).unwrap(), first);
+    let o = synth(&out, &["--exposure", "2", "--force"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_ne!(std::fs::read(&out).unwrap(), first);
+
+    // A measured profile (no synth source) stays, with or without --force.
+    let lab = dir.path().join("profile.csv");
+    let text = "# species: dog\ntheta_i,theta_r,phi,value\n0,0,0,1.5\n0,0,90,0.5\n";
+    std::fs::write(&lab, text).unwrap();
+    for extra in [&[][..], &["--force"]] {
+        refused(&synth(&lab, extra), &["profile.csv", "exists"]);
+        assert_eq!(std::fs::read_to_string(&lab).unwrap(), text);
+    }
+    refused(
+        &synth(&lab, &["--force"]),
+        &["not a profile written by furfit synth"],
+    );
+
+    std::fs::create_dir(dir.path().join("d.csv")).unwrap();
+    refused(
+        &synth(&dir.path().join("d.csv"), &[]),
+        &["--out", "directory"],
+    );
+    refused(
+        &synth(&dir.path().join("s.json"), &[]),
+        &["--out", "'.json'", ".csv or .npz"],
+    );
+    assert!(!dir.path().join("s.json").exists());
+}

@@ -4,7 +4,8 @@ use crate::grid::{check_grid_size, parse_phi_grid, parse_theta_grid};
 use crate::model::LobeSet;
 use crate::synth::{self, ModelKind};
 use crate::FurParams;
-use std::path::PathBuf;
+use anyhow::{bail, Context};
+use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
@@ -31,12 +32,45 @@ pub struct Args {
     pub exposure: Option<f64>,
     #[command(flatten)]
     pub far: super::FarArgs,
-    /// Output file (.csv).
+    /// Output file (.csv or .npz; the extension picks the format).
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace --out if it is an earlier furfit synth profile (without it, an existing file
+    /// is never replaced; other files, measured profiles among them, not even with it).
+    #[arg(long)]
+    pub force: bool,
+}
+
+/// Check before any work that writing `out` loses nothing: a file path whose extension
+/// picks a profile format; an existing file is replaced only with `force` and only if its
+/// `source` metadata says `furfit synth` wrote it.
+fn check_out(out: &Path, force: bool) -> anyhow::Result<()> {
+    crate::io::check_out_file(out)?;
+    crate::profile::save_format(out)?;
+    if out.symlink_metadata().is_err() {
+        return Ok(());
+    }
+    if !force {
+        bail!(
+            "{}: exists; synth would replace it (give --force to replace an earlier furfit \
+             synth profile, or choose another path)",
+            out.display()
+        );
+    }
+    let earlier = crate::profile::load(out, &Default::default())
+        .is_ok_and(|p| p.meta("source") == Some(synth::SOURCE));
+    if !earlier {
+        bail!(
+            "{}: exists and is not a profile written by furfit synth: not replaced, even \
+             with --force (move it away first)",
+            out.display()
+        );
+    }
+    Ok(())
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    check_out(&a.out, a.force).context("--out")?;
     let (params, file_k) = FurParams::load(&a.params)?;
     for n in crate::model::FurModel::table_notes(&params) {
         eprintln!("note: {n}");
