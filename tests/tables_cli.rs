@@ -61,3 +61,43 @@ fn build_then_info_tiny_tables() {
         "{err}"
     );
 }
+
+/// `build --out` must be a `.bin` path and replaces only a tables file (it overwrote a CSV
+/// with binary table data), checked before the Monte Carlo.
+#[test]
+fn build_replaces_only_tables_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let build = |out: &std::path::Path| {
+        furfit()
+            .args([
+                "tables", "build", "--tiny", "--paths", "1", "--rank", "1", "--out",
+            ])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let csv = dir.path().join("s1copy.csv");
+    let bin = dir.path().join("notes.bin");
+    let text = "theta_i,theta_r,phi,value\n0,0,0,1\n";
+    for (out, needle) in [
+        (&csv, "must end in .bin"),
+        (&bin, "not a medulla tables file"),
+    ] {
+        std::fs::write(out, text).unwrap();
+        let o = build(out);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains("--out") && err.contains(needle), "{err}");
+        assert!(
+            o.stdout.is_empty(),
+            "{}",
+            String::from_utf8_lossy(&o.stdout)
+        );
+        assert_eq!(std::fs::read_to_string(out).unwrap(), text);
+    }
+    // A tables file is replaced.
+    let t = dir.path().join("t.bin");
+    assert!(build(&t).status.success());
+    let o = build(&t);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

@@ -2,10 +2,11 @@
 //! (Monte Carlo + CP-ALS, [`crate::model::medulla_mc`]) or check a tables file against
 //! fresh Monte Carlo estimates.
 
-use crate::model::medulla::MedullaTables;
+use crate::model::medulla::{MedullaTables, MAGIC};
 use crate::model::medulla_mc::{self, BuildOptions, McBudget};
-use anyhow::Context;
-use std::path::PathBuf;
+use anyhow::{bail, Context};
+use std::io::Read;
+use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
@@ -37,7 +38,7 @@ pub struct BuildArgs {
     /// Relative L2 error at which the rank search stops.
     #[arg(long, default_value_t = 0.03)]
     pub target_error: f64,
-    /// Output file.
+    /// Output file (.bin); an existing file is replaced only if it is a tables file.
     #[arg(long, default_value = "assets/medulla_tables.bin")]
     pub out: PathBuf,
     /// Use the tiny test grid (for quick checks).
@@ -72,10 +73,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
+/// Check before the (long) build that writing `out` loses nothing: a `.bin` file path, and
+/// an existing file there must be a tables file itself (its magic bytes).
+fn check_out(out: &Path) -> anyhow::Result<()> {
+    if !out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("bin"))
+    {
+        bail!(
+            "--out {}: a tables file must end in .bin (default assets/medulla_tables.bin)",
+            out.display()
+        );
+    }
+    crate::io::check_out_file(out)?;
+    if out.symlink_metadata().is_ok() {
+        let mut head = [0u8; 8];
+        let tables = std::fs::File::open(out)
+            .and_then(|mut f| f.read_exact(&mut head))
+            .is_ok()
+            && &head == MAGIC;
+        if !tables {
+            bail!(
+                "--out {}: exists and is not a medulla tables file: not replaced (move it \
+                 away first)",
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
 fn build(a: BuildArgs) -> anyhow::Result<()> {
     if a.paths == 0 {
         anyhow::bail!("--paths must be positive");
     }
+    check_out(&a.out)?;
     let mut opts = BuildOptions::standard(a.seed, a.paths);
     if a.tiny {
         opts.grid = medulla_mc::McGrid::tiny();
