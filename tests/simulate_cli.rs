@@ -381,3 +381,42 @@ fn simulate_negative_values_name_their_bound() {
     }
     assert!(!dir.path().join("s").exists());
 }
+
+/// `--max-paths` bounds the `--rel-noise` pilot too (it traced 524288 paths per angle
+/// whatever the bound), and a bound below the usual floor of 65536 is kept, not a panic.
+#[test]
+fn rel_noise_pilot_respects_max_paths() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s");
+    let o = furfit()
+        .args(["simulate", "--params", "red-fox", "--theta-i", "0,30"])
+        .args([
+            "--theta-r",
+            "-40:40:10",
+            "--phi",
+            "-180:180:30",
+            "--threads",
+            "1",
+        ])
+        .args(["--rel-noise", "0.001", "--max-paths", "3000", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("pilot: 3000 paths/angle"), "{err}");
+    assert!(err.contains("-> 3000 paths/angle"), "{err}");
+    let md: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("metadata.json")).unwrap()).unwrap();
+    assert_eq!(md["paths_per_theta_i"], 3000);
+    assert_eq!(md["rel_noise_setting"]["pilot_paths"], 3000);
+    let o = furfit()
+        .args(["simulate", "--params", "red-fox", "--rel-noise", "0.01"])
+        .args(["--max-paths", "0", "--out"])
+        .arg(dir.path().join("zero"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("--max-paths must be at least 1"), "{err}");
+}

@@ -32,7 +32,7 @@ pub struct Args {
     /// Threshold (fraction of the peak) for --rel-noise.
     #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
     pub noise_above: f64,
-    /// Upper bound on the paths per incidence angle chosen by --rel-noise.
+    /// Upper bound on the paths per incidence angle of --rel-noise, its pilot run included.
     #[arg(long, default_value_t = 200_000_000)]
     pub max_paths: u64,
     /// Random seed (paths and measurement effects).
@@ -166,14 +166,17 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         if !(x > 0.0 && x < 1.0) {
             bail!("--rel-noise {x}: must be in (0, 1)");
         }
+        if a.max_paths == 0 {
+            bail!("--max-paths must be at least 1");
+        }
         let mut pilot = s.clone();
-        pilot.paths = 1 << 19;
+        pilot.paths = (1 << 19).min(a.max_paths);
         pilot.seed = s.seed ^ 0xA5A5_5A5A;
         let r = simulate::simulate(&pilot, |_| {})?;
         let rel = simulate::median_rel_noise(&r, a.noise_above)
             .context("the pilot run detected no light")?;
         let n = (pilot.paths as f64 * (rel / x).powi(2)).ceil() as u64;
-        s.paths = n.clamp(1 << 16, a.max_paths);
+        s.paths = n.clamp((1 << 16).min(a.max_paths), a.max_paths);
         eprintln!(
             "pilot: {} paths/angle give median rel. error {:.4} above {:.0e} x peak -> {} paths/angle",
             pilot.paths, rel, a.noise_above, s.paths
