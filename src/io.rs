@@ -133,10 +133,17 @@ pub fn check_out_dir(dir: &Path) -> Result<()> {
 }
 
 /// [`check_out_dir`] for the directory of the file `path`, which must not itself be a
-/// directory.
+/// directory, nor name one (`out.json/`: `Path` drops the trailing `/`, the OS does not).
 pub fn check_out_file(path: &Path) -> Result<()> {
     if path.is_dir() {
         return Err(Error::file(path, "is a directory, expected a file path"));
+    }
+    let text = path.as_os_str().to_string_lossy();
+    if matches!(
+        text.rsplit(std::path::is_separator).next(),
+        Some("" | "." | "..")
+    ) {
+        return Err(Error::file(path, "names a directory, expected a file path"));
     }
     check_out_dir(&parent_dir(path))
 }
@@ -319,6 +326,10 @@ mod tests {
         let e = check_out_file(dir.path()).unwrap_err().to_string();
         assert!(e.contains("is a directory"), "{e}");
         assert!(check_out_file(&dir.path().join("a.png")).is_ok());
+        for p in ["new.json/", "new.json/.", "new.json/.."] {
+            let e = check_out_file(Path::new(p)).unwrap_err().to_string();
+            assert!(e.contains("names a directory"), "{p}: {e}");
+        }
     }
 
     #[test]

@@ -688,3 +688,22 @@ fn fit_threads_are_bounded() {
     assert_eq!(o.status.code(), Some(2));
     fails_with(o, &["--threads", "100000", "0..=1024"]);
 }
+
+/// `--out dd.json/` (a trailing slash) is refused before the data is fitted, not by the
+/// OS ("Not a directory") after the whole fit.
+#[test]
+fn fit_refuses_an_out_naming_a_directory_first() {
+    let tmp = tempfile::tempdir().unwrap();
+    make_species(tmp.path(), "mouse");
+    let o = fit_cmd(tmp.path())
+        .args(["measurements/mouse", "--out", "dd.json/"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    fails_with(o, &["dd.json/", "names a directory, expected a file path"]);
+}
