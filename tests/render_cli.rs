@@ -336,3 +336,21 @@ fn negative_values_are_read() {
     }
     assert!(!dir.path().join("r.png").exists());
 }
+
+/// The reports state the thread count the renders ran on, not a hard-coded "2 cores,
+/// other jobs running".
+#[test]
+fn convergence_reports_state_their_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let rc = dir.path().join("rc");
+    let o = convergence(&rc, &["--threads", "3"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = std::fs::read_to_string(rc.join("render_convergence.md")).unwrap();
+    assert!(md.contains("wall time on 3 thread(s)"), "{md}");
+    assert!(!md.contains("cores") && !md.contains("other jobs"), "{md}");
+    let o = convergence(&rc, &["--culling-study"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = std::fs::read_to_string(rc.join("render_culling.md")).unwrap();
+    assert!(md.contains("1 thread(s)"), "{md}");
+    assert!(!md.contains("machine shared"), "{md}");
+}

@@ -97,6 +97,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::io::check_out_file(p)?;
     }
     let (params, _) = FurParams::load(&a.params)?;
+    // What each render's pool gets: --threads 0 is rayon's default, the global pool's size.
+    let threads = match a.threads {
+        0 => rayon::current_num_threads(),
+        t => t,
+    };
     let base = RenderSettings {
         width: fw,
         height: fh,
@@ -146,7 +151,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         md += &format!(
             "\nTime saved by culling: {:.1} % of the total ({:.1} % of the table build; \
-             machine shared, timings noisy). Scattered lobes are skipped whenever \
+             {threads} thread(s), wall times: noisy under load). Scattered lobes are skipped whenever \
              kappa = 0 or sigma_m_s = 0 (`FurModel::active_lobes`) and footprints covering \
              the whole fiber use the far field directly; both are always on.\n",
             100.0 * saved,
@@ -188,7 +193,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (csv.clone(), c.to_csv().into_bytes()),
         (png.clone(), plot_convergence_bytes(&c, &png, false)?),
         (svg.clone(), plot_convergence_bytes(&c, &svg, true)?),
-        (md.clone(), c.to_markdown(&command, 4).into_bytes()),
+        (md.clone(), c.to_markdown(&command, 4, threads).into_bytes()),
     ];
     crate::io::write_atomic_all(&files)?;
     outln!("wrote {} (+ .png, .svg, .md)", csv.display());

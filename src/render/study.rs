@@ -162,15 +162,15 @@ impl Convergence {
         Some((q(tail), q(1.0 - tail)))
     }
 
-    /// Markdown report: the points, the per-mode inefficiency and the speedups.
-    pub fn to_markdown(&self, command: &str, min_spp: usize) -> String {
+    /// Markdown report: the points, the per-mode inefficiency and the speedups; `threads`
+    /// is the renders' thread count.
+    pub fn to_markdown(&self, command: &str, min_spp: usize, threads: usize) -> String {
         let mut s = format!(
             "# Render convergence\n\nCommand: `{command}`\n\nRMSE of the linear image \
              against a high-spp reference of the SAME mode (another seed). `seconds` is \
-             path-tracing time on the machine as shared at run time (2 cores, other jobs \
-             running: absolute figures are inflated and noisy; the ratios are what \
-             matter; the modes take turns at each spp and repeat, so a change of load \
-             hits them alike). With several repeats (independent seeds) the table shows the mean \
+             path-tracing wall time on {threads} thread(s): absolute figures depend on the \
+             machine and its load; the ratios are what matter (the modes take turns at each \
+             spp and repeat, so a change of load hits them alike). With several repeats (independent seeds) the table shows the mean \
              seconds and the root-mean-square RMSE per spp.\n\n\
              | mode | spp | seconds | RMSE |\n|---|---|---|---|\n"
         );
