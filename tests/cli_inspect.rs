@@ -189,3 +189,26 @@ fn inspect_warns_about_radians() {
         "{out}"
     );
 }
+
+/// An axis whose values are not evenly spaced says its step is only the most common one
+/// (theta_i 0, 15, 45 printed "step 15 deg").
+#[test]
+fn inspect_labels_uneven_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("uneven.csv");
+    std::fs::write(
+        &p,
+        "theta_i,theta_r,phi,value\n0,0,0,1\n15,10,0,1\n45,20,0,1\n",
+    )
+    .unwrap();
+    let (ok, out, err) = inspect(&[p.as_os_str()]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("theta_i  3 distinct, 0 .. 45 deg, most common step 15 deg (uneven)"),
+        "{out}"
+    );
+    assert!(
+        out.contains("theta_r  3 distinct, 0 .. 20 deg, step 10 deg\n"),
+        "{out}"
+    );
+}

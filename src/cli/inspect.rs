@@ -21,13 +21,15 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
     match a {
         None => format!("  {name:<8} -"),
         Some(a) => format!(
-            "  {name:<8} {} distinct, {} .. {} deg, step {}",
+            "  {name:<8} {} distinct, {} .. {} deg, {}",
             a.distinct,
             a.min,
             a.max,
-            a.step
-                .map(|s| format!("{s} deg"))
-                .unwrap_or_else(|| "-".into())
+            match (a.step, a.even) {
+                (None, _) => "step -".into(),
+                (Some(s), true) => format!("step {s} deg"),
+                (Some(s), false) => format!("most common step {s} deg (uneven)"),
+            }
         ),
     }
 }

@@ -14,6 +14,9 @@ pub struct AxisStats {
     /// a tie); `None` with fewer than two distinct values. Differences are grouped after
     /// rounding to 1e-9 deg, so `0.1`-step grids with float noise count as one step.
     pub step: Option<f64>,
+    /// Whether every difference is `step` (so it is the axis's step, not only the most
+    /// common one); true with fewer than three distinct values.
+    pub even: bool,
 }
 
 impl AxisStats {
@@ -44,6 +47,8 @@ impl AxisStats {
             min: v[0],
             max: v[v.len() - 1],
             step: best.map(|(s, _)| s as f64 / 1e9),
+            // Sorted: all equal when the first equals the last.
+            even: steps.first() == steps.last(),
         })
     }
 }
@@ -103,8 +108,12 @@ mod tests {
         assert_eq!((a.min, a.max), (0.0, 1.0));
         // Four steps of 0.1 (up to float noise, hence the 1e-12 tolerance) and one of 0.6.
         assert!((a.step.unwrap() - 0.1).abs() < 1e-12, "{:?}", a.step);
+        assert!(!a.even);
+        let even = AxisStats::of(&v[..5], |x| x.phi).unwrap();
+        assert!(even.even, "float noise is not unevenness");
         let one = AxisStats::of(&v[..1], |x| x.phi).unwrap();
         assert_eq!(one.step, None);
+        assert!(one.even);
         assert!(AxisStats::of(&[], |x| x.phi).is_none());
     }
 }
