@@ -120,7 +120,7 @@ fn closed_stdout_is_not_a_panic() {
 }
 
 /// The convention options convert a CSV as they do a Yan file; an axis option that no
-/// input reads is an error naming it, not silently ignored.
+/// input reads is an error naming it, not silently ignored, and given before any output.
 #[test]
 fn inspect_applies_conventions_to_csv_and_refuses_unused_axes() {
     let dir = tempfile::tempdir().unwrap();
@@ -165,8 +165,10 @@ fn inspect_applies_conventions_to_csv_and_refuses_unused_axes() {
         ),
         ("--phi", "0", "--phi was given but no input is a lone .npy"),
     ] {
-        let (ok, _, err) = run(args(&[opt, val]));
+        let (ok, out, err) = run(args(&[opt, val]));
         assert!(!ok && err.contains(needle), "{opt}: {err}");
+        // Refused before any summary (it printed the whole summary, then failed).
+        assert!(out.is_empty(), "{opt}: {out}");
     }
 }
 

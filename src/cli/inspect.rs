@@ -34,33 +34,14 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
     }
 }
 
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let opts = args.load.to_options()?;
-    let mut failed = 0;
-    let mut formats = Vec::new();
-    for (k, path) in args.files.iter().enumerate() {
-        let loaded = if path.is_dir() {
-            profile::load_dir(path, &opts)
-        } else {
-            profile::load_full(path, &opts)
-        };
-        let l = match loaded {
-            Ok(l) => l,
-            Err(e) => {
-                eprintln!("error: {e}");
-                failed += 1;
-                continue;
-            }
-        };
-        formats.extend(l.files.iter().map(|f| f.format));
-        if k > 0 {
-            outln!();
-        }
-        let p = &l.profile;
-        let s = Summary::of(p);
-        outln!("{}", path.display());
-        outln!("  format   {}", l.format.name());
-        outln!(
+/// What inspect prints about one loaded path, line by line.
+fn describe(path: &std::path::Path, l: &profile::Loaded) -> Vec<String> {
+    let p = &l.profile;
+    let s = Summary::of(p);
+    let mut out = vec![
+        path.display().to_string(),
+        format!("  format   {}", l.format.name()),
+        format!(
             "  samples  {} ({} valid, {} invalid){}",
             s.n_samples,
             s.n_valid,
@@ -70,39 +51,81 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             } else {
                 String::new()
             }
-        );
-        outln!("{}", axis_line("theta_i", &s.theta_i));
-        outln!("{}", axis_line("theta_r", &s.theta_r));
-        outln!("{}", axis_line("phi", &s.phi));
-        if p.channels.is_empty() {
-            outln!("  channels 1 (unnamed)");
-        } else {
-            let list: Vec<String> = p
-                .channels
-                .iter()
-                .zip(&s.valid_per_channel)
-                .map(|(c, n)| format!("{c} ({n} valid)"))
-                .collect();
-            outln!("  channels {}: {}", p.channels.len(), list.join(", "));
+        ),
+        axis_line("theta_i", &s.theta_i),
+        axis_line("theta_r", &s.theta_r),
+        axis_line("phi", &s.phi),
+    ];
+    if p.channels.is_empty() {
+        out.push("  channels 1 (unnamed)".into());
+    } else {
+        let list: Vec<String> = p
+            .channels
+            .iter()
+            .zip(&s.valid_per_channel)
+            .map(|(c, n)| format!("{c} ({n} valid)"))
+            .collect();
+        out.push(format!(
+            "  channels {}: {}",
+            p.channels.len(),
+            list.join(", ")
+        ));
+    }
+    if p.metadata.is_empty() {
+        out.push("  metadata -".into());
+    } else {
+        out.push("  metadata".into());
+        for (key, v) in &p.metadata {
+            out.push(format!("    {key}: {v}"));
         }
-        if p.metadata.is_empty() {
-            outln!("  metadata -");
+    }
+    if p.is_synthetic() {
+        out.push("  (synthetic data)".into());
+    }
+    for n in &l.notes {
+        out.push(format!("  note: {n}"));
+    }
+    out
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let opts = args.load.to_options()?;
+    let mut failed = 0;
+    let mut formats = Vec::new();
+    // Described first, printed after the axis options are checked (as fit does), so an
+    // option no input reads fails before any summary; profiles are dropped as they go.
+    let mut reports = Vec::new();
+    for path in &args.files {
+        let loaded = if path.is_dir() {
+            profile::load_dir(path, &opts)
         } else {
-            outln!("  metadata");
-            for (key, v) in &p.metadata {
-                outln!("    {key}: {v}");
+            profile::load_full(path, &opts)
+        };
+        match loaded {
+            Ok(l) => {
+                formats.extend(l.files.iter().map(|f| f.format));
+                reports.push(describe(path, &l));
+            }
+            Err(e) => {
+                eprintln!("error: {e}");
+                failed += 1;
             }
         }
-        if p.is_synthetic() {
-            outln!("  (synthetic data)");
+    }
+    // With a file unread its format is unknown: the read error is the one to report.
+    if failed == 0 {
+        opts.check_used(&formats)?;
+    }
+    for (k, lines) in reports.iter().enumerate() {
+        if k > 0 {
+            outln!();
         }
-        for n in &l.notes {
-            outln!("  note: {n}");
+        for line in lines {
+            outln!("{line}");
         }
     }
     if failed > 0 {
         anyhow::bail!("{failed} of {} file(s) could not be read", args.files.len());
     }
-    opts.check_used(&formats)?;
     Ok(())
 }
