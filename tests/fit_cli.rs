@@ -707,3 +707,49 @@ fn fit_refuses_an_out_naming_a_directory_first() {
     );
     fails_with(o, &["dd.json/", "names a directory, expected a file path"]);
 }
+
+/// `--weighted` on data without sigmas names the species once ("fitting s1: s1: s1.csv"
+/// before), and with `--all` fails before the species ahead of it are fitted.
+#[test]
+fn weighted_without_sigma_fails_first_naming_the_species_once() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "zebra");
+    std::fs::copy(
+        root.join("measurements/zebra/profile.csv"),
+        root.join("s1.csv"),
+    )
+    .unwrap();
+    let o = fit_cmd(root)
+        .args(["s1.csv", "--weighted", "--out", "s1.json"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    fails_with(o, &["--weighted needs a sigma > 0"]);
+    assert!(
+        err.starts_with("error: fitting s1: s1.csv: --weighted"),
+        "{err}"
+    );
+    // A species with sigmas ahead of zebra (without): nothing is fitted.
+    let text = std::fs::read_to_string(root.join("s1.csv")).unwrap();
+    let with_sigma: Vec<String> = text
+        .lines()
+        .map(|l| match l {
+            l if l.starts_with('#') => l.to_string(),
+            "theta_i,theta_r,phi,value" => format!("{l},sigma"),
+            l => format!("{l},0.01"),
+        })
+        .collect();
+    std::fs::create_dir_all(root.join("measurements/mouse")).unwrap();
+    std::fs::write(
+        root.join("measurements/mouse/profile.csv"),
+        with_sigma.join("\n") + "\n",
+    )
+    .unwrap();
+    let o = fit_cmd(root)
+        .args(["--all", "--weighted"])
+        .output()
+        .unwrap();
+    fails_with(o, &["fitting zebra: ", "--weighted needs a sigma > 0"]);
+    assert!(!root.join("fits/mouse.json").exists());
+}

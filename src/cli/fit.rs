@@ -147,6 +147,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let formats: Vec<_> = loaded.iter().flat_map(|l| l.formats()).collect();
     load.check_used(&formats)?;
+    // And every channel's fit data (e.g. --weighted without sigmas), so a bad species fails
+    // before any fit; fit_loaded would also prefix the species the context below names.
+    for (job, inputs) in jobs.iter().zip(&loaded) {
+        for c in 0..inputs.profile.n_channels() {
+            crate::fit::channel_data(&inputs.profile, c, opts.weighted)
+                .with_context(|| format!("fitting {}", job.species))?;
+        }
+    }
     // Every output too, so `--all` cannot stop at the n-th species after n - 1 fits.
     for job in &jobs {
         crate::fit::job::check_out(&job.out)?;
