@@ -345,3 +345,50 @@ fn synth_replaces_only_its_own_profiles_and_only_with_force() {
     );
     assert!(!dir.path().join("s.json").exists());
 }
+
+/// Far-field options that change nothing are said on stderr (they were silently
+/// ignored): all of them with `--model near-quadrature`, `--scattered-step` with
+/// `--tol none`; the far field's own use of them is quiet.
+#[test]
+fn synth_warns_about_ignored_far_field_options() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str]| {
+        let o = furfit()
+            .args([
+                "synth",
+                "--params",
+                "cat",
+                "--theta-i",
+                "0",
+                "--theta-r",
+                "0",
+            ])
+            .args(["--phi", "0,90", "--force", "--out"])
+            .arg(dir.path().join("w.csv"))
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).into_owned()
+    };
+    let err = run(&[
+        "--model",
+        "near-quadrature",
+        "--tol",
+        "1e-3",
+        "--segments",
+        "4",
+    ]);
+    assert_eq!(
+        err,
+        "warning: --segments, --tol only affect the far field, which --model \
+         near-quadrature does not use: ignored\n"
+    );
+    let err = run(&["--tol", "none", "--scattered-step", "strict"]);
+    assert_eq!(
+        err,
+        "warning: --scattered-step only acts in the tolerance mode: ignored with --tol none\n"
+    );
+    assert_eq!(run(&["--tol", "1e-3", "--scattered-step", "strict"]), "");
+    assert_eq!(run(&["--tol", "none", "--segments", "4"]), "");
+}

@@ -753,3 +753,28 @@ fn weighted_without_sigma_fails_first_naming_the_species_once() {
     fails_with(o, &["fitting zebra: ", "--weighted needs a sigma > 0"]);
     assert!(!root.join("fits/mouse.json").exists());
 }
+
+/// `fit` shares synth's far-field options and their warning: `--scattered-step` does
+/// nothing with `--tol none`.
+#[test]
+fn fit_warns_about_scattered_step_without_tolerance_mode() {
+    let o = furfit()
+        .args([
+            "fit",
+            "missing.csv",
+            "--tol",
+            "none",
+            "--scattered-step",
+            "0.1",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    fails_with(o, &["missing.csv"]);
+    assert!(
+        err.starts_with(
+            "warning: --scattered-step only acts in the tolerance mode: ignored with --tol none\n"
+        ),
+        "{err}"
+    );
+}

@@ -354,3 +354,32 @@ fn convergence_reports_state_their_threads() {
     assert!(md.contains("1 thread(s)"), "{md}");
     assert!(!md.contains("machine shared"), "{md}");
 }
+
+/// Options the chosen mode does not read are said on stderr, not silently ignored.
+#[test]
+fn render_warns_about_options_its_mode_ignores() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = render(
+        dir.path(),
+        &["--mode", "near", "--exact-far", "--footprint-scale", "2"],
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(
+        stderr(&o),
+        "warning: --footprint-scale only acts in --mode multiscale: ignored with --mode near\n\
+         warning: --exact-far: --mode near never evaluates the far field: ignored\n"
+    );
+    let o = render(dir.path(), &["--exact-far", "--footprint-scale", "0"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(
+            "warning: --exact-far: --mode multiscale with --footprint-scale 0 never \
+             evaluates the far field: ignored"
+        ),
+        "{}",
+        stderr(&o)
+    );
+    let o = render(dir.path(), &["--exact-far", "--footprint-scale", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
+}

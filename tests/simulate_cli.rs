@@ -406,6 +406,7 @@ fn rel_noise_pilot_respects_max_paths() {
     assert!(o.status.success(), "{err}");
     assert!(err.contains("pilot: 3000 paths/angle"), "{err}");
     assert!(err.contains("-> 3000 paths/angle"), "{err}");
+    assert!(!err.contains("warning"), "{err}");
     let md: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("metadata.json")).unwrap()).unwrap();
     assert_eq!(md["paths_per_theta_i"], 3000);
@@ -419,4 +420,21 @@ fn rel_noise_pilot_respects_max_paths() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("--max-paths must be at least 1"), "{err}");
+}
+
+/// `--max-paths` only bounds `--rel-noise`: given without it, a warning says so.
+#[test]
+fn max_paths_without_rel_noise_is_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = tiny_run(&dir.path().join("s"), &["--max-paths", "1000"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains(
+            "warning: --max-paths only bounds --rel-noise: ignored (--paths sets the count)"
+        ),
+        "{err}"
+    );
+    let o = tiny_run(&dir.path().join("t"), &[]);
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("warning"));
 }

@@ -105,6 +105,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ..FitOptions::default()
     };
     opts.far = a.far.options()?;
+    for w in a.far.ignored(&opts.far, None) {
+        eprintln!("warning: {w}");
+    }
     if let Some(init) = &a.init {
         let (p, _) = FurParams::load(init)?;
         opts.init = Some(p.to_file_units());

@@ -123,8 +123,8 @@ pub fn threads_parser() -> clap::builder::RangedU64ValueParser<usize> {
 /// Far-field settings of `synth` and `fit` (one parser, so the two agree).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct FarArgs {
-    /// Initial segments `N,M` (unscattered, scattered) or `N` for both; default 8,5 (seed
-    /// Sec. 5.1). With `--tol none` they are the fixed segmentation.
+    /// Initial segments `N,M` (unscattered, scattered); a single `N` means `N,N`; default
+    /// 8,5 (seed Sec. 5.1). With `--tol none` they are the fixed segmentation.
     #[arg(long)]
     pub segments: Option<String>,
     /// Refinement tolerance of the far field, relative to each lobe's peak (default 1e-4);
@@ -140,6 +140,30 @@ pub struct FarArgs {
 }
 
 impl FarArgs {
+    /// One-line warnings for the options given that change nothing: all of them when the
+    /// far field is not evaluated (`unused`: why not, e.g. `--model near-quadrature`),
+    /// `--scattered-step` when `opts` has no tolerance mode (`--tol none`).
+    pub fn ignored(&self, opts: &FarOptions, unused: Option<&str>) -> Vec<String> {
+        let given: Vec<&str> = [
+            ("--segments", self.segments.is_some()),
+            ("--tol", self.tol.is_some()),
+            ("--scattered-step", self.scattered_step.is_some()),
+        ]
+        .into_iter()
+        .filter_map(|(f, g)| g.then_some(f))
+        .collect();
+        match unused {
+            Some(why) if !given.is_empty() => vec![format!(
+                "{} only affect the far field, which {why} does not use: ignored",
+                given.join(", ")
+            )],
+            None if opts.tol.is_none() && self.scattered_step.is_some() => vec![
+                "--scattered-step only acts in the tolerance mode: ignored with --tol none".into(),
+            ],
+            _ => Vec::new(),
+        }
+    }
+
     /// The far-field options these arguments ask for (defaults: [`FarOptions::default`]).
     pub fn options(&self) -> anyhow::Result<FarOptions> {
         use anyhow::Context;

@@ -78,9 +78,10 @@ pub struct Args {
     /// Longest path in fiber vertices, 1..=1024.
     #[arg(long, default_value_t = 16, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_DEPTH as u64))]
     pub max_depth: usize,
-    /// Multiplier of the pixel coverage (0 = near field, large = far field).
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
-    pub footprint_scale: f64,
+    /// Multiplier of the pixel coverage in --mode multiscale (0 = near field, large = far
+    /// field); default 1.
+    #[arg(long, allow_negative_numbers = true)]
+    pub footprint_scale: Option<f64>,
     /// Evaluate the far field / multi-scale term with the analytic engine at every query
     /// instead of the per-render table (exact, much slower).
     #[arg(long)]
@@ -181,11 +182,9 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
             a.out.display()
         );
     }
-    if !(a.footprint_scale >= 0.0 && a.footprint_scale.is_finite()) {
-        bail!(
-            "--footprint-scale must be a finite number >= 0, got {}",
-            a.footprint_scale
-        );
+    let footprint_scale = a.footprint_scale.unwrap_or(1.0);
+    if !(footprint_scale >= 0.0 && footprint_scale.is_finite()) {
+        bail!("--footprint-scale must be a finite number >= 0, got {footprint_scale}");
     }
     let mut s = RenderSettings {
         width,
@@ -196,7 +195,7 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
         mode: Mode::parse(&a.mode).context("--mode")?,
         lobes: LobeSet::parse(&a.lobes)?,
         max_depth: a.max_depth,
-        footprint_scale: a.footprint_scale,
+        footprint_scale,
         env,
         tint,
         far_table: !a.exact_far,
@@ -213,6 +212,31 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
     });
     s.strand.fibers = a.fibers;
     Ok(s)
+}
+
+/// One-line warnings for options `a` gives that the render `s` does not read.
+fn ignored(a: &Args, s: &RenderSettings) -> Vec<String> {
+    let mut w = Vec::new();
+    if a.footprint_scale.is_some() && s.mode != Mode::Multiscale {
+        w.push(format!(
+            "--footprint-scale only acts in --mode multiscale: ignored with --mode {}",
+            s.mode.name()
+        ));
+    }
+    // As render_scene decides whether to build the table --exact-far replaces.
+    let far = s.mode == Mode::Far || (s.mode == Mode::Multiscale && s.footprint_scale > 0.0);
+    if a.exact_far && !far {
+        w.push(format!(
+            "--exact-far: --mode {}{} never evaluates the far field: ignored",
+            s.mode.name(),
+            if s.mode == Mode::Multiscale {
+                " with --footprint-scale 0"
+            } else {
+                ""
+            }
+        ));
+    }
+    w
 }
 
 fn with_suffix(out: &Path, suffix: &str, ext: &str) -> PathBuf {
@@ -253,6 +277,9 @@ fn outputs(out: &Path, s: &RenderSettings, aovs: bool) -> Vec<(Image, PathBuf)> 
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     let s = settings_from(&a)?;
+    for w in ignored(&a, &s) {
+        eprintln!("warning: {w}");
+    }
     // (name, parameters, the fit file's r, g, b channels when it has them)
     let jobs: Vec<(String, FurParams, Option<Tint>)> = if a.all {
         let dir = a.fits_dir.clone().unwrap_or_else(|| "fits".into());

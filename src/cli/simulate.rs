@@ -29,12 +29,14 @@ pub struct Args {
     /// relative standard error of bins above --noise-above x peak is this fraction.
     #[arg(long, allow_negative_numbers = true)]
     pub rel_noise: Option<f64>,
-    /// Threshold (fraction of the peak) for --rel-noise.
+    /// Threshold (fraction of the peak) of the bins whose median relative error
+    /// --rel-noise aims at and the run reports (printed and in metadata.json).
     #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
     pub noise_above: f64,
-    /// Upper bound on the paths per incidence angle of --rel-noise, its pilot run included.
-    #[arg(long, default_value_t = 200_000_000)]
-    pub max_paths: u64,
+    /// Upper bound on the paths per incidence angle of --rel-noise, its pilot run
+    /// included; default 200000000.
+    #[arg(long)]
+    pub max_paths: Option<u64>,
     /// Random seed (paths and measurement effects).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -160,23 +162,27 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         smooth: false,
     };
     s.validate()?;
+    if a.max_paths.is_some() && a.rel_noise.is_none() {
+        eprintln!("warning: --max-paths only bounds --rel-noise: ignored (--paths sets the count)");
+    }
     let t0 = Instant::now();
     let mut pilot_info = serde_json::Value::Null;
     if let Some(x) = a.rel_noise {
         if !(x > 0.0 && x < 1.0) {
             bail!("--rel-noise {x}: must be in (0, 1)");
         }
-        if a.max_paths == 0 {
+        let max_paths = a.max_paths.unwrap_or(200_000_000);
+        if max_paths == 0 {
             bail!("--max-paths must be at least 1");
         }
         let mut pilot = s.clone();
-        pilot.paths = (1 << 19).min(a.max_paths);
+        pilot.paths = (1 << 19).min(max_paths);
         pilot.seed = s.seed ^ 0xA5A5_5A5A;
         let r = simulate::simulate(&pilot, |_| {})?;
         let rel = simulate::median_rel_noise(&r, a.noise_above)
             .context("the pilot run detected no light")?;
         let n = (pilot.paths as f64 * (rel / x).powi(2)).ceil() as u64;
-        s.paths = n.clamp((1 << 16).min(a.max_paths), a.max_paths);
+        s.paths = n.clamp((1 << 16).min(max_paths), max_paths);
         eprintln!(
             "pilot: {} paths/angle give median rel. error {:.4} above {:.0e} x peak -> {} paths/angle",
             pilot.paths, rel, a.noise_above, s.paths

@@ -95,6 +95,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         anyhow::bail!("--exposure must be a finite number > 0, got {exposure}");
     }
     let opts = a.far.options()?;
+    let unused = (kind != ModelKind::Far).then(|| format!("--model {}", kind.name()));
+    for w in a.far.ignored(&opts, unused.as_deref()) {
+        eprintln!("warning: {w}");
+    }
     let t0 = std::time::Instant::now();
     let mut prof = synth::synthesize(&params, &ti, &tr, &phi, kind, lobes, exposure, &opts);
     let dt = t0.elapsed().as_secs_f64();
