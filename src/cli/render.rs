@@ -381,10 +381,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             (Some(_), Some(t)) => {
                 eprintln!("note: {name}: --tint {t} replaces the fit's r, g, b absorption")
             }
-            (None, None) => {
+            // Said of fits only: a preset or parameter file has no channels to look for.
+            (None, None) if a.fit.is_some() || a.all => {
                 eprintln!("note: {name}: no r, g, b channels: default eumelanin-like tint (--tint)")
             }
-            (None, Some(_)) => {}
+            (None, _) => {}
         }
         let r = render_scene(&scene, p, &s)?;
         outln!(
