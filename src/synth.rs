@@ -167,9 +167,6 @@ impl GridPlan {
         self.combine(&n, &m).collect()
     }
 
-    /// `N_p` of the lobes in `lobes` (others 0) per distinct `(theta_d, phi)`, indexed
-    /// `[group][phi]`; parallel over `theta_d`. Each lobe's value does not depend on which
-    /// other lobes are asked for, so terms of different lobe sets can be merged.
     /// The far-field [`Self::azimuthal_terms`] recording each slice's refinement
     /// decisions, or with `replay` (one [`Decisions`] per slice, as recorded) taking them
     /// instead: the fitter's finite differences replay the decisions of the point they
@@ -201,6 +198,9 @@ impl GridPlan {
             .unzip()
     }
 
+    /// `N_p` of the lobes in `lobes` (others 0) per distinct `(theta_d, phi)`, indexed
+    /// `[group][phi]`; parallel over `theta_d`. Each lobe's value does not depend on which
+    /// other lobes are asked for, so terms of different lobe sets can be merged.
     pub fn azimuthal_terms(
         &self,
         model: &FurModel,

@@ -317,9 +317,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or(spec.clone());
-        let colour = match &a.fit {
-            Some(f) => fit_colour(Path::new(f))?,
-            None => None,
+        // A fit file's channels, whether given as --fit or --params (which takes fit
+        // files too); a preset has none.
+        let colour = if Path::new(&spec).is_file() {
+            fit_colour(Path::new(&spec))?
+        } else {
+            None
         };
         vec![(name, p, colour)]
     };

@@ -11,8 +11,9 @@
 //! Termination (besides argmin's `max_iters`): `||J^T r||_inf <= gtol`; an accepted step
 //! with `||delta|| <= xtol (||u|| + xtol)`; the damping exceeding `1e16` (no further
 //! descent possible); and either an accepted step whose relative cost reduction is
-//! `<= ftol` or, with [`LevenbergMarquardt::step_se`] set, a Gauss-Newton step to the
-//! local optimum that moves no coordinate by more than that many of its standard errors.
+//! `<= ftol` or, with [`LevenbergMarquardt::step_se`] set, such a step (progress has
+//! slowed) followed, on a true Jacobian, by a Gauss-Newton step to the local optimum that
+//! moves no coordinate by more than that many of its standard errors.
 //! The relative-cost test stops wherever progress per step is slow, which on a flat valley
 //! of a least-squares fit can be more than one standard error short of the optimum; the
 //! standard-error test measures the remaining distance in the statistic a user reads: with
@@ -96,6 +97,8 @@ pub struct LevenbergMarquardt {
     pub broyden: bool,
     /// Is the Jacobian in the state a true (finite-difference) one?
     fresh: bool,
+    /// Did the last accepted step reduce the cost by at most `ftol` (relative)?
+    stalled: bool,
 }
 
 impl LevenbergMarquardt {
@@ -119,6 +122,7 @@ impl LevenbergMarquardt {
             rejected: 0,
             broyden: false,
             fresh: true,
+            stalled: false,
         }
     }
 
@@ -269,7 +273,10 @@ where
             return self.refresh(problem, state, u, r, cost);
         }
         let jtj = jac.transpose() * &jac;
-        if let (Some(tol), true) = (self.step_se, self.fresh) {
+        // Tested once progress has slowed (far from the optimum the residual variance, and
+        // with it which coordinates count as determined, is not yet what it will be), on a
+        // true Jacobian.
+        if let (Some(tol), true, true) = (self.step_se, self.fresh, self.stalled) {
             if gauss_newton_step_se(&jtj, &grad, &r, self.max_se) <= tol {
                 self.converged = Some("Gauss-Newton step below tolerance (standard errors)");
                 return Ok((with_point(state, u, r, jac, grad, cost), None));
@@ -301,9 +308,10 @@ where
         if rho > 0.0 && cost_new.is_finite() {
             self.mu *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
             self.nu = 2.0;
+            self.stalled = cost - cost_new <= self.ftol * cost;
             let converged = if delta.norm() <= self.xtol * (u.norm() + self.xtol) {
                 Some("step below tolerance")
-            } else if self.step_se.is_none() && cost - cost_new <= self.ftol * cost {
+            } else if self.step_se.is_none() && self.stalled {
                 Some("relative cost change below tolerance")
             } else {
                 None
@@ -313,7 +321,10 @@ where
             if self.fresh {
                 self.converged = converged;
             }
-            let jac_new = if self.broyden && converged.is_none() {
+            // A stalled step under the standard-error test gets a true Jacobian, so the test
+            // can run at the next iteration (a secant one never lets it).
+            let secant = converged.is_none() && !(self.step_se.is_some() && self.stalled);
+            let jac_new = if self.broyden && secant {
                 let dd = delta.norm_squared();
                 let mut j = jac;
                 if dd > 0.0 {
@@ -418,5 +429,85 @@ mod tests {
     #[test]
     fn solves_rosenbrock_with_broyden_updates() {
         check_rosenbrock(true);
+    }
+
+    /// `y = a exp(-b t) + c` with fixed pseudo-noise: residuals and their exact Jacobian.
+    struct Decay {
+        t: Vec<f64>,
+        y: Vec<f64>,
+    }
+    impl Decay {
+        fn new() -> Decay {
+            let t: Vec<f64> = (0..60).map(|i| i as f64 * 0.1).collect();
+            // Deterministic "noise" of RMS ~0.01.
+            let y = t
+                .iter()
+                .enumerate()
+                .map(|(i, &t)| {
+                    2.0 * (-0.7 * t).exp() + 0.3 + 0.014 * ((i * 37 % 11) as f64 / 5.0 - 1.0)
+                })
+                .collect();
+            Decay { t, y }
+        }
+    }
+    impl Operator for Decay {
+        type Param = DVector<f64>;
+        type Output = DVector<f64>;
+        fn apply(&self, p: &DVector<f64>) -> Result<DVector<f64>, Error> {
+            Ok(DVector::from_iterator(
+                self.t.len(),
+                self.t
+                    .iter()
+                    .zip(&self.y)
+                    .map(|(&t, &y)| p[0] * (-p[1] * t).exp() + p[2] - y),
+            ))
+        }
+    }
+    impl Jacobian for Decay {
+        type Param = DVector<f64>;
+        type Jacobian = DMatrix<f64>;
+        fn jacobian(&self, p: &DVector<f64>) -> Result<DMatrix<f64>, Error> {
+            Ok(DMatrix::from_fn(self.t.len(), 3, |i, j| {
+                let e = (-p[1] * self.t[i]).exp();
+                [e, -p[0] * self.t[i] * e, 1.0][j]
+            }))
+        }
+    }
+
+    /// With Broyden updates on, the standard-error stop still ends the run (it needs a true
+    /// Jacobian, which a secant update after every accepted step never gave it), and where
+    /// it ends the Gauss-Newton step is within the tolerance of every standard error.
+    #[test]
+    fn standard_error_stop_ends_a_broyden_run() {
+        let mut lm = LevenbergMarquardt::new(Instant::now());
+        lm.broyden = true;
+        lm.step_se = Some(0.1);
+        let res = Executor::new(Decay::new(), lm)
+            .configure(|s| {
+                s.param(DVector::from_vec(vec![1.0, 0.2, 0.0]))
+                    .max_iters(200)
+            })
+            .run()
+            .unwrap();
+        assert_eq!(
+            res.solver.converged_reason(),
+            Some("Gauss-Newton step below tolerance (standard errors)")
+        );
+        // Accepted steps that barely moved the cost (the ftol test) before the stop: the
+        // first gets a true Jacobian and the test; a run that kept secant updates took
+        // one after another (23 in a row in a dog fit).
+        let stalled = res
+            .solver
+            .trace
+            .windows(2)
+            .filter(|w| w[0].cost - w[1].cost <= 1e-6 * w[0].cost)
+            .count();
+        assert!(stalled <= 2, "{stalled} stalled steps before the stop");
+        let p = res.state.get_best_param().unwrap().clone();
+        let d = Decay::new();
+        let (r, j) = (d.apply(&p).unwrap(), d.jacobian(&p).unwrap());
+        let g = j.transpose() * &r;
+        let step = gauss_newton_step_se(&(j.transpose() * &j), &g, &r, f64::INFINITY);
+        assert!(step <= 0.1, "Gauss-Newton step {step} standard errors");
     }
 }

@@ -328,7 +328,13 @@ impl Tape<'_> {
     /// segment?): always `computed`. A replay that meets a different fact than recorded
     /// is out of step with the recording and goes on computing its own decisions.
     fn fact(&mut self, computed: bool) -> bool {
-        let code = FACT | computed as u32;
+        self.fact_u32(computed as u32);
+        computed
+    }
+
+    /// [`Self::fact`] for a count below `FACT` (larger ones are recorded as `FACT - 1`).
+    fn fact_u32(&mut self, computed: u32) {
+        let code = FACT | computed.min(FACT - 1);
         match self {
             Tape::Off => {}
             Tape::Record(v) => v.push(code),
@@ -340,7 +346,6 @@ impl Tape<'_> {
                 }
             }
         }
-        computed
     }
 }
 
@@ -377,7 +382,8 @@ impl Refine<'_> {
     /// when the depth or split limit is reached.
     fn split(&mut self, depth: u32) -> Option<u32> {
         let allowed = depth < MAX_DEPTH && self.splits_left > 0;
-        if self.tape.choose_bool(allowed) {
+        // The tape is read either way; the limits hold even for a replay out of step.
+        if self.tape.choose_bool(allowed) && allowed {
             self.splits_left = self.splits_left.saturating_sub(1);
             Some(depth + 1)
         } else {
@@ -643,6 +649,10 @@ impl<'a> FarSlice<'a> {
                         _ => Vec::new(),
                     },
                 };
+                // The initial segmentation's size is a fact: a step that adds or removes an
+                // initial breakpoint (the TRT caustic, the medulla edge) leaves the
+                // recording's decisions for other segments.
+                rf.tape.fact_u32(nodes.len() as u32);
                 for seg in (0..nodes.len().saturating_sub(2)).step_by(2) {
                     let (n0, nm, n1) = (nodes[seg], nodes[seg + 1], nodes[seg + 2]);
                     if l.is_scattered() && rf.budget.is_some() {
