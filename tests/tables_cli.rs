@@ -101,3 +101,31 @@ fn build_replaces_only_tables_files() {
     let o = build(&t);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `--target-error` is a relative error in (0, 1): NaN, negative, 0 and 1 are refused
+/// before any Monte Carlo, naming the option (a NaN was accepted).
+#[test]
+fn target_error_is_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t.bin");
+    for bad in ["NaN", "-1", "0", "1"] {
+        let o = furfit()
+            .args([
+                "tables",
+                "build",
+                "--tiny",
+                "--paths",
+                "1",
+                "--target-error",
+                bad,
+                "--out",
+            ])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{bad}");
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains("--target-error"), "{bad}: {e}");
+        assert!(!out.exists());
+    }
+}

@@ -35,8 +35,8 @@ pub struct BuildArgs {
     /// Use exactly this CP rank for every tensor instead of trying 16, 32, 48.
     #[arg(long)]
     pub rank: Option<usize>,
-    /// Relative L2 error at which the rank search stops.
-    #[arg(long, default_value_t = 0.03)]
+    /// Relative L2 error at which the rank search stops, in (0, 1).
+    #[arg(long, default_value_t = 0.03, allow_negative_numbers = true)]
     pub target_error: f64,
     /// Output file (.bin); an existing file is replaced only if it is a tables file.
     #[arg(long, default_value = "assets/medulla_tables.bin")]
@@ -106,6 +106,10 @@ fn check_out(out: &Path) -> anyhow::Result<()> {
 fn build(a: BuildArgs) -> anyhow::Result<()> {
     if a.paths == 0 {
         anyhow::bail!("--paths must be positive");
+    }
+    // A relative L2 error: NaN would never stop the rank search at a good rank.
+    if !(a.target_error > 0.0 && a.target_error < 1.0) {
+        anyhow::bail!("--target-error must be in (0, 1), got {}", a.target_error);
     }
     check_out(&a.out)?;
     let mut opts = BuildOptions::standard(a.seed, a.paths);
