@@ -33,6 +33,7 @@
 //! the solver only stops on a step computed from a freshly differentiated Jacobian, so
 //! the secant updates change the cost of the path, not where it may end.
 
+use super::uncertainty::{pseudo_inverse, residual_variance, NULL_LOAD};
 use argmin::core::{
     Error, IterState, Jacobian, Operator, Problem, Solver, State, TerminationReason,
     TerminationStatus, KV,
@@ -170,25 +171,9 @@ fn gauss_newton_step_se(
     r: &DVector<f64>,
     max_se: f64,
 ) -> f64 {
-    let (n, p) = (r.len(), grad.len());
-    let s2 = r.norm_squared() / n.saturating_sub(p + 1).max(1) as f64;
-    let svd = jtj.clone().svd(true, false);
-    let Some(u) = svd.u else {
-        return f64::INFINITY;
-    };
-    let smax = svd.singular_values.max();
-    let mut pinv = DMatrix::zeros(p, p);
-    let mut null_load = vec![0.0; p];
-    for (k, &sv) in svd.singular_values.iter().enumerate() {
-        let col = u.column(k);
-        if sv > 1e-10 * smax && sv > 0.0 {
-            pinv += col * col.transpose() / sv;
-        } else {
-            for j in 0..p {
-                null_load[j] += col[j] * col[j];
-            }
-        }
-    }
+    let p = grad.len();
+    let s2 = residual_variance(r, p);
+    let (pinv, null_load) = pseudo_inverse(jtj);
     // The determined coordinates, and their Gauss-Newton step with the others held: an
     // undetermined coordinate's own step (towards a bound, say) drags correlated ones
     // along in the full step without changing the cost, so only the conditional step
@@ -197,7 +182,7 @@ fn gauss_newton_step_se(
         .map(|j| (s2 * pinv[(j, j)]).max(0.0).sqrt())
         .collect();
     let det: Vec<usize> = (0..p)
-        .filter(|&j| null_load[j] <= 1e-6 && se[j] <= max_se)
+        .filter(|&j| null_load[j] <= NULL_LOAD && se[j] <= max_se)
         .collect();
     if det.is_empty() {
         return 0.0;

@@ -34,6 +34,40 @@ pub struct Uncertainty {
     pub s2: f64,
 }
 
+/// A coordinate loading more than this on the null directions of [`pseudo_inverse`] is not
+/// determined by the data.
+pub const NULL_LOAD: f64 = 1e-6;
+
+/// Residual variance `s^2 = |r|^2 / (n - p - 1)` of `p` free parameters: the exposure is
+/// solved too (in closed form), one more unknown than the columns.
+pub fn residual_variance(r: &DVector<f64>, p: usize) -> f64 {
+    r.norm_squared() / r.len().saturating_sub(p + 1).max(1) as f64
+}
+
+/// The pseudo-inverse of `J^T J` (`p x p`) over its singular values above `1e-10` of the
+/// largest, and per coordinate its load on the directions left out (the null directions).
+/// `s^2` times it is the linearised covariance; shared by the uncertainty estimate and the
+/// solver's standard-error stop ([`super::lm`]).
+pub fn pseudo_inverse(jtj: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
+    let p = jtj.nrows();
+    let svd = jtj.clone().svd(true, true);
+    let smax = svd.singular_values.max();
+    let v_t = svd.v_t.clone().unwrap_or_else(|| DMatrix::identity(p, p));
+    let mut pinv = DMatrix::zeros(p, p);
+    let mut null_load = vec![0.0; p];
+    for (k, &sv) in svd.singular_values.iter().enumerate() {
+        let row = v_t.row(k);
+        if sv > 1e-10 * smax && sv > 0.0 {
+            pinv += row.transpose() * row / sv;
+        } else {
+            for j in 0..p {
+                null_load[j] += row[j] * row[j];
+            }
+        }
+    }
+    (pinv, null_load)
+}
+
 /// Uncertainty from the Jacobian `jac` (n x p, free parameters) and residuals `r` at `u`.
 pub fn estimate(
     layout: &ParamLayout,
@@ -42,10 +76,8 @@ pub fn estimate(
     r: &DVector<f64>,
 ) -> Uncertainty {
     let free = layout.free();
-    let (n, p) = (jac.nrows(), jac.ncols());
-    // The exposure is solved too (in closed form): one more unknown than the columns.
-    let dof = n.saturating_sub(p + 1).max(1) as f64;
-    let s2 = r.norm_squared() / dof;
+    let p = jac.ncols();
+    let s2 = residual_variance(r, p);
     if p == 0 {
         // Every parameter fixed: nothing to estimate (and nalgebra's SVD refuses an empty
         // matrix).
@@ -57,29 +89,14 @@ pub fn estimate(
             s2,
         };
     }
-    let jtj = jac.transpose() * jac;
-    let svd = jtj.clone().svd(true, true);
-    let smax = svd.singular_values.max();
-    let v_t = svd.v_t.clone().unwrap_or_else(|| DMatrix::identity(p, p));
-    let mut cov = DMatrix::zeros(p, p);
-    let mut null_load = vec![0.0; p];
-    for (k, &sv) in svd.singular_values.iter().enumerate() {
-        let row = v_t.row(k);
-        if sv > 1e-10 * smax && sv > 0.0 {
-            cov += row.transpose() * row / sv;
-        } else {
-            for j in 0..p {
-                null_load[j] += row[j] * row[j];
-            }
-        }
-    }
+    let (mut cov, null_load) = pseudo_inverse(&(jac.transpose() * jac));
     cov *= s2;
     let mut se = [None; N_PARAMS];
     let mut unconstrained = Vec::new();
     let kappa = layout.file_values(u.as_slice())[ParamId::Kappa.index()];
     for (j, id) in free.iter().enumerate() {
         let se_u = cov[(j, j)].max(0.0).sqrt();
-        if null_load[j] > 1e-6 {
+        if null_load[j] > NULL_LOAD {
             unconstrained.push((*id, "no information in the data (singular direction)"));
             continue;
         }
@@ -96,7 +113,7 @@ pub fn estimate(
     for i in 0..p {
         for j in 0..p {
             let d = (cov[(i, i)] * cov[(j, j)]).sqrt();
-            if d > 0.0 && null_load[i] <= 1e-6 && null_load[j] <= 1e-6 {
+            if d > 0.0 && null_load[i] <= NULL_LOAD && null_load[j] <= NULL_LOAD {
                 corr[(i, j)] = (cov[(i, j)] / d).clamp(-1.0, 1.0);
             }
         }
