@@ -171,7 +171,7 @@ impl GridPlan {
     /// decisions, or with `replay` (one [`Decisions`] per slice, as recorded) taking them
     /// instead: the fitter's finite differences replay the decisions of the point they
     /// differentiate at, so a tolerance-mode split tipped by the step cannot swamp the
-    /// derivative. Without `replay` the terms equal [`Self::azimuthal_terms`] bit for bit.
+    /// derivative. Without `replay` the decisions are the slices' own.
     pub fn far_terms_taped(
         &self,
         model: &FurModel,
@@ -208,6 +208,11 @@ impl GridPlan {
         kind: ModelKind,
         opts: &FarOptions,
     ) -> Vec<Vec<LobeValues>> {
+        if kind == ModelKind::Far {
+            // One slice per theta_d (segmentation and fits), evaluated at all its phi; the
+            // decisions it records cost a push each and are dropped.
+            return self.far_terms_taped(model, lobes, opts, None).0;
+        }
         let lobes = lobes.intersect(model.active_lobes());
         self.groups
             .par_iter()
@@ -216,16 +221,10 @@ impl GridPlan {
                     return vec![LobeValues::default(); phis.len()];
                 }
                 let az = model.azimuthal(*td);
-                match kind {
-                    // The slice (segmentation and fits) depends only on theta_d: build it
-                    // once and evaluate the closed forms at every phi of the group.
-                    ModelKind::Far => far_many(&az, lobes, opts, phis),
-                    ModelKind::NearQuadrature => phis
-                        .par_iter()
-                        .with_min_len(4)
-                        .map(|&phi| az.far_reference(phi, lobes))
-                        .collect(),
-                }
+                phis.par_iter()
+                    .with_min_len(4)
+                    .map(|&phi| az.far_reference(phi, lobes))
+                    .collect()
             })
             .collect()
     }

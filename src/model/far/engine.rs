@@ -384,7 +384,7 @@ impl Refine<'_> {
         let allowed = depth < MAX_DEPTH && self.splits_left > 0;
         // The tape is read either way; the limits hold even for a replay out of step.
         if self.tape.choose_bool(allowed) && allowed {
-            self.splits_left = self.splits_left.saturating_sub(1);
+            self.splits_left -= 1;
             Some(depth + 1)
         } else {
             self.capped = true;
