@@ -447,9 +447,15 @@ impl FurParams {
     /// Load parameters from a preset name, a parameter JSON file or a fit JSON file.
     /// Returns parameters and exposure.
     pub fn load(spec: &str) -> Result<(FurParams, f64)> {
+        FurParams::load_json(spec).map(|(p, k, _)| (p, k))
+    }
+
+    /// [`FurParams::load`], with the file's JSON (`None` for a preset) for what else it
+    /// holds, e.g. a fit's channels.
+    pub fn load_json(spec: &str) -> Result<(FurParams, f64, Option<Value>)> {
         if let Some(p) = FurParams::preset(spec) {
             if !Path::new(spec).exists() {
-                return Ok((p, 1.0));
+                return Ok((p, 1.0, None));
             }
         }
         let path = Path::new(spec);
@@ -467,13 +473,14 @@ impl FurParams {
             }
         })?;
         let v = crate::io::parse_json(&text, path)?;
-        FurParams::from_json_value(&v).map_err(|e| match e {
+        let (p, k) = FurParams::from_json_value(&v).map_err(|e| match e {
             Error::Param { key, msg } => Error::Param {
                 key,
                 msg: format!("{msg} (in {})", path.display()),
             },
             other => other,
-        })
+        })?;
+        Ok((p, k, Some(v)))
     }
 }
 

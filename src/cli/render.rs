@@ -295,9 +295,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         files
             .iter()
             .map(|f| {
-                let (p, _) = FurParams::load(&f.to_string_lossy())?;
+                let spec = f.to_string_lossy();
                 let name = f.file_stem().unwrap().to_string_lossy().into_owned();
-                Ok((name, p, fit_colour(f)?))
+                let (p, colour) = load_with_colour(&spec)?;
+                Ok((name, p, colour))
             })
             .collect::<anyhow::Result<_>>()?
     } else {
@@ -311,19 +312,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .clone()
             .or(a.params.clone())
             .context("give --fit FILE, --params FILE|PRESET or --all")?;
-        // The fit's exposure k is a measurement scale, not a light level: not used here.
-        let (p, _) = FurParams::load(&spec)?;
+        let (p, colour) = load_with_colour(&spec)?;
         let name = Path::new(&spec)
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or(spec.clone());
-        // A fit file's channels, whether given as --fit or --params (which takes fit
-        // files too); a preset has none.
-        let colour = if Path::new(&spec).is_file() {
-            fit_colour(Path::new(&spec))?
-        } else {
-            None
-        };
         vec![(name, p, colour)]
     };
     // Every output path is checked before the (possibly long) renders, so a bad --out
@@ -429,8 +422,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The colour of a fit file with r, g, b channels ([`Tint::from_fit_channels`]).
-fn fit_colour(path: &Path) -> anyhow::Result<Option<Tint>> {
-    let v: serde_json::Value = crate::io::read_json(path)?;
-    Tint::from_fit_channels(&v).with_context(|| format!("--fit {}", path.display()))
+/// The parameters of a preset, parameter file or fit file, and the colour of a fit file
+/// with r, g, b channels ([`Tint::from_fit_channels`]; whether given as --fit or --params,
+/// which takes fit files too), from one read of the file. The fit's exposure k is a
+/// measurement scale, not a light level: not used here.
+fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>)> {
+    let (p, _, json) = FurParams::load_json(spec)?;
+    let colour = match json {
+        Some(v) => Tint::from_fit_channels(&v).with_context(|| format!("--fit {spec}"))?,
+        None => None,
+    };
+    Ok((p, colour))
 }
