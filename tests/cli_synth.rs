@@ -77,45 +77,25 @@ fn synth_csv_round_trip_matches_library_prediction() {
 fn synth_rejects_bad_input() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("x.csv");
-    let st = furfit()
-        .args(["synth", "--params", "no-such-animal", "--theta-i", "0"])
-        .args(["--theta-r", "0", "--phi", "0", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
+    // A one-sample synth of `params` with `extra` options.
+    let synth = |params: &str, extra: &[&str]| {
+        furfit()
+            .args(["synth", "--params", params, "--theta-i", "0"])
+            .args(["--theta-r", "0", "--phi", "0"])
+            .args(extra)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let st = synth("no-such-animal", &[]);
     assert!(!st.status.success());
     assert!(String::from_utf8_lossy(&st.stderr).contains("no-such-animal"));
-    let st = furfit()
-        .args([
-            "synth",
-            "--params",
-            "cat",
-            "--theta-i",
-            "0",
-            "--theta-r",
-            "0",
-        ])
-        .args(["--phi", "0", "--lobes", "R,XX", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
+    let st = synth("cat", &["--lobes", "R,XX"]);
     assert!(!st.status.success());
     assert!(String::from_utf8_lossy(&st.stderr).contains("XX"));
     // A negative exposure reaches synth's own check (clap took it for a flag).
-    let st = furfit()
-        .args([
-            "synth",
-            "--params",
-            "cat",
-            "--theta-i",
-            "0",
-            "--theta-r",
-            "0",
-        ])
-        .args(["--phi", "0", "--exposure", "-1", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
+    let st = synth("cat", &["--exposure", "-1"]);
     assert_eq!(st.status.code(), Some(1));
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(
