@@ -167,6 +167,23 @@ impl GridPlan {
         self.combine(&n, &m).collect()
     }
 
+    /// [`Self::predict`] with the far field, and the number of `theta_d` slices whose
+    /// tolerance-mode refinement hit a limit ([`capped_slices`]).
+    pub fn predict_far_checked(
+        &self,
+        model: &FurModel,
+        lobes: LobeSet,
+        opts: &FarOptions,
+    ) -> (Vec<LobeValues>, usize) {
+        let lobes = lobes.intersect(model.active_lobes());
+        if self.points.is_empty() || lobes.is_empty() {
+            return (vec![LobeValues::default(); self.points.len()], 0);
+        }
+        let (n, decisions) = self.far_terms_taped(model, lobes, opts, None);
+        let m = self.longitudinal_terms(model, lobes);
+        (self.combine(&n, &m).collect(), capped_slices(&decisions))
+    }
+
     /// The far-field [`Self::azimuthal_terms`] recording each slice's refinement
     /// decisions, or with `replay` (one [`Decisions`] per slice, as recorded) taking them
     /// instead: the fitter's finite differences replay the decisions of the point they
@@ -271,6 +288,13 @@ impl GridPlan {
     }
 }
 
+/// How many slices' builds (one [`Decisions`] each) had a lobe whose tolerance-mode
+/// refinement hit its split or depth limit ([`Decisions::capped`]): their values are not
+/// guaranteed to `tol` (extreme parameters, e.g. `beta_n` far below a degree at a caustic).
+pub fn capped_slices(decisions: &[Decisions]) -> usize {
+    decisions.iter().filter(|d| !d.capped().is_empty()).count()
+}
+
 /// `|theta_d|` values closer than this (radians) are one goniometer configuration.
 ///
 /// `theta_d = (theta_r - theta_i) / 2` of angles converted from degrees carries a rounding
@@ -341,7 +365,13 @@ pub fn synthesize(
         .iter()
         .map(|&(a, b, c)| (a.to_radians(), b.to_radians(), c.to_radians()))
         .collect();
-    let values = predict_with(&model, &rad, lobes, model_kind, opts);
+    let plan = GridPlan::new(&rad);
+    let (values, capped) = if model_kind == ModelKind::Far {
+        let (v, capped) = plan.predict_far_checked(&model, lobes, opts);
+        (v, Some(capped))
+    } else {
+        (plan.predict(&model, lobes, model_kind, opts), None)
+    };
     let samples = deg
         .iter()
         .zip(&values)
@@ -368,6 +398,11 @@ pub fn synthesize(
             opts.tol.map_or("none".to_string(), |t| format!("{t}")),
         );
         prof.set_meta("cull", format!("{}", opts.cull));
+    }
+    if let Some(c) = capped {
+        // Slices whose tolerance-mode refinement hit its split or depth limit: their
+        // values are not guaranteed to `tol` (the CLI says so on stderr).
+        prof.set_meta("capped_slices", format!("{c} of {}", plan.slices()));
     }
     prof.set_meta("furfit_version", crate::TOOL_VERSION);
     prof
@@ -411,6 +446,35 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// The profile says how many slices' refinement hit its limit: none for a preset, most
+    /// for a `beta_n` of 1e-11 deg (far below any goniometer's resolution, where the TRT
+    /// caustic needs more splits than the limit allows).
+    #[test]
+    fn synthesize_records_capped_slices() {
+        let capped = |beta_n_deg: f64| {
+            let mut p = FurParams::preset("red-fox").unwrap();
+            p.beta_n = beta_n_deg.to_radians();
+            let prof = synthesize(
+                &p,
+                &[0.0, 30.0],
+                &[-40.0, 0.0, 40.0],
+                &[-90.0, 0.0, 90.0, 180.0],
+                ModelKind::Far,
+                LobeSet::ALL,
+                1.0,
+                &FarOptions::default(),
+            );
+            let m = prof.meta("capped_slices").unwrap().to_string();
+            let (n, of) = m.split_once(" of ").unwrap();
+            (n.parse::<usize>().unwrap(), of.parse::<usize>().unwrap())
+        };
+        let (n, of) = capped(FurParams::preset("red-fox").unwrap().beta_n.to_degrees());
+        // |theta_d| in {0, 5, 15, 20, 35} degrees: five slices.
+        assert_eq!((n, of), (0, 5));
+        let (n, of) = capped(1e-11);
+        assert!(n > 0 && of == 5, "{n} of {of}");
     }
 
     #[test]

@@ -247,6 +247,45 @@ fn fit_with_every_parameter_fixed() {
     );
     assert!(v["nrmse"].as_f64().unwrap() < 0.01, "{v}");
     assert_eq!(v["solver"]["termination"], "all parameters fixed");
+    // An ordinary parameter set: no slice hits the refinement limit.
+    let capped = &v["solver"]["capped_slices"];
+    assert_eq!(capped["capped"], 0, "{capped}");
+    assert!(capped["slices"].as_u64().unwrap() > 10, "{capped}");
+}
+
+/// A fit whose result drives the far field's refinement to its limit (beta_n of 1e-11 deg,
+/// below the fitter's floor, kept as fixed) says so on stdout and in the fit file: those
+/// slices are not guaranteed to the tolerance.
+#[test]
+fn fit_reports_capped_far_field_slices() {
+    let tmp = tempfile::tempdir().unwrap();
+    make_species(tmp.path(), "mouse");
+    let mut mouse = furfit::FurParams::preset("mouse").unwrap().to_file_units();
+    mouse[furfit::ParamId::BetaN.index()] = 1e-11;
+    let mut c = fit_cmd(tmp.path());
+    c.arg("measurements/mouse").args(["--out", "capped.json"]);
+    for id in furfit::ParamId::ALL {
+        c.args([
+            "--fix",
+            &format!("{}={}", id.spec().name, mouse[id.index()]),
+        ]);
+    }
+    let o = c.output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("hit the far field's refinement limit"),
+        "{out}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("capped.json")).unwrap())
+            .unwrap();
+    let capped = &v["solver"]["capped_slices"];
+    let (n, of) = (
+        capped["capped"].as_u64().unwrap(),
+        capped["slices"].as_u64().unwrap(),
+    );
+    assert!(n > 0 && n <= of, "{capped}");
 }
 
 /// The output must be a .json and may replace only an earlier fit: not a profile, not the

@@ -203,6 +203,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .map(|id| format!("{}={:.4}", id.spec().name, file[id.index()]))
                 .collect();
             outln!("  {}", line.join(" "));
+            if o.capped_slices.0 > 0 {
+                outln!(
+                    "  note: {} of {} theta_d slices hit the far field's refinement limit at the result; their model values are not guaranteed to the tolerance",
+                    o.capped_slices.0,
+                    o.capped_slices.1
+                );
+            }
             for (id, why) in &o.uncertainty.unconstrained {
                 outln!("  unconstrained: {} ({why})", id.spec().name);
             }

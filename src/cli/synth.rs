@@ -102,6 +102,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let t0 = std::time::Instant::now();
     let mut prof = synth::synthesize(&params, &ti, &tr, &phi, kind, lobes, exposure, &opts);
     let dt = t0.elapsed().as_secs_f64();
+    if let Some(c) = prof.meta("capped_slices").filter(|c| !c.starts_with("0 ")) {
+        eprintln!(
+            "note: {c} theta_d slices hit the far field's refinement limit; their values are not guaranteed to --tol (recorded as capped_slices in the file)"
+        );
+    }
     let cmd: Vec<String> = std::env::args().collect();
     prof.set_meta("command", cmd.join(" "));
     synth::save(&a.out, &prof)?;

@@ -152,6 +152,16 @@ impl ModelTerms {
         }
     }
 
+    /// `(capped, slices)`: how many of the far field's `theta_d` slices hit the
+    /// tolerance-mode refinement limit in these terms' build
+    /// ([`crate::synth::capped_slices`]), of how many.
+    pub fn capped_slices(&self) -> (usize, usize) {
+        (
+            crate::synth::capped_slices(&self.decisions),
+            self.decisions.len(),
+        )
+    }
+
     /// Model value (no exposure, lobes summed) at every point, into `out`.
     pub fn values(&self, points: &Points, out: &mut [f64]) {
         use rayon::prelude::*;

@@ -176,6 +176,10 @@ pub struct FitOutcome {
     pub termination: String,
     pub trace: Vec<TraceEntry>,
     pub n_used: usize,
+    /// `(capped, slices)` of the far field at the result
+    /// ([`forward::ModelTerms::capped_slices`]): capped slices are not guaranteed to the
+    /// tolerance.
+    pub capped_slices: (usize, usize),
 }
 
 /// Progress callback: a short stage message.
@@ -496,7 +500,8 @@ fn finish(
         counts(sub)
     };
     // Evaluated through the cache, so the Jacobian below reuses this evaluation.
-    let (r, lk) = full.evaluate_at(&u);
+    let (r, lk, terms) = full.evaluate_terms_at(&u);
+    let capped_slices = terms.capped_slices();
     let t_jac = Instant::now();
     let jac = if u.is_empty() {
         nalgebra::DMatrix::zeros(data.len(), 0)
@@ -551,6 +556,7 @@ fn finish(
         termination,
         trace,
         n_used: data.len(),
+        capped_slices,
     })
 }
 

@@ -112,6 +112,9 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "segments": {"unscattered": opts.far.n_unscattered, "scattered": opts.far.n_scattered},
             "tol": opts.far.tol,
             "scattered_step": opts.far.scattered_step,
+            // theta_d slices of the final evaluation whose refinement hit its limit (their
+            // model values are not guaranteed to `tol`).
+            "capped_slices": {"capped": out.capped_slices.0, "slices": out.capped_slices.1},
             "weighted": opts.weighted,
             "wall_time_s": out.wall_time_s,
             "model_time_s": out.model_time_s,

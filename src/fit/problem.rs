@@ -321,6 +321,12 @@ impl<'a> LogResidualProblem<'a> {
         (r, lk)
     }
 
+    /// [`Self::evaluate_at`], also returning the model terms (e.g. for
+    /// [`ModelTerms::capped_slices`]).
+    pub fn evaluate_terms_at(&self, u: &DVector<f64>) -> (DVector<f64>, f64, Arc<ModelTerms>) {
+        self.evaluate(u)
+    }
+
     /// Central-difference Jacobian (twice the cost; used to check the forward one).
     pub fn jacobian_central(&self, u: &DVector<f64>, step: f64) -> DMatrix<f64> {
         let cols: Vec<DVector<f64>> = (0..u.len())

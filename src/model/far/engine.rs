@@ -284,7 +284,19 @@ pub struct SliceStats {
 /// comparison would change the value by up to `tol` of the lobe's peak, far more than the
 /// step's own effect.
 #[derive(Clone, Debug, Default)]
-pub struct Decisions(Vec<[Vec<u32>; 5]>);
+pub struct Decisions {
+    parts: Vec<[Vec<u32>; 5]>,
+    /// The build's [`SliceStats::capped`] lobes.
+    capped: LobeSet,
+}
+
+impl Decisions {
+    /// Lobes whose refinement hit a limit in the build that returned these decisions
+    /// (their accuracy is not guaranteed by `tol`; [`SliceStats::capped`]).
+    pub fn capped(&self) -> LobeSet {
+        self.capped
+    }
+}
 
 /// Records or replays one lobe's decisions ([`Decisions`]).
 enum Tape<'d> {
@@ -631,10 +643,10 @@ impl<'a> FarSlice<'a> {
                 let tape = match mode {
                     TapeMode::Off => Tape::Off,
                     TapeMode::Record => Tape::Record(Vec::new()),
-                    TapeMode::Replay(d) => {
-                        d.0.get(k)
-                            .map_or(Tape::Off, |lobes| Tape::Replay(&lobes[l.index()], 0))
-                    }
+                    TapeMode::Replay(d) => d
+                        .parts
+                        .get(k)
+                        .map_or(Tape::Off, |lobes| Tape::Replay(&lobes[l.index()], 0)),
                 };
                 let mut rf = Refine {
                     tape,
@@ -667,14 +679,15 @@ impl<'a> FarSlice<'a> {
                     fs.capped = fs.capped.with(l);
                 }
                 if let Tape::Record(v) = rf.tape {
-                    if decisions.0.len() <= k {
-                        decisions.0.resize_with(k + 1, Default::default);
+                    if decisions.parts.len() <= k {
+                        decisions.parts.resize_with(k + 1, Default::default);
                     }
-                    decisions.0[k][l.index()] = v;
+                    decisions.parts[k][l.index()] = v;
                 }
             }
             fs.parts.push(part);
         }
+        decisions.capped = fs.capped;
         (fs, decisions)
     }
 
