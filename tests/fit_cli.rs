@@ -817,3 +817,59 @@ fn fit_warns_about_scattered_step_without_tolerance_mode() {
         "{err}"
     );
 }
+
+/// `--profile` writes uncertainty.profile (each end inside or on the fitted value's side)
+/// and refuses a fixed or unknown name before any fit.
+#[test]
+fn fit_profile_option() {
+    // The shipped (virtual goniometer, noisy) mouse: noise-free data have s^2 ~ 0 and
+    // intervals of zero width.
+    let tmp = tempfile::tempdir().unwrap();
+    let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("measurements/mouse");
+    let mouse = furfit::FurParams::preset("mouse").unwrap().to_file_units();
+    let fixed = |c: &mut Command| {
+        for id in furfit::ParamId::ALL {
+            if !matches!(id, furfit::ParamId::Eta | furfit::ParamId::BetaM) {
+                c.args([
+                    "--fix",
+                    &format!("{}={}", id.spec().name, mouse[id.index()]),
+                ]);
+            }
+        }
+    };
+    let mut c = fit_cmd(tmp.path());
+    c.arg(&data)
+        .args(["--out", "p.json", "--profile", "eta,beta_m"]);
+    fixed(&mut c);
+    let o = c.output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        out.contains("profile eta:") && out.contains("profile beta_m:"),
+        "{out}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("p.json")).unwrap()).unwrap();
+    for name in ["eta", "beta_m"] {
+        let p = &v["uncertainty"]["profile"]["params"][name];
+        let (lo, at, hi) = (
+            p["lo"].as_f64().unwrap(),
+            p["at"].as_f64().unwrap(),
+            p["hi"].as_f64().unwrap(),
+        );
+        assert!(lo < at && at < hi, "{name}: {p}");
+        assert_eq!(at, v["params"][name].as_f64().unwrap());
+    }
+    assert!(v["uncertainty"]["profile"]["params"]["kappa"].is_null());
+    for (arg, needle) in [
+        ("kappa", "kappa is fixed"),
+        ("etta", "unknown parameter 'etta'"),
+        ("eta,eta", "named twice"),
+    ] {
+        let mut c = fit_cmd(tmp.path());
+        c.arg(&data).args(["--out", "q.json", "--profile", arg]);
+        fixed(&mut c);
+        fails_with(c.output().unwrap(), &[needle]);
+        assert!(!tmp.path().join("q.json").exists());
+    }
+}

@@ -182,3 +182,45 @@ fn recovers_human_hair_kappa_zero_with_noise() {
 fn noise_free_fit_is_exact() {
     recovery_z(fur_truth(), 0.0, 42, &opts());
 }
+
+/// Profile-likelihood intervals of well-determined parameters: over one standard error the
+/// valley is quadratic to a few per cent (2 % noise, ~5000 samples), so each end lies one
+/// linearised standard error from the fit. [0.8, 1.25] allows the valley's curvature and
+/// the re-solves' stopping tolerance (0.1 SE); a wrong threshold (e.g. Delta = 2 instead
+/// of 1: a factor 1.41) or a profile that does not re-solve the others (narrower by the
+/// correlations) fails.
+#[test]
+fn profile_interval_matches_the_standard_error_in_a_quadratic_valley() {
+    let truth = fur_truth();
+    let data = synth(&truth, 0.02, 42);
+    let mut o = opts();
+    let t = file(&truth);
+    for id in ParamId::ALL {
+        if !matches!(id, ParamId::Eta | ParamId::BetaM | ParamId::SigmaCA) {
+            o.fix(id.spec().name, t[id.index()]).unwrap();
+        }
+    }
+    o.profile = vec![ParamId::Eta, ParamId::BetaM, ParamId::SigmaCA];
+    let fit = fit_data(&data, &o, None).unwrap();
+    assert_eq!(fit.profile.len(), 3);
+    let at = fit.params.to_file_units();
+    for iv in &fit.profile {
+        let k = iv.id.index();
+        let se = fit.uncertainty.se[k].unwrap();
+        assert_eq!(
+            (iv.lo.kind(), iv.hi.kind()),
+            ("crossing", "crossing"),
+            "{iv:?}"
+        );
+        assert!((iv.at - at[k]).abs() <= 1e-12 * at[k].abs());
+        for half in [iv.at - iv.lo.value(), iv.hi.value() - iv.at] {
+            let ratio = half / se;
+            assert!(
+                (0.8..=1.25).contains(&ratio),
+                "{}: half-width {half:.3e} = {ratio:.3} SE ({iv:?})",
+                iv.id.spec().name
+            );
+        }
+        assert!(iv.lowest.is_none(), "{iv:?}");
+    }
+}

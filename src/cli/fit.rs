@@ -57,6 +57,11 @@ pub struct Args {
     /// Iteration cap per LM run (at least 1).
     #[arg(long, default_value_t = 100)]
     pub max_iters: u64,
+    /// Profile-likelihood intervals (68 %, Delta RSS = s^2) of these free parameters after
+    /// the fit: a comma list of names or `all`. Each re-solves the other parameters at up
+    /// to eight values, so it costs several fits; recorded as uncertainty.profile.
+    #[arg(long, value_name = "NAMES")]
+    pub profile: Option<String>,
     /// Weight residuals by sigma/value (every valid sample needs a sigma > 0).
     #[arg(long)]
     pub weighted: bool,
@@ -121,6 +126,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .parse()
             .with_context(|| format!("--fix '{f}': '{v}' is not a number"))?;
         opts.fix(k.trim(), v)?;
+    }
+    if let Some(names) = &a.profile {
+        opts.profile = profile_params(names, &opts)?;
     }
     let load = a.load.to_options()?;
     let jobs = if a.all {
@@ -210,6 +218,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     o.capped_slices.1
                 );
             }
+            for iv in &o.profile {
+                outln!("  {}", crate::fit::likelihood::describe(iv));
+            }
             for (id, why) in &o.uncertainty.unconstrained {
                 outln!("  unconstrained: {} ({why})", id.spec().name);
             }
@@ -228,4 +239,29 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         outln!("  wrote {}", job.out.display());
     }
     Ok(())
+}
+
+/// The parameters of `--profile NAMES` (`all`: every free one), each free and named once.
+fn profile_params(names: &str, opts: &FitOptions) -> anyhow::Result<Vec<crate::ParamId>> {
+    let free = opts.layout.free();
+    if names.trim().eq_ignore_ascii_case("all") {
+        return Ok(free);
+    }
+    let mut out = Vec::new();
+    for name in names.split(',').map(str::trim) {
+        let id = crate::ParamId::from_name(name).with_context(|| {
+            format!(
+                "--profile: unknown parameter '{name}' (expected `all` or names among: {})",
+                crate::ParamId::ALL.map(|p| p.spec().name).join(", ")
+            )
+        })?;
+        if !free.contains(&id) {
+            anyhow::bail!("--profile: {name} is fixed (--fix), so it has no interval");
+        }
+        if out.contains(&id) {
+            anyhow::bail!("--profile: {name} is named twice");
+        }
+        out.push(id);
+    }
+    Ok(out)
 }

@@ -29,6 +29,7 @@
 
 pub mod forward;
 pub mod job;
+pub mod likelihood;
 pub mod lm;
 pub mod output;
 pub mod problem;
@@ -86,6 +87,9 @@ pub struct FitOptions {
     /// Broyden updates of the Jacobian after accepted LM steps ([`lm`]; a run still only
     /// stops on a finite-difference Jacobian).
     pub broyden: bool,
+    /// Free parameters to give a profile-likelihood interval ([`likelihood`]; up to eight
+    /// re-solves each, after the fit).
+    pub profile: Vec<ParamId>,
 }
 
 impl Default for FitOptions {
@@ -103,6 +107,7 @@ impl Default for FitOptions {
             ftol: 1e-6,
             step_se: Some(0.1),
             broyden: true,
+            profile: Vec::new(),
         }
     }
 }
@@ -180,6 +185,10 @@ pub struct FitOutcome {
     /// ([`forward::ModelTerms::capped_slices`]): capped slices are not guaranteed to the
     /// tolerance.
     pub capped_slices: (usize, usize),
+    /// Profile-likelihood intervals of [`FitOptions::profile`] (not part of the fit's
+    /// timing: they take `profile_time_s` after it).
+    pub profile: Vec<likelihood::Interval>,
+    pub profile_time_s: f64,
 }
 
 /// Progress callback: a short stage message.
@@ -456,19 +465,40 @@ pub fn fit_data(
     } else {
         (best_run.u, best_run.termination)
     };
-    finish(
+    let mut out = finish(
         data,
         opts,
         &full,
         &sub,
-        u,
+        u.clone(),
         iters,
         termination,
         trace,
         cands.len(),
         chosen.len(),
         clock,
-    )
+    )?;
+    if !opts.profile.is_empty() {
+        say("profile likelihood");
+        let t = Instant::now();
+        let (r, _) = full.evaluate_at(&u);
+        let mut refit = |p: &LogResidualProblem, start: DVector<f64>| {
+            run_lm(
+                p,
+                start.clone(),
+                opts.max_iters,
+                opts.ftol,
+                opts.step_se,
+                opts.broyden,
+                clock,
+            )
+            .map_or(start, |run| run.u)
+        };
+        out.profile =
+            likelihood::intervals(&full, &u, &r, &out.uncertainty, &opts.profile, &mut refit);
+        out.profile_time_s = t.elapsed().as_secs_f64();
+    }
+    Ok(out)
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -557,6 +587,8 @@ fn finish(
         trace,
         n_used: data.len(),
         capped_slices,
+        profile: Vec::new(),
+        profile_time_s: 0.0,
     })
 }
 

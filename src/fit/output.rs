@@ -91,6 +91,8 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "unconstrained": unconstrained,
             "fixed": fixed,
             "method": "linearised: s^2 (J^T J)^-1 in the solver's bounded-map coordinates, mapped to file units by the map's derivative",
+            "profile": (!out.profile.is_empty())
+                .then(|| crate::fit::likelihood::to_json(&out.profile, out.profile_time_s)),
         },
         "correlation": {"keys": keys, "matrix": matrix},
         "solver": {
