@@ -250,7 +250,7 @@ fn fit_with_every_parameter_fixed() {
     // An ordinary parameter set: no slice hits the refinement limit.
     let capped = &v["solver"]["capped_slices"];
     assert_eq!(capped["capped"], 0, "{capped}");
-    assert!(capped["slices"].as_u64().unwrap() > 10, "{capped}");
+    assert!(capped["slices"].as_u64().unwrap() >= 5, "{capped}");
 }
 
 /// A fit whose result drives the far field's refinement to its limit (beta_n of 1e-11 deg,

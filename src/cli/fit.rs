@@ -62,6 +62,11 @@ pub struct Args {
     /// to eight values, so it costs several fits; recorded as uncertainty.profile.
     #[arg(long, value_name = "NAMES")]
     pub profile: Option<String>,
+    /// Leave out samples below this fraction of the channel's largest value, in [0, 1)
+    /// (0 keeps all). No goniometer resolves eight decades, while the tails of noise-free
+    /// model profiles (down to 1e-44) would outweigh the lobes in log space.
+    #[arg(long, default_value_t = crate::fit::DEFAULT_FLOOR, value_parser = super::unit_fraction)]
+    pub floor: f64,
     /// Weight residuals by sigma/value (every valid sample needs a sigma > 0).
     #[arg(long)]
     pub weighted: bool,
@@ -107,6 +112,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         n_best: a.lm_starts,
         max_iters: a.max_iters,
         weighted: a.weighted,
+        floor: a.floor,
         ..FitOptions::default()
     };
     opts.far = a.far.options()?;
@@ -160,20 +166,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     load.check_used(&formats)?;
     // And every channel's fit data (e.g. --weighted without sigmas), so a bad species fails
     // before any fit; fit_loaded would also prefix the species the context below names.
+    let mut floor_notes = Vec::new();
     for (job, inputs) in jobs.iter().zip(&loaded) {
+        let mut notes = Vec::new();
         for c in 0..inputs.profile.n_channels() {
-            crate::fit::channel_data(&inputs.profile, c, opts.weighted)
+            let d = crate::fit::channel_data(&inputs.profile, c, opts.weighted, opts.floor)
                 .with_context(|| format!("fitting {}", job.species))?;
+            if d.n_below_floor > 0 {
+                let ch = inputs
+                    .profile
+                    .channels
+                    .get(c)
+                    .map_or(String::new(), |n| format!(" of channel {n}"));
+                notes.push(format!(
+                    "{} valid sample(s){ch} below {:e} of the channel's largest value left out (--floor; 0 keeps them)",
+                    d.n_below_floor, opts.floor
+                ));
+            }
         }
+        floor_notes.push(notes);
     }
     // Every output too, so `--all` cannot stop at the n-th species after n - 1 fits.
     for job in &jobs {
         crate::fit::job::check_out(&job.out)?;
     }
-    for (job, inputs) in jobs.iter().zip(&loaded) {
+    for ((job, inputs), floor_notes) in jobs.iter().zip(&loaded).zip(&floor_notes) {
         // What inspect would say about the data (duplicates, a radians warning) is said
         // before the fit, which may take long or fail because of it.
-        for n in &inputs.notes {
+        for n in inputs.notes.iter().chain(floor_notes) {
             outln!("{}: note: {n}", job.species);
         }
         let bar = indicatif::ProgressBar::new_spinner();
@@ -223,6 +243,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             for (id, why) in &o.uncertainty.unconstrained {
                 outln!("  unconstrained: {} ({why})", id.spec().name);
+            }
+            if !o.uncertainty.at_bound.is_empty() {
+                let names: Vec<&str> = o
+                    .uncertainty
+                    .at_bound
+                    .iter()
+                    .map(|id| id.spec().name)
+                    .collect();
+                outln!(
+                    "  note: the other standard errors hold {} fixed at the bound (far too small if the data favour another value); --profile gives intervals that re-solve {}",
+                    names.join(", "),
+                    if names.len() == 1 { "it" } else { "them" }
+                );
             }
             if a.bench {
                 outln!(

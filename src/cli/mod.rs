@@ -115,6 +115,19 @@ pub fn parse_size(
 /// would exhaust the process's threads, or hang spawning them, before any work.
 pub const MAX_THREADS: usize = 1024;
 
+/// A number in [0, 1) (a fraction of a peak).
+pub fn unit_fraction(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number"))?;
+    if (0.0..1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!("{v} is outside [0, 1)"))
+    }
+}
+
 /// The parser of every command's `--threads` (0 = all cores), so all bound it alike.
 pub fn threads_parser() -> clap::builder::RangedU64ValueParser<usize> {
     clap::builder::RangedU64ValueParser::new().range(0..=MAX_THREADS as u64)

@@ -223,7 +223,7 @@ pub fn fit_loaded(
     let mut objs = Vec::new();
     let mut sums = Vec::new();
     for c in 0..n_ch {
-        let data = channel_data(prof, c, opts.weighted).map_err(|e| match e {
+        let data = channel_data(prof, c, opts.weighted, opts.floor).map_err(|e| match e {
             Error::Invalid(m) => Error::Invalid(format!("{}: {m}", job.species)),
             other => other,
         })?;
@@ -238,6 +238,7 @@ pub fn fit_loaded(
             files: file_info.clone(),
             n_valid,
             n_invalid: n_all - n_valid,
+            n_below_floor: data.n_below_floor,
             synthetic: prof.is_synthetic(),
             channel: name_of(c),
             load: load_json.clone(),

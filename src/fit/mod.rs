@@ -90,6 +90,8 @@ pub struct FitOptions {
     /// Free parameters to give a profile-likelihood interval ([`likelihood`]; up to eight
     /// re-solves each, after the fit).
     pub profile: Vec<ParamId>,
+    /// Relative floor of the data used ([`channel_data`], [`DEFAULT_FLOOR`]).
+    pub floor: f64,
 }
 
 impl Default for FitOptions {
@@ -108,6 +110,7 @@ impl Default for FitOptions {
             step_se: Some(0.1),
             broyden: true,
             profile: Vec::new(),
+            floor: DEFAULT_FLOOR,
         }
     }
 }
@@ -202,6 +205,51 @@ struct RunResult {
     trace: Vec<TracePoint>,
     evals: u64,
     fd_columns: u64,
+}
+
+/// Starts of second polishes on all samples after the first ended at `u` (see step 4 of
+/// [`fit_data`]): the `--init` start `init_u` when it costs less than `u` there, and when
+/// `u` has parameters on their bounds ([`reparam::at_bound`]), the best other candidate
+/// with them inside: another start's LM end (by its subsample cost), else the best
+/// scored start.
+fn second_polish_starts(
+    full: &LogResidualProblem,
+    u: &DVector<f64>,
+    init_u: Option<DVector<f64>>,
+    runs: &[RunResult],
+    order: &[usize],
+    scored: &[(usize, f64, DVector<f64>)],
+) -> Vec<(&'static str, DVector<f64>)> {
+    let mut out = Vec::new();
+    if let Some(init) = init_u {
+        if full.cost(init.as_slice()) < full.cost(u.as_slice()) {
+            out.push(("--init", init));
+        }
+    }
+    let free = full.layout.free();
+    let pinned: Vec<usize> = (0..free.len())
+        .filter(|&j| reparam::at_bound(free[j], u[j]))
+        .collect();
+    if pinned.is_empty() {
+        return out;
+    }
+    let inside = |v: &DVector<f64>| pinned.iter().all(|&j| !reparam::at_bound(free[j], v[j]));
+    let cand = runs
+        .iter()
+        .filter(|r| inside(&r.u))
+        .min_by(|a, b| a.cost.total_cmp(&b.cost))
+        .map(|r| r.u.clone())
+        .or_else(|| {
+            order
+                .iter()
+                .map(|&i| &scored[i].2)
+                .find(|v| inside(v))
+                .cloned()
+        });
+    if let Some(c) = cand {
+        out.push(("a start off the bound", c));
+    }
+    out
 }
 
 /// One LM run from `u0` on `shared`'s data. The run gets its own problem instance (its own
@@ -465,6 +513,42 @@ pub fn fit_data(
     } else {
         (best_run.u, best_run.termination)
     };
+    // 4. Second polishes on all samples. A bounded map's derivative vanishes at its bound,
+    // so LM cannot leave a bound that the subsample's model led it to, even where all
+    // samples favour an interior value (noise-free data, fitted exactly from another
+    // start, ended on a bound); and a --init start must never end worse than it began.
+    let init_u = opts.init.map(|_| scored[0].2.clone());
+    let retries = second_polish_starts(&full, &u, init_u, &runs, &order, &scored);
+    let (mut u, mut termination) = (u, termination);
+    let mut cost = full.cost(u.as_slice());
+    for (why, start) in retries {
+        say(&format!("second polish from {why}"));
+        let run = run_lm(
+            &full,
+            start,
+            opts.max_iters,
+            opts.ftol,
+            opts.step_se,
+            opts.broyden,
+            clock,
+        )?;
+        full.evals.fetch_add(run.evals, Ordering::Relaxed);
+        full.fd_columns.fetch_add(run.fd_columns, Ordering::Relaxed);
+        let offset = iters;
+        iters += run.iters;
+        if run.cost < cost {
+            let n = data.len() as f64;
+            trace.extend(run.trace.iter().map(|t| TraceEntry {
+                stage: "retry",
+                iter: offset + t.iter,
+                time_s: t.time_s,
+                nrmse: (2.0 * t.cost / n).sqrt(),
+            }));
+            cost = run.cost;
+            u = run.u;
+            termination = format!("{} (second polish from {why})", run.termination);
+        }
+    }
     let mut out = finish(
         data,
         opts,
@@ -592,9 +676,23 @@ fn finish(
     })
 }
 
-/// The valid samples of channel `channel` of `profile` as fit data. Errors when there is
-/// none.
-pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result<FitData> {
+/// Default [`FitOptions::floor`]: samples more than eight decades below the channel's
+/// largest value are left out. No goniometer resolves them (detector dynamic ranges reach
+/// ~1e6), while noise-free model profiles run down to 1e-44 and underflow in the Gaussian
+/// tails of narrow lobes; in log space such tails outweigh the lobes and sent the round
+/// trip of a `kappa = 0` profile to a degenerate optimum (absorption ~1e13), which it
+/// leaves with them out (`tests/fit_recovery.rs`).
+pub const DEFAULT_FLOOR: f64 = 1e-8;
+
+/// The valid samples of channel `channel` of `profile` as fit data, without those below
+/// `floor` times the channel's largest valid value (counted in
+/// [`FitData::n_below_floor`]). Errors when there is none.
+pub fn channel_data(
+    profile: &Profile,
+    channel: usize,
+    weighted: bool,
+    floor: f64,
+) -> Result<FitData> {
     let mut pts = Points::default();
     let mut vals = Vec::new();
     let mut rel = Vec::new();
@@ -611,6 +709,10 @@ pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result
             .then(a.theta_r.total_cmp(&b.theta_r))
             .then(a.phi.total_cmp(&b.phi))
     });
+    let peak = samples.iter().map(|s| s.value).fold(0.0f64, f64::max);
+    let n_before = samples.len();
+    samples.retain(|s| s.value >= floor * peak);
+    let n_below_floor = n_before - samples.len();
     for s in samples {
         let (ti, tr, ph) = s.angles_rad();
         pts.push(ti, tr, ph);
@@ -639,11 +741,9 @@ pub fn channel_data(profile: &Profile, channel: usize, weighted: bool) -> Result
             )));
         }
     }
-    Ok(FitData::new(
-        pts,
-        &vals,
-        if weighted { Some(&rel) } else { None },
-    ))
+    let mut data = FitData::new(pts, &vals, if weighted { Some(&rel) } else { None });
+    data.n_below_floor = n_below_floor;
+    Ok(data)
 }
 
 #[cfg(test)]

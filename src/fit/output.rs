@@ -17,6 +17,8 @@ pub struct DataInfo {
     pub files: Vec<(String, String)>,
     pub n_valid: usize,
     pub n_invalid: usize,
+    /// Valid samples left out below the relative floor (`FitOptions::floor`).
+    pub n_below_floor: usize,
     pub synthetic: bool,
     /// Channel name (empty for a single unnamed channel).
     pub channel: String,
@@ -91,6 +93,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "unconstrained": unconstrained,
             "fixed": fixed,
             "method": "linearised: s^2 (J^T J)^-1 in the solver's bounded-map coordinates, mapped to file units by the map's derivative",
+            "at_bound": unc.at_bound.iter().map(|id| id.spec().name).collect::<Vec<_>>(),
             "profile": (!out.profile.is_empty())
                 .then(|| crate::fit::likelihood::to_json(&out.profile, out.profile_time_s)),
         },
@@ -127,6 +130,8 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "files": files,
             "n_valid": data.n_valid,
             "n_invalid": data.n_invalid,
+            "floor": opts.floor,
+            "n_below_floor": data.n_below_floor,
             "n_used": out.n_used,
             "synthetic": data.synthetic,
             "channel": data.channel,

@@ -33,6 +33,8 @@ pub struct FitData {
     pub w: Vec<f64>,
     /// `max ln y - min ln y` (1 if all samples are equal, to stay finite).
     pub range: f64,
+    /// Valid samples left out below the relative floor ([`super::channel_data`]).
+    pub n_below_floor: usize,
 }
 
 impl FitData {
@@ -68,6 +70,7 @@ impl FitData {
             ln_y,
             w,
             range,
+            n_below_floor: 0,
         }
     }
 
@@ -86,6 +89,7 @@ impl FitData {
             ln_y: idx.iter().map(|&i| self.ln_y[i]).collect(),
             w: idx.iter().map(|&i| self.w[i]).collect(),
             range: self.range,
+            n_below_floor: self.n_below_floor,
         }
     }
 }

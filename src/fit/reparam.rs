@@ -144,6 +144,20 @@ pub fn to_u(id: ParamId, v: f64) -> f64 {
 /// has a derivative of ~1e-13 there and the solver could never move it.
 pub const U_START_MAX: f64 = 7.0;
 
+/// `exp` maps: values below this (per radius: an absorption or scattering coefficient
+/// no fiber shows) count as on the bound 0 ([`at_bound`]).
+pub const EXP_AT_BOUND: f64 = 1e-4;
+
+/// Is coordinate `u` of `id` on its bound, where the map's derivative has all but vanished
+/// and the solver cannot move it back? Bounded maps: `|u| > U_START_MAX` (the derivative
+/// below ~1e-3 of the span); `exp` maps: a value below [`EXP_AT_BOUND`].
+pub fn at_bound(id: ParamId, u: f64) -> bool {
+    match map_of(id) {
+        Map::Exp => u < EXP_AT_BOUND.ln(),
+        _ => u.abs() > U_START_MAX,
+    }
+}
+
 /// [`to_u`] for a start point: on bounded maps limited to `|u| <= U_START_MAX`.
 pub fn to_u_start(id: ParamId, v: f64) -> f64 {
     let u = to_u(id, v);

@@ -167,8 +167,8 @@ fn channel_data_is_independent_of_row_order() {
         ..Default::default()
     };
     let (da, db) = (
-        channel_data(&a, 0, false).unwrap(),
-        channel_data(&b, 0, false).unwrap(),
+        channel_data(&a, 0, false, 0.0).unwrap(),
+        channel_data(&b, 0, false, 0.0).unwrap(),
     );
     assert_eq!(da.points, db.points);
     assert_eq!(da.ln_y, db.ln_y);

@@ -32,6 +32,10 @@ pub struct Uncertainty {
     pub correlation: DMatrix<f64>,
     /// Residual variance `s^2 = sum r^2 / (n - p - 1)` (`p` free parameters and the exposure).
     pub s2: f64,
+    /// Free parameters on their bound ([`reparam::at_bound`]): the map's derivative all but
+    /// vanishes there, so the linearisation holds them fixed and every other standard
+    /// error is conditional on their bound value (profile intervals are not).
+    pub at_bound: Vec<ParamId>,
 }
 
 /// A coordinate loading more than this on the null directions of [`pseudo_inverse`] is not
@@ -87,6 +91,7 @@ pub fn estimate(
             free,
             correlation: DMatrix::zeros(0, 0),
             s2,
+            at_bound: Vec::new(),
         };
     }
     let (mut cov, null_load) = pseudo_inverse(&(jac.transpose() * jac));
@@ -94,8 +99,19 @@ pub fn estimate(
     let mut se = [None; N_PARAMS];
     let mut unconstrained = Vec::new();
     let kappa = layout.file_values(u.as_slice())[ParamId::Kappa.index()];
+    let mut at_bound = Vec::new();
     for (j, id) in free.iter().enumerate() {
         let se_u = cov[(j, j)].max(0.0).sqrt();
+        if reparam::at_bound(*id, u[j]) {
+            // Not "no information": the data may well pin it (another start recovers an
+            // interior value), but not through a derivative that has vanished.
+            at_bound.push(*id);
+            unconstrained.push((
+                *id,
+                "on its bound, where the linearised standard error is undefined",
+            ));
+            continue;
+        }
         if null_load[j] > NULL_LOAD {
             unconstrained.push((*id, "no information in the data (singular direction)"));
             continue;
@@ -124,5 +140,6 @@ pub fn estimate(
         free,
         correlation: corr,
         s2,
+        at_bound,
     }
 }
