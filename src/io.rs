@@ -291,9 +291,134 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// The ledger furfit keeps in each directory that `render`, `render-convergence`,
+/// `report`, `stability` and `bench-model` write into: the files it wrote there, each with
+/// the SHA-256 of the bytes written. Those commands replace an existing file only when the
+/// ledger lists it with its current content ([`check_replaceable`]), so a user's own file
+/// of the same name (or a furfit output the user edited since) is never lost silently.
+pub const LEDGER: &str = ".furfit-outputs.json";
+
+fn read_ledger(dir: &Path) -> Result<serde_json::Map<String, serde_json::Value>> {
+    let path = dir.join(LEDGER);
+    match std::fs::read_to_string(&path) {
+        Ok(text) => match serde_json::from_str::<serde_json::Value>(&text) {
+            Ok(serde_json::Value::Object(mut m)) => match m.remove("files") {
+                Some(serde_json::Value::Object(files)) => Ok(files),
+                _ => Err(Error::file(
+                    &path,
+                    "not a furfit ledger (no \"files\" object)",
+                )),
+            },
+            _ => Err(Error::file(
+                &path,
+                "not a furfit ledger (not a JSON object)",
+            )),
+        },
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(serde_json::Map::new()),
+        Err(e) => Err(Error::io(&path, e)),
+    }
+}
+
+/// Refuse, unless `force`, any of `paths` that exists and is not a furfit output recorded
+/// in its directory's [`LEDGER`] with its current content; checked before a long job runs.
+pub fn check_replaceable(paths: &[PathBuf], force: bool) -> Result<()> {
+    if force {
+        return Ok(());
+    }
+    for p in paths {
+        if !p.exists() {
+            continue;
+        }
+        let dir = parent_dir(p);
+        let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+        let ledger = read_ledger(&dir)?;
+        let recorded = name
+            .as_deref()
+            .and_then(|n| ledger.get(n))
+            .and_then(|v| v.as_str());
+        let why = match recorded {
+            None => format!(
+                "exists and was not written by furfit (it is not in {})",
+                dir.join(LEDGER).display()
+            ),
+            Some(h) => {
+                let bytes = std::fs::read(p).map_err(|e| Error::io(p, e))?;
+                if sha256_hex(&bytes) == h {
+                    continue;
+                }
+                "was changed since furfit wrote it".to_string()
+            }
+        };
+        return Err(Error::file(
+            p,
+            format!("{why}; give --force to replace it, or choose another --out"),
+        ));
+    }
+    Ok(())
+}
+
+/// Record `paths` (just written by furfit) with their content in their directories'
+/// [`LEDGER`]s (each written atomically).
+pub fn record_outputs(paths: &[PathBuf]) -> Result<()> {
+    let mut by_dir: std::collections::BTreeMap<PathBuf, Vec<&PathBuf>> = Default::default();
+    for p in paths {
+        by_dir.entry(parent_dir(p)).or_default().push(p);
+    }
+    for (dir, files) in by_dir {
+        // A ledger that is not one (hand-edited) is replaced: it protects nothing then.
+        let mut ledger = read_ledger(&dir).unwrap_or_default();
+        for p in files {
+            let Some(name) = p.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+                continue;
+            };
+            let bytes = std::fs::read(p).map_err(|e| Error::io(p, e))?;
+            ledger.insert(name, serde_json::Value::from(sha256_hex(&bytes)));
+        }
+        let v = serde_json::json!({
+            "note": "files furfit wrote here, with the SHA-256 of their content: furfit replaces an existing file only if it is listed here unchanged (or with --force)",
+            "files": ledger,
+        });
+        let text = serde_json::to_string_pretty(&v).expect("JSON of strings") + "\n";
+        write_atomic(&dir.join(LEDGER), text.as_bytes())?;
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A furfit output may be replaced while unchanged; a user's file of the same name, or
+    /// an output edited since, only with force.
+    #[test]
+    fn ledger_protects_files_furfit_did_not_write() {
+        let dir = tempfile::tempdir().unwrap();
+        let (ours, theirs) = (dir.path().join("a.png"), dir.path().join("b.png"));
+        let both = [ours.clone(), theirs.clone()];
+        // Nothing exists yet: nothing to protect.
+        check_replaceable(&both, false).unwrap();
+        write_atomic(&ours, b"render 1").unwrap();
+        std::fs::write(&theirs, b"my photo").unwrap();
+        record_outputs(std::slice::from_ref(&ours)).unwrap();
+        check_replaceable(std::slice::from_ref(&ours), false).unwrap();
+        let e = check_replaceable(&both, false).unwrap_err().to_string();
+        assert!(
+            e.contains("b.png") && e.contains("not written by furfit"),
+            "{e}"
+        );
+        check_replaceable(&both, true).unwrap();
+        // An edited output is the user's now.
+        std::fs::write(&ours, b"render 1, retouched").unwrap();
+        let e = check_replaceable(std::slice::from_ref(&ours), false)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("changed since furfit wrote it"), "{e}");
+        // Recording again (after furfit rewrote it) makes it replaceable again.
+        write_atomic(&ours, b"render 2").unwrap();
+        record_outputs(std::slice::from_ref(&ours)).unwrap();
+        check_replaceable(std::slice::from_ref(&ours), false).unwrap();
+        assert_eq!(std::fs::read(&theirs).unwrap(), b"my photo");
+    }
 
     /// A key given twice in one object is an error naming the line (serde_json alone keeps
     /// the last value); the same key in two objects is fine.

@@ -873,3 +873,127 @@ fn fit_profile_option() {
         assert!(!tmp.path().join("q.json").exists());
     }
 }
+
+/// `report` replaces its own earlier outputs, but neither a user's file of an output's
+/// name nor an output the user edited since; nothing is written then, and `--force`
+/// replaces them.
+#[test]
+fn report_never_replaces_a_file_furfit_did_not_write() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    fit_lab_mouse(root);
+    let report = |extra: &[&str]| {
+        furfit()
+            .current_dir(root)
+            .arg("report")
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = report(&[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        report(&[]).status.success(),
+        "a rerun replaces its own outputs"
+    );
+    let table = root.join("reports/nrmse.md");
+    std::fs::write(&table, "my table\n").unwrap();
+    let fig = root.join("reports/fig11_mouse.png");
+    let fig_before = std::fs::read(&fig).unwrap();
+    let o = report(&[]);
+    fails_with(o, &["nrmse.md", "changed since furfit wrote it", "--force"]);
+    assert_eq!(std::fs::read_to_string(&table).unwrap(), "my table\n");
+    assert_eq!(std::fs::read(&fig).unwrap(), fig_before);
+    let o = report(&["--force"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_ne!(std::fs::read_to_string(&table).unwrap(), "my table\n");
+}
+
+/// A fit of r, g, b channels gets a column and a Fig. 11 per channel in the report, and
+/// parameters held by `--fix` are marked as such (not shown like fitted values).
+#[test]
+fn report_shows_every_channel_and_marks_fixed_parameters() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let mouse = furfit::FurParams::preset("mouse").unwrap();
+    let mut rows = String::from("theta_i,theta_r,phi,value,channel\n");
+    for (ch, scale) in [("r", 0.5), ("g", 1.0), ("b", 2.0)] {
+        let mut p = mouse;
+        p.sigma_c_a *= scale;
+        std::fs::write(
+            root.join(format!("{ch}.json")),
+            p.to_json_value().to_string(),
+        )
+        .unwrap();
+        let out = root.join(format!("{ch}.csv"));
+        let o = furfit()
+            .args(["synth", "--params"])
+            .arg(root.join(format!("{ch}.json")))
+            .args([
+                "--theta-i",
+                "0,30",
+                "--theta-r",
+                "-60:60:10",
+                "--phi",
+                "-180:180:20",
+            ])
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        for l in std::fs::read_to_string(&out).unwrap().lines() {
+            if !l.starts_with('#') && !l.starts_with("theta_i") {
+                rows.push_str(&format!("{l},{ch}\n"));
+            }
+        }
+    }
+    std::fs::create_dir_all(root.join("fits")).unwrap();
+    std::fs::write(root.join("rgb.csv"), rows).unwrap();
+    let truth = mouse.to_file_units();
+    let mut c = fit_cmd(root);
+    c.arg("rgb.csv").args(["--out", "fits/rgb.json"]);
+    for id in furfit::ParamId::ALL {
+        if id != furfit::ParamId::SigmaCA {
+            c.args([
+                "--fix",
+                &format!("{}={}", id.spec().name, truth[id.index()]),
+            ]);
+        }
+    }
+    let o = c.output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("fixed (--fix): eta, kappa"));
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    // model_vs_simulation has no species folder here: only that part may be missing.
+    let csv = std::fs::read_to_string(root.join("reports/nrmse.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(lines.next(), Some("row,unit,rgb-r,rgb-g,rgb-b"), "{csv}");
+    let sca: Vec<f64> = csv
+        .lines()
+        .find(|l| l.starts_with("sigma_c_a,"))
+        .unwrap()
+        .split(',')
+        .skip(2)
+        .map(|v| v.parse().unwrap())
+        .collect();
+    for (v, scale) in sca.iter().zip([0.5, 1.0, 2.0]) {
+        let want = mouse.to_file_units()[furfit::ParamId::SigmaCA.index()] * scale;
+        // Noise-free data of the fitter's own model: recovered to ~1e-6.
+        assert!((v / want - 1.0).abs() < 1e-4, "{v} vs {want}");
+    }
+    let fixed = csv.lines().find(|l| l.starts_with("fixed,")).unwrap();
+    assert!(fixed.contains("eta;kappa;alpha"), "{fixed}");
+    let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
+    let eta = md.lines().find(|l| l.starts_with("| eta |")).unwrap();
+    assert_eq!(eta.matches("(fixed)").count(), 3, "{eta}");
+    assert!(!md
+        .lines()
+        .any(|l| l.starts_with("| sigma_c_a") && l.contains("fixed")));
+    for ch in ["r", "g", "b"] {
+        assert!(
+            root.join(format!("reports/fig11_rgb-{ch}.png")).exists(),
+            "{o:?}"
+        );
+    }
+}

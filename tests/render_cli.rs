@@ -383,3 +383,59 @@ fn render_warns_about_options_its_mode_ignores() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(!stderr(&o).contains("warning"), "{}", stderr(&o));
 }
+
+/// `render` replaces only its own earlier outputs: a user's file of an output's name (here
+/// an AOV of `--all`, never named on the command line) survives byte for byte, nothing is
+/// rendered, and `--force` replaces it. A second render over the first needs no force.
+#[test]
+fn render_never_replaces_a_file_furfit_did_not_write() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let out = d.join("r.png");
+    let o = render(d, &["--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // Its own output: replaced without --force.
+    let o = render(d, &["--out", out.to_str().unwrap(), "--seed", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // A user's file among the outputs of `render --all` (red-fox's R AOV).
+    let fits = d.join("fits");
+    std::fs::create_dir_all(&fits).unwrap();
+    std::fs::copy(fit_file(), fits.join("red-fox.json")).unwrap();
+    let sheet = d.join("sheet.png");
+    let mine = d.join("red-fox_R.png");
+    std::fs::write(&mine, b"my notes").unwrap();
+    let all = |extra: &[&str]| {
+        let mut args = vec![
+            "render",
+            "--all",
+            "--fits-dir",
+            fits.to_str().unwrap(),
+            "--size",
+            "8x8",
+            "--spp",
+            "1",
+            "--fibers",
+            "20",
+            "--threads",
+            "1",
+            "--out",
+            sheet.to_str().unwrap(),
+        ];
+        args.extend_from_slice(extra);
+        furfit(&args)
+    };
+    let o = all(&[]);
+    refused(&o, "red-fox_R.png");
+    assert!(
+        stderr(&o).contains("not written by furfit"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read(&mine).unwrap(), b"my notes");
+    assert!(!sheet.exists() && !d.join("red-fox.png").exists());
+    let o = all(&["--force"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_ne!(std::fs::read(&mine).unwrap(), b"my notes");
+    // Now furfit's: a rerun without --force is fine.
+    assert!(all(&[]).status.success());
+}

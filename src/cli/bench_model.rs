@@ -10,6 +10,9 @@ pub struct Args {
     /// Only print the grid-synthesis throughput (4 x 61 x 181 samples), no error sweep.
     #[arg(long)]
     pub synth_only: bool,
+    /// Replace existing output files that furfit did not write (or that changed since).
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -19,7 +22,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     // The sweep takes minutes: a bad --out fails first, naming the path.
     crate::io::check_out_dir(&a.out)?;
+    let paths = ["csv", "png", "svg"].map(|e| a.out.join(format!("far_field_error_vs_time.{e}")));
+    crate::io::check_replaceable(&paths, a.force)?;
     std::fs::create_dir_all(&a.out).map_err(|e| crate::Error::io(&a.out, e))?;
     crate::report::far_error::run(&a.out, &mut |line| outln!("{line}"))?;
+    crate::io::record_outputs(&paths)?;
     Ok(())
 }

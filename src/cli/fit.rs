@@ -33,6 +33,7 @@ pub struct Args {
     /// using all --threads, so the total thread count stays --threads).
     #[arg(long)]
     pub all: bool,
+    /// With --all: the folder of species folders to fit.
     #[arg(long, default_value = "measurements")]
     pub measurements: PathBuf,
     #[command(flatten)]
@@ -215,9 +216,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 format!(" [{}]", s.channel)
             };
             outln!(
-                "{}{ch}: NRMSE {:.2}% exposure {:.4e} ({} samples, {} iterations, {} evaluations, {:.2} s; {})",
+                "{}{ch}: NRMSE {} exposure {:.4e} ({} samples, {} LM iterations over all runs, {} evaluations, {:.2} s; {})",
                 job.species,
-                100.0 * o.nrmse,
+                // Small values in scientific notation: "0.00%" hid a failed noise-free fit.
+                if o.nrmse >= 1e-4 {
+                    format!("{:.2}%", 100.0 * o.nrmse)
+                } else {
+                    format!("{:.1e}%", 100.0 * o.nrmse)
+                },
                 o.exposure,
                 o.n_used,
                 o.iterations,
@@ -231,6 +237,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .map(|id| format!("{}={:.4}", id.spec().name, file[id.index()]))
                 .collect();
             outln!("  {}", line.join(" "));
+            let fixed: Vec<&str> = crate::ParamId::ALL
+                .iter()
+                .filter(|id| opts.layout.fixed[id.index()].is_some())
+                .map(|id| id.spec().name)
+                .collect();
+            if !fixed.is_empty() {
+                outln!("  fixed (--fix): {}", fixed.join(", "));
+            }
+            if o.termination.starts_with("Maximum number of iterations") {
+                outln!(
+                    "  warning: the last LM run stopped at --max-iters {} before a convergence test passed: the result may not be the optimum (raise --max-iters)",
+                    opts.max_iters
+                );
+            }
             if o.capped_slices.0 > 0 {
                 outln!(
                     "  note: {} of {} theta_d slices hit the far field's refinement limit at the result; their model values are not guaranteed to the tolerance",

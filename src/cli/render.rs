@@ -37,11 +37,17 @@ pub struct Args {
     /// Lobes to render: R,TT,TRT,TTs,TRTs or all.
     #[arg(long, default_value = "all")]
     pub lobes: String,
+    /// Seed of the path tracer's random numbers (same seed, same image).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Replace existing output files that furfit did not write (or that changed since).
+    #[arg(long)]
+    pub force: bool,
     /// Worker threads (0 = all cores), at most 1024.
     #[arg(long, default_value_t = 0, value_parser = super::threads_parser())]
     pub threads: usize,
+    /// Camera distance from the lock's centre, in world units (the lock is about 1.1
+    /// units long).
     #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub cam_dist: f64,
     /// Camera elevation in degrees.
@@ -68,7 +74,8 @@ pub struct Args {
     /// each colour channel its own fitted absorption; anything else gets `melanin`.
     #[arg(long, allow_hyphen_values = true)]
     pub tint: Option<String>,
-    /// Exposure in stops applied before the tone map, -64..=64.
+    /// Exposure in photographic stops (EV: x 2^EV) applied before the tone map, -64..=64;
+    /// not a fit file's exposure k, which scales measurements, not light.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub exposure: f64,
     /// Number of fibers in the test lock, 1..=100000 (building the scene takes about 45 KB
@@ -352,6 +359,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for (p, _) in &taken {
         crate::io::check_out_file(p)?;
     }
+    let planned: Vec<PathBuf> = taken.iter().map(|(p, _)| p.clone()).collect();
+    crate::io::check_replaceable(&planned, a.force)?;
     let scene = Scene::build(&s.strand);
     outln!(
         "scene: {} fibers, {} segments; {}x{} at {} spp, mode {}",
@@ -406,6 +415,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             })
             .collect::<crate::Result<Vec<_>>>()?;
         crate::io::write_atomic_all(&files)?;
+        let written: Vec<PathBuf> = files.into_iter().map(|(p, _)| p).collect();
+        crate::io::record_outputs(&written)?;
         outln!("wrote {} (+ .exr)", out.display());
         if !a.no_aovs {
             outln!(
@@ -417,6 +428,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     if a.all {
         output::write_contact_sheet(&tiles, a.exposure, &a.out)?;
+        crate::io::record_outputs(std::slice::from_ref(&a.out))?;
         outln!("wrote contact sheet {}", a.out.display());
     }
     Ok(())

@@ -35,8 +35,12 @@ pub struct Args {
     /// Modes to compare, each once: near, far, multiscale.
     #[arg(long, default_value = "near,far,multiscale")]
     pub modes: String,
+    /// Seed of the first repeat's renders (each repeat and reference takes the next).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
+    /// Replace existing output files that furfit did not write (or that changed since).
+    #[arg(long)]
+    pub force: bool,
     /// Independent renders (seeds) per spp: the speedup is reported pooled over them and
     /// per repeat, since one 48x48 patch gives a ratio that swings by tens of percent;
     /// 1..=1000.
@@ -96,6 +100,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for p in &paths {
         crate::io::check_out_file(p)?;
     }
+    crate::io::check_replaceable(&paths, a.force)?;
     let (params, _) = FurParams::load(&a.params)?;
     // What each render's pool gets: --threads 0 is rayon's default, the global pool's size.
     let threads = match a.threads {
@@ -159,6 +164,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
         let p = &paths[0];
         crate::io::write_atomic(p, md.as_bytes())?;
+        crate::io::record_outputs(std::slice::from_ref(p))?;
         outln!("wrote {}", p.display());
         return Ok(());
     }
@@ -196,6 +202,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (md.clone(), c.to_markdown(&command, 4, threads).into_bytes()),
     ];
     crate::io::write_atomic_all(&files)?;
+    crate::io::record_outputs(&paths)?;
     outln!("wrote {} (+ .png, .svg, .md)", csv.display());
     for fast in [Mode::Multiscale, Mode::Far] {
         if let Some(s) = c.speedup(Mode::Near, fast, 4) {

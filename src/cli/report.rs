@@ -13,11 +13,14 @@ pub struct Args {
     /// Output folder.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
+    /// Replace existing output files that furfit did not write (or that changed since).
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     crate::io::check_out_dir(&a.out)?;
-    let sum = crate::report::nrmse::write_fit_reports(&a.fits, &a.measurements, &a.out)?;
+    let sum = crate::report::nrmse::write_fit_reports(&a.fits, &a.measurements, &a.out, a.force)?;
     for p in &sum.written {
         outln!("wrote {}", p.display());
     }

@@ -7,12 +7,19 @@ pub struct Args {
     /// Output directory for stability.md and stability.csv.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
+    /// Replace existing output files that furfit did not write (or that changed since).
+    #[arg(long)]
+    pub force: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    // The sweep takes a minute and more: a bad --out fails first.
+    // The sweep takes a minute and more (about 100 s on two cores): a bad --out fails
+    // first.
     crate::io::check_out_dir(&a.out)?;
+    let paths = ["stability.md", "stability.csv"].map(|n| a.out.join(n));
+    crate::io::check_replaceable(&paths, a.force)?;
     let summary = crate::report::stability::run(&a.out, &mut |line| outln!("{line}"))?;
+    crate::io::record_outputs(&paths)?;
     if summary.n_nonfinite > 0 {
         anyhow::bail!(
             "{} NaN/Inf values in {} evaluations",

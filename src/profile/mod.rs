@@ -302,6 +302,9 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Profile> {
 pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let format = Format::from_path(path)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    if matches!(format, Format::Csv | Format::Yan) {
+        check_not_utf16(&bytes, path)?;
+    }
     let (mut profile, notes) = match format {
         Format::Csv => csv::parse(&bytes, path)?,
         Format::Npz => npz::parse_npz(&bytes, path)?,
@@ -323,6 +326,24 @@ pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
             sha256: crate::io::sha256_hex(&bytes),
         }],
         notes,
+    })
+}
+
+/// Text profiles are UTF-8 (or ASCII). Excel's "Unicode Text" export is UTF-16, which
+/// would otherwise read as garbled header names; its byte-order mark names it.
+fn check_not_utf16(bytes: &[u8], path: &Path) -> Result<()> {
+    let bom = match bytes {
+        [0xFF, 0xFE, ..] => "FF FE",
+        [0xFE, 0xFF, ..] => "FE FF",
+        _ => return Ok(()),
+    };
+    Err(Error::Parse {
+        file: path.to_path_buf(),
+        line: 1,
+        column: "column 1".into(),
+        msg: format!(
+            "the file is UTF-16 (byte-order mark {bom}); save it as UTF-8 (e.g. Excel's \"CSV UTF-8\")"
+        ),
     })
 }
 
@@ -846,6 +867,28 @@ mod tests {
             "{:?}",
             l.notes
         );
+    }
+
+    #[test]
+    fn utf16_text_is_named() {
+        let d = tempfile::tempdir().unwrap();
+        for (name, bom) in [("a.csv", [0xFFu8, 0xFE]), ("b.txt", [0xFE, 0xFF])] {
+            let p = d.path().join(name);
+            let mut bytes = bom.to_vec();
+            for ch in "theta_i,theta_r,phi,value\n".encode_utf16() {
+                bytes.extend(if bom[0] == 0xFF {
+                    ch.to_le_bytes()
+                } else {
+                    ch.to_be_bytes()
+                });
+            }
+            std::fs::write(&p, bytes).unwrap();
+            let e = load(&p, &LoadOptions::default()).unwrap_err().to_string();
+            assert!(
+                e.contains(&format!("{name}:1:")) && e.contains("UTF-16"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

@@ -375,6 +375,12 @@ fn draw<DB: DrawingBackend>(
 }
 
 /// Write `fig11_<label>.png` and `.svg` into `out` for this fit and profile ([`FitFile::label`]).
+/// The files [`write`] writes for `fit` into `out`.
+pub fn outputs(fit: &FitFile, out: &Path) -> [std::path::PathBuf; 2] {
+    let name = fit.label();
+    ["png", "svg"].map(|e| out.join(format!("fig11_{name}.{e}")))
+}
+
 pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::path::PathBuf>> {
     ensure_font();
     let channel = profile
@@ -394,8 +400,7 @@ pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::pa
     let size = (1600u32, h);
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let name = fit.label();
-    let png = out.join(format!("fig11_{name}.png"));
-    let svg = out.join(format!("fig11_{name}.svg"));
+    let [png, svg] = outputs(fit, out);
     // Render to temporaries, then move into place atomically.
     let tmp_png = out.join(format!(".fig11_{name}.tmp.png"));
     {

@@ -37,6 +37,12 @@ fn legacy_load(v: &Value, files: &[PathBuf]) -> crate::profile::LoadOptions {
 #[derive(Clone, Debug)]
 pub struct FitFile {
     pub path: PathBuf,
+    /// See [`FitFile::label`].
+    label: String,
+    /// The file's top-level (primary) channel; false for its other channels.
+    pub primary: bool,
+    /// Parameters held fixed by `--fix` (`uncertainty.fixed`).
+    pub fixed: Vec<String>,
     pub species: String,
     pub params: FurParams,
     pub exposure: f64,
@@ -82,17 +88,52 @@ fn recorded_far(solver: &Value) -> FarOptions {
 }
 
 impl FitFile {
-    /// Read one fit file.
-    pub fn read(path: &Path) -> Result<FitFile> {
+    /// Read one fit file: one entry, or one per channel for a fit of several channels
+    /// (each labelled `<stem>-<channel>`; the file's primary channel first).
+    pub fn read(path: &Path) -> Result<Vec<FitFile>> {
         let v: Value = crate::io::read_json(path)?;
-        let (params, exposure) = FurParams::from_json_value(&v).map_err(|e| match e {
+        let stem = path
+            .file_stem()
+            .map(|s| s.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut top = Self::from_value(path, &v, &v)?;
+        top.label = stem.clone();
+        let Some(channels) = v["channels"].as_array().filter(|c| c.len() > 1) else {
+            return Ok(vec![top]);
+        };
+        let mut out = Vec::with_capacity(channels.len());
+        for c in channels {
+            let mut f = Self::from_value(path, &v, c)?;
+            f.primary = f.channel == top.channel;
+            // The channel name comes from the data: only file-name-safe characters.
+            let safe: String = f
+                .channel
+                .chars()
+                .map(|ch| {
+                    if ch.is_ascii_alphanumeric() || ch == '_' {
+                        ch
+                    } else {
+                        '_'
+                    }
+                })
+                .collect();
+            f.label = format!("{stem}-{safe}");
+            out.push(f);
+        }
+        out.sort_by_key(|f| !f.primary);
+        Ok(out)
+    }
+
+    /// One channel's fit object `v` of the file `top` (the file itself for one channel).
+    fn from_value(path: &Path, top: &Value, v: &Value) -> Result<FitFile> {
+        let (params, exposure) = FurParams::from_json_value(v).map_err(|e| match e {
             Error::Param { key, msg } => Error::Param {
                 key,
                 msg: format!("{msg} (in {})", path.display()),
             },
             o => o,
         })?;
-        let species = v["species"]
+        let species = top["species"]
             .as_str()
             .map(str::to_string)
             .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
@@ -124,7 +165,7 @@ impl FitFile {
                 _ => f,
             })
             .collect();
-        let load = legacy_load(&v, &files);
+        let load = legacy_load(v, &files);
         let sha256 = recorded("sha256");
         let trace = v["trace"]
             .as_array()
@@ -153,8 +194,19 @@ impl FitFile {
         for id in ParamId::ALL {
             se[id.index()] = v["uncertainty"]["standard_error"][id.spec().name].as_f64();
         }
+        let fixed = v["uncertainty"]["fixed"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|k| k.as_str().map(str::to_string))
+                    .collect()
+            })
+            .unwrap_or_default();
         Ok(FitFile {
             path: path.to_path_buf(),
+            label: String::new(),
+            primary: true,
+            fixed,
             species,
             params,
             exposure,
@@ -174,12 +226,10 @@ impl FitFile {
 
     /// The name the reports give this fit: its file's stem (the species for
     /// `fits/<species>.json`), so two fits of one species (`red-fox.json`,
-    /// `red-fox-v2.json`) get their own columns and figures.
+    /// `red-fox-v2.json`) get their own columns and figures; `<stem>-<channel>` for each
+    /// channel of a fit of several.
     pub fn label(&self) -> String {
-        self.path
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or_else(|| self.species.clone())
+        self.label.clone()
     }
 
     /// This fit's data, reloaded with its loader options: the files the fit recorded when
@@ -249,7 +299,11 @@ pub fn read_fits(dir: &Path) -> Result<Vec<FitFile>> {
             "no fit files (*.json); run `furfit fit` first",
         ));
     }
-    paths.iter().map(|p| FitFile::read(p)).collect()
+    let mut out = Vec::new();
+    for p in &paths {
+        out.extend(FitFile::read(p)?);
+    }
+    Ok(out)
 }
 
 /// What data the fits ran on, for the table heading.
@@ -280,7 +334,10 @@ fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
             .iter()
             .map(|f| {
                 let v = f.params.to_file_units()[id.index()];
-                let mark = if f.unconstrained.iter().any(|u| u == id.spec().name) {
+                let name = id.spec().name;
+                let mark = if f.fixed.iter().any(|u| u == name) {
+                    " (fixed)"
+                } else if f.unconstrained.iter().any(|u| u == name) {
                     "*"
                 } else {
                     ""
@@ -342,7 +399,8 @@ pub fn markdown(fits: &[FitFile]) -> String {
          after the optimal exposure (MODEL.md). The paper's rows are the values it reports for \
          ITS measured data; they are context, not a target this data can be compared with \
          sample for sample. `*` marks a parameter the data does not constrain (see the fit \
-         file's `uncertainty.unconstrained`).\n"
+         file's `uncertainty.unconstrained`), `(fixed)` one held at its value by `--fix`. A fit \
+         of several channels has a column per channel (`<fit>-<channel>`).\n"
     );
     let _ = write!(s, "| parameter | unit |");
     for f in fits {
@@ -378,7 +436,11 @@ pub fn csv(fits: &[FitFile]) -> String {
         }
         s.push('\n');
     }
-    let _ = write!(s, "exposure,-");
+    let _ = write!(s, "fixed,-");
+    for f in fits {
+        let _ = write!(s, ",{}", f.fixed.join(";"));
+    }
+    let _ = write!(s, "\nexposure,-");
     for f in fits {
         let _ = write!(s, ",{}", f.exposure);
     }
@@ -435,19 +497,49 @@ pub fn write_fit_reports(
     fits_dir: &Path,
     measurements: &Path,
     out: &Path,
+    force: bool,
 ) -> Result<ReportSummary> {
-    use super::{fig11, fit_time, model_vs_sim};
+    use super::fig11;
     let fits = read_fits(fits_dir)?;
+    // Every file this run may write, checked before any is ([`crate::io::LEDGER`]).
+    let mut planned: Vec<PathBuf> = ["nrmse.md", "nrmse.csv", "model_vs_simulation.md"]
+        .iter()
+        .chain(&[
+            "fit_error_vs_time.csv",
+            "fit_error_vs_time.png",
+            "fit_error_vs_time.svg",
+        ])
+        .map(|n| out.join(n))
+        .collect();
+    planned.extend(fits.iter().flat_map(|f| fig11::outputs(f, out)));
+    crate::io::check_replaceable(&planned, force)?;
+    let sum = write_planned(&fits, measurements, out);
+    // Recorded even when a part failed: what was written is furfit's.
+    let written: Vec<PathBuf> = match &sum {
+        Ok(s) => s.written.clone(),
+        Err(_) => planned.iter().filter(|p| p.exists()).cloned().collect(),
+    };
+    crate::io::record_outputs(
+        &written
+            .into_iter()
+            .filter(|p| planned.contains(p))
+            .collect::<Vec<_>>(),
+    )?;
+    sum
+}
+
+fn write_planned(fits: &[FitFile], measurements: &Path, out: &Path) -> Result<ReportSummary> {
+    use super::{fig11, fit_time, model_vs_sim};
     let mut sum = ReportSummary::default();
-    write(&fits, out)?;
+    write(fits, out)?;
     sum.written.push(out.join("nrmse.md"));
     sum.written.push(out.join("nrmse.csv"));
-    fit_time::write(&fits, out)?;
+    fit_time::write(fits, out)?;
     for ext in ["csv", "png", "svg"] {
         sum.written
             .push(out.join(format!("fit_error_vs_time.{ext}")));
     }
-    for f in &fits {
+    for f in fits {
         match f
             .load_data(measurements)
             .and_then(|p| fig11::write(f, &p, out))
@@ -479,7 +571,7 @@ pub fn write_fit_reports(
             // that is not comparable: listed without it.
             let fit = fits
                 .iter()
-                .find(|f| f.species == species && f.fitted_from(&d))
+                .find(|f| f.primary && f.species == species && f.fitted_from(&d))
                 .cloned();
             let load = fit.as_ref().map(|f| f.load.clone()).unwrap_or_default();
             let prof = match crate::fit::job::load_inputs(std::slice::from_ref(&d), &load) {
