@@ -208,6 +208,18 @@ fn fit_cmd(root: &Path) -> Command {
     c
 }
 
+/// `--fix NAME=VALUE` for every parameter except those in `free`, at `values` (file units).
+fn fix_all_but(c: &mut Command, values: &[f64; 10], free: &[furfit::ParamId]) {
+    for id in furfit::ParamId::ALL {
+        if !free.contains(&id) {
+            c.args([
+                "--fix",
+                &format!("{}={}", id.spec().name, values[id.index()]),
+            ]);
+        }
+    }
+}
+
 fn fails_with(o: std::process::Output, needles: &[&str]) {
     assert!(!o.status.success(), "expected a failure");
     let err = String::from_utf8_lossy(&o.stderr);
@@ -227,12 +239,7 @@ fn fit_with_every_parameter_fixed() {
     let mut c = fit_cmd(tmp.path());
     c.arg("measurements/mouse")
         .args(["--out", "all_fixed.json"]);
-    for id in furfit::ParamId::ALL {
-        c.args([
-            "--fix",
-            &format!("{}={}", id.spec().name, mouse[id.index()]),
-        ]);
-    }
+    fix_all_but(&mut c, &mouse, &[]);
     let o = c.output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let v: serde_json::Value =
@@ -264,12 +271,7 @@ fn fit_reports_capped_far_field_slices() {
     mouse[furfit::ParamId::BetaN.index()] = 1e-11;
     let mut c = fit_cmd(tmp.path());
     c.arg("measurements/mouse").args(["--out", "capped.json"]);
-    for id in furfit::ParamId::ALL {
-        c.args([
-            "--fix",
-            &format!("{}={}", id.spec().name, mouse[id.index()]),
-        ]);
-    }
+    fix_all_but(&mut c, &mouse, &[]);
     let o = c.output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let out = String::from_utf8_lossy(&o.stdout);
@@ -828,14 +830,7 @@ fn fit_profile_option() {
     let data = Path::new(env!("CARGO_MANIFEST_DIR")).join("measurements/mouse");
     let mouse = furfit::FurParams::preset("mouse").unwrap().to_file_units();
     let fixed = |c: &mut Command| {
-        for id in furfit::ParamId::ALL {
-            if !matches!(id, furfit::ParamId::Eta | furfit::ParamId::BetaM) {
-                c.args([
-                    "--fix",
-                    &format!("{}={}", id.spec().name, mouse[id.index()]),
-                ]);
-            }
-        }
+        fix_all_but(c, &mouse, &[furfit::ParamId::Eta, furfit::ParamId::BetaM]);
     };
     let mut c = fit_cmd(tmp.path());
     c.arg(&data)
@@ -953,14 +948,7 @@ fn report_shows_every_channel_and_marks_fixed_parameters() {
     let truth = mouse.to_file_units();
     let mut c = fit_cmd(root);
     c.arg("rgb.csv").args(["--out", "fits/rgb.json"]);
-    for id in furfit::ParamId::ALL {
-        if id != furfit::ParamId::SigmaCA {
-            c.args([
-                "--fix",
-                &format!("{}={}", id.spec().name, truth[id.index()]),
-            ]);
-        }
-    }
+    fix_all_but(&mut c, &truth, &[furfit::ParamId::SigmaCA]);
     let o = c.output().unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     assert!(String::from_utf8_lossy(&o.stdout).contains("fixed (--fix): eta, kappa"));

@@ -65,6 +65,28 @@ fn render(dir: &Path, extra: &[&str]) -> Output {
     with_defaults(&["render"], &defaults, extra)
 }
 
+/// `render --all` of the fits in `fits` at the smallest settings, the sheet at `sheet`.
+fn render_all(fits: &Path, sheet: &Path, extra: &[&str]) -> Output {
+    let mut args = vec![
+        "render",
+        "--all",
+        "--fits-dir",
+        fits.to_str().unwrap(),
+        "--size",
+        "8x8",
+        "--spp",
+        "1",
+        "--fibers",
+        "20",
+        "--threads",
+        "1",
+        "--out",
+        sheet.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    furfit(&args)
+}
+
 fn fit_file() -> std::path::PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("fits/red-fox.json")
 }
@@ -195,24 +217,7 @@ fn render_checks_output_paths_before_rendering() {
     }
     let out = dir.path().join("out");
     std::fs::create_dir_all(out.join("contact.png")).unwrap();
-    let all = |sheet: &str| {
-        furfit(&[
-            "render",
-            "--all",
-            "--fits-dir",
-            fits.to_str().unwrap(),
-            "--size",
-            "8x8",
-            "--spp",
-            "1",
-            "--fibers",
-            "20",
-            "--threads",
-            "1",
-            "--out",
-            out.join(sheet).to_str().unwrap(),
-        ])
-    };
+    let all = |sheet: &str| render_all(&fits, &out.join(sheet), &[]);
     let o = all("contact.png");
     assert!(!o.status.success());
     assert!(stderr(&o).contains("contact.png"), "{}", stderr(&o));
@@ -404,26 +409,7 @@ fn render_never_replaces_a_file_furfit_did_not_write() {
     let sheet = d.join("sheet.png");
     let mine = d.join("red-fox_R.png");
     std::fs::write(&mine, b"my notes").unwrap();
-    let all = |extra: &[&str]| {
-        let mut args = vec![
-            "render",
-            "--all",
-            "--fits-dir",
-            fits.to_str().unwrap(),
-            "--size",
-            "8x8",
-            "--spp",
-            "1",
-            "--fibers",
-            "20",
-            "--threads",
-            "1",
-            "--out",
-            sheet.to_str().unwrap(),
-        ];
-        args.extend_from_slice(extra);
-        furfit(&args)
-    };
+    let all = |extra: &[&str]| render_all(&fits, &sheet, extra);
     let o = all(&[]);
     refused(&o, "red-fox_R.png");
     assert!(

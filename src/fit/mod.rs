@@ -486,28 +486,38 @@ pub fn fit_data(
         nrmse: (2.0 * t.cost / n_sub).sqrt(),
     }));
     let mut iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
-    let (u, termination) = if use_sub {
-        say(&format!("polishing on all {} samples", data.len()));
-        let polish = run_lm(
+    // An LM run on all samples (its evaluations counted in `full`), and its trace entries
+    // as the `stage` after `offset` iterations.
+    let polish_from = |start: DVector<f64>| -> Result<RunResult> {
+        let run = run_lm(
             &full,
-            best_run.u,
+            start,
             opts.max_iters,
             opts.ftol,
             opts.step_se,
             opts.broyden,
             clock,
         )?;
-        full.evals.fetch_add(polish.evals, Ordering::Relaxed);
-        full.fd_columns
-            .fetch_add(polish.fd_columns, Ordering::Relaxed);
-        let offset = best_run.iters;
-        let n = data.len() as f64;
-        trace.extend(polish.trace.iter().map(|t| TraceEntry {
-            stage: "full",
-            iter: offset + t.iter,
-            time_s: t.time_s,
-            nrmse: (2.0 * t.cost / n).sqrt(),
-        }));
+        full.evals.fetch_add(run.evals, Ordering::Relaxed);
+        full.fd_columns.fetch_add(run.fd_columns, Ordering::Relaxed);
+        Ok(run)
+    };
+    let n_full = data.len() as f64;
+    let entries = |stage: &'static str, offset: u64, run: &RunResult| -> Vec<TraceEntry> {
+        run.trace
+            .iter()
+            .map(|t| TraceEntry {
+                stage,
+                iter: offset + t.iter,
+                time_s: t.time_s,
+                nrmse: (2.0 * t.cost / n_full).sqrt(),
+            })
+            .collect()
+    };
+    let (u, termination) = if use_sub {
+        say(&format!("polishing on all {} samples", data.len()));
+        let polish = polish_from(best_run.u)?;
+        trace.extend(entries("full", best_run.iters, &polish));
         iters += polish.iters;
         (polish.u, polish.termination)
     } else {
@@ -523,27 +533,11 @@ pub fn fit_data(
     let mut cost = full.cost(u.as_slice());
     for (why, start) in retries {
         say(&format!("second polish from {why}"));
-        let run = run_lm(
-            &full,
-            start,
-            opts.max_iters,
-            opts.ftol,
-            opts.step_se,
-            opts.broyden,
-            clock,
-        )?;
-        full.evals.fetch_add(run.evals, Ordering::Relaxed);
-        full.fd_columns.fetch_add(run.fd_columns, Ordering::Relaxed);
+        let run = polish_from(start)?;
         let offset = iters;
         iters += run.iters;
         if run.cost < cost {
-            let n = data.len() as f64;
-            trace.extend(run.trace.iter().map(|t| TraceEntry {
-                stage: "retry",
-                iter: offset + t.iter,
-                time_s: t.time_s,
-                nrmse: (2.0 * t.cost / n).sqrt(),
-            }));
+            trace.extend(entries("retry", offset, &run));
             cost = run.cost;
             u = run.u;
             termination = format!("{} (second polish from {why})", run.termination);
