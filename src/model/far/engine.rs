@@ -90,9 +90,10 @@ const GL_NODES: usize = 16;
 /// absorption profile across a piece that passes the fit check.
 const LAM_DEV_MAX: f64 = 1.0;
 /// In tolerance mode a GL piece spanning at most [`GL_FEW_SPAN_SIGMAS`] `beta_p` in `Phi`
-/// keeps [`GL_NODES_FEW`] nodes instead of [`GL_NODES`] when the two rules' sums of the
-/// lobe's Gaussian agree to [`GL_FEW_REL`] `* tol` of the piece's peak at the
-/// [`GL_FEW_PROBES`] (in `beta_p` from the piece's middle): every `phi` then pays for 8
+/// keeps [`GL_NODES_LEAST`] or [`GL_NODES_FEW`] nodes instead of [`GL_NODES`] when the
+/// smaller rule's sum of the lobe's Gaussian agrees with the next larger one's to
+/// [`GL_FEW_REL`] `* tol` of the piece's peak at the [`GL_FEW_PROBES`] (in `beta_p` from
+/// the piece's middle; [`FarSlice::gl_piece_with`]): every `phi` then pays for 4 or 8
 /// Gaussians instead of 16 per piece. For the Gaussian alone this holds by far (at
 /// `4.3 beta`, where the lobe is 1e-4 of its peak, its exponent changes by ~4.8 across a
 /// span of `beta`: an `exp(2.4 x)` on the rule's `[-1, 1]`, integrated by 8 nodes to
@@ -100,6 +101,8 @@ const LAM_DEV_MAX: f64 = 1.0;
 /// the piece (TT at `eta -> 1` and grazing `theta_d`, inside the Fresnel layer, lost a
 /// factor 4 in the stability sweep without them).
 const GL_NODES_FEW: usize = 8;
+/// The smallest rule of the cascade in [`FarSlice::gl_piece_with`].
+const GL_NODES_LEAST: usize = 4;
 const GL_FEW_SPAN_SIGMAS: f64 = 1.0;
 const GL_FEW_REL: f64 = 1e-3;
 /// Probe offsets in `beta_p`: out to 4 (at 4.3 the lobe is 1e-4 of its peak); the
@@ -270,6 +273,8 @@ pub struct FarSlice<'a> {
 pub struct SliceStats {
     pub unscattered_segments: usize,
     pub gl_segments: usize,
+    /// Gauss-Legendre nodes over those segments (each a Gaussian every `phi` pays for).
+    pub gl_nodes: usize,
     pub scattered_segments: usize,
     /// Lobes whose refinement stopped at [`MAX_SPLITS`] or the maximum depth while its
     /// error check still asked for more (their accuracy is not guaranteed by `tol`).
@@ -1062,10 +1067,19 @@ impl<'a> FarSlice<'a> {
         self.gl_piece_with(p, n0, n1, lo, hi, few_ok, false, tape).0
     }
 
-    /// [`Self::gl_piece`] and, in tolerance mode with `estimate`, the largest difference of
-    /// the lobe's Gaussian between the 16- and 8-point rules at the probes (infinite
-    /// otherwise). Without `estimate` the 8-point rule is only built where it may replace
-    /// the 16-point one.
+    /// [`Self::gl_piece`] and, in tolerance mode with `estimate`, an estimate of its error:
+    /// the largest difference of the lobe's Gaussian at the probes between the rule kept
+    /// and the next larger one (infinite otherwise).
+    ///
+    /// In tolerance mode with `few_ok`, a piece spanning at most [`GL_FEW_SPAN_SIGMAS`]
+    /// `beta_p` tries the rules bottom up, as embedded rules are used: the
+    /// [`GL_NODES_LEAST`]-point rule stands when it agrees with the [`GL_NODES_FEW`]-point
+    /// one at every probe, else that one when it agrees with the [`GL_NODES`]-point rule,
+    /// else the latter. Two rules agreeing at all seven probes by accident, while both are
+    /// off, would take a prefactor that the smaller rule's nodes happen to sample right
+    /// and the larger one's wrong by the same amount at every probe. The 16-point nodes
+    /// are evaluated only when a smaller rule fails (node evaluations are most of a
+    /// slice's build).
     #[allow(clippy::too_many_arguments)]
     fn gl_piece_with(
         &self,
@@ -1078,61 +1092,72 @@ impl<'a> FarSlice<'a> {
         estimate: bool,
         tape: &mut Tape,
     ) -> (Piece, f64) {
-        let full = self.gl_nodes(p, n0.u, n1.u, GL_NODES);
         let beta = self.betas[p];
         let range = |nodes: &[(f64, f64)]| {
             nodes
                 .iter()
                 .fold((lo, hi), |(a, b), &(ph, _)| (a.min(ph), b.max(ph)))
         };
-        let (flo, fhi) = range(&full);
+        let piece = |nodes: Vec<(f64, f64)>| {
+            let (plo, phi_hi) = range(&nodes);
+            Piece::Gl {
+                lo: plo,
+                hi: phi_hi,
+                nodes,
+            }
+        };
+        let Some(tol) = self.tol.filter(|_| estimate || few_ok) else {
+            return (piece(self.gl_nodes(p, n0.u, n1.u, GL_NODES)), f64::INFINITY);
+        };
+        let few = self.gl_nodes(p, n0.u, n1.u, GL_NODES_FEW);
+        let (flo, fhi) = range(&few);
         let few_fits = few_ok && tape.choose_bool(fhi - flo <= GL_FEW_SPAN_SIGMAS * beta);
-        let mut err = f64::INFINITY;
-        let nodes = match self.tol {
-            Some(tol) if estimate || few_fits => {
-                let few = self.gl_nodes(p, n0.u, n1.u, GL_NODES_FEW);
-                // The two rules' Gaussian sums at the probes, `mid + k beta`:
-                // exp(-(y - k)^2 / 2) = exp(-y^2 / 2) exp(y)^k exp(-k^2 / 2) with
-                // y = (ph - mid) / beta (|y| <= 1 here), two exponentials per node.
-                let mid = 0.5 * (flo + fhi);
-                let sums = |nodes: &[(f64, f64)]| -> [f64; GL_FEW_PROBES.len()] {
-                    let mut out = [0.0; GL_FEW_PROBES.len()];
-                    for &(ph, w) in nodes {
-                        let y = (ph - mid) / beta;
-                        let base = w * (-0.5 * y * y).exp();
-                        let e1 = y.exp();
-                        let (e2, i1) = (e1 * e1, 1.0 / e1);
-                        let (e4, i2) = (e2 * e2, i1 * i1);
-                        let pow = [i2 * i2, i2, i1, 1.0, e1, e2, e4];
-                        for (o, ek) in out.iter_mut().zip(pow) {
-                            *o += base * ek;
-                        }
-                    }
-                    out
-                };
-                let (a, b) = (sums(&full), sums(&few));
-                let (mut diff, mut peak) = (0.0f64, 0.0f64);
-                for ((x, y), k) in a.iter().zip(&b).zip(GL_FEW_PROBES) {
-                    let c = (-0.5 * k * k).exp();
-                    diff = diff.max(c * (x - y).abs());
-                    peak = peak.max(c * x.abs());
-                }
-                err = diff / (beta * TAU.sqrt());
-                if few_fits && tape.choose_bool(diff <= GL_FEW_REL * tol * peak) {
-                    few
-                } else {
-                    full
+        // Two rules' Gaussian sums at the probes `mid + k beta`:
+        // exp(-(y - k)^2 / 2) = exp(-y^2 / 2) exp(y)^k exp(-k^2 / 2) with
+        // y = (ph - mid) / beta (|y| about 1 at most here), two exponentials per node; the
+        // largest difference and the larger rule's peak over the probes.
+        let mid = 0.5 * (flo + fhi);
+        let sums = |nodes: &[(f64, f64)]| -> [f64; GL_FEW_PROBES.len()] {
+            let mut out = [0.0; GL_FEW_PROBES.len()];
+            for &(ph, w) in nodes {
+                let y = (ph - mid) / beta;
+                let base = w * (-0.5 * y * y).exp();
+                let e1 = y.exp();
+                let (e2, i1) = (e1 * e1, 1.0 / e1);
+                let (e4, i2) = (e2 * e2, i1 * i1);
+                let pow = [i2 * i2, i2, i1, 1.0, e1, e2, e4];
+                for (o, ek) in out.iter_mut().zip(pow) {
+                    *o += base * ek;
                 }
             }
-            _ => full,
+            out
         };
-        let (plo, phi_hi) = range(&nodes);
-        let piece = Piece::Gl {
-            lo: plo,
-            hi: phi_hi,
-            nodes,
+        let compare = |small: &[f64; GL_FEW_PROBES.len()], large: &[f64; GL_FEW_PROBES.len()]| {
+            let (mut diff, mut peak) = (0.0f64, 0.0f64);
+            for ((x, y), k) in large.iter().zip(small).zip(GL_FEW_PROBES) {
+                let c = (-0.5 * k * k).exp();
+                diff = diff.max(c * (x - y).abs());
+                peak = peak.max(c * x.abs());
+            }
+            (diff, peak)
         };
-        (piece, err)
+        let norm = 1.0 / (beta * TAU.sqrt());
+        let few_sums = sums(&few);
+        if few_fits {
+            let least = self.gl_nodes(p, n0.u, n1.u, GL_NODES_LEAST);
+            let (diff, peak) = compare(&sums(&least), &few_sums);
+            if tape.choose_bool(diff <= GL_FEW_REL * tol * peak) {
+                return (piece(least), diff * norm);
+            }
+        }
+        let full = self.gl_nodes(p, n0.u, n1.u, GL_NODES);
+        let (diff, peak) = compare(&few_sums, &sums(&full));
+        let nodes = if few_fits && tape.choose_bool(diff <= GL_FEW_REL * tol * peak) {
+            few
+        } else {
+            full
+        };
+        (piece(nodes), diff * norm)
     }
 
     /// `count`-point Gauss-Legendre nodes `(Phi_p, weight * A cos u)` of lobe `p` on
@@ -1377,7 +1402,10 @@ impl<'a> FarSlice<'a> {
                 for pc in v {
                     match pc {
                         Piece::Phi { .. } => s.unscattered_segments += 1,
-                        Piece::Gl { .. } => s.gl_segments += 1,
+                        Piece::Gl { nodes, .. } => {
+                            s.gl_segments += 1;
+                            s.gl_nodes += nodes.len();
+                        }
                     }
                 }
             }
