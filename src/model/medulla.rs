@@ -536,6 +536,8 @@ struct SliceNodes {
     /// Largest `C^N` node value, and per `x` node `i` the largest `|R_{i+1} - R_i|`.
     cn_peak: f64,
     cn_gap: Vec<f64>,
+    /// Per `x` node: the largest slope `|dR_i / dpsi|` of its row (periodic).
+    cn_slope: Vec<f64>,
     cm: [Vec<f64>; 2],
     n_tr: usize,
 }
@@ -578,6 +580,12 @@ impl SliceNodes {
                     .fold(0.0f64, |a, (x, y)| a.max((y - x).abs()))
             })
             .collect();
+        let cn_slope = rows
+            .iter()
+            .map(|r| {
+                (0..r.len()).fold(0.0f64, |a, k| a.max((r[(k + 1) % r.len()] - r[k]).abs())) / d
+            })
+            .collect();
         let (cm0, n_tr) = grid(&s.cm[0], &s.wm[0]);
         let (cm1, _) = grid(&s.cm[1], &s.wm[1]);
         SliceNodes {
@@ -586,6 +594,7 @@ impl SliceNodes {
             cn_mass,
             cn_peak,
             cn_gap,
+            cn_slope,
             cm: [cm0, cm1],
             n_tr,
         }
@@ -695,6 +704,7 @@ impl MedullaSlice {
             x: &self.cn.axes[2],
             peak: nodes.cn_peak,
             gap: &nodes.cn_gap,
+            slope: &nodes.cn_slope,
         }
     }
 
@@ -809,6 +819,7 @@ pub struct CnRows<'a> {
     /// Largest node value: a bound on every row.
     pub peak: f64,
     gap: &'a [f64],
+    slope: &'a [f64],
 }
 
 impl CnRows<'_> {
@@ -840,6 +851,11 @@ impl CnRows<'_> {
     /// Largest `|R_{i+1} - R_i|` over `psi`.
     pub fn gap(&self, i: usize) -> f64 {
         self.gap[i]
+    }
+
+    /// Largest slope `|dR_i / dpsi|` of row `i` (its steepest bin).
+    pub fn slope(&self, i: usize) -> f64 {
+        self.slope[i]
     }
 
     /// The weight `t` of row `i + 1` at offset `|x|` between rows `i` and `i + 1`

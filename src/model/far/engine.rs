@@ -1254,13 +1254,24 @@ impl<'a> FarSlice<'a> {
             // it multiplies over `len`: row i (at most `len * peak`, and 1.1, a row's mass
             // plus its floor) and the gap to row i + 1 (at most `len * gap`).
             let mut e = [0.0f64; 2];
-            for q in [q1, q3] {
+            let mut quarter = [(0.0, 0.0); 2];
+            for (k, q) in [q1, q3].into_iter().enumerate() {
                 let (s, v) = dens(&q);
+                quarter[k] = (s, v[0] - poly(&g[0], s));
                 for j in 0..2 {
                     e[j] = e[j].max((poly(&g[j], s) - v[j]).abs());
                 }
             }
-            let err = e[0] * (span * rows.peak).min(1.1) + e[1] * span * rows.gap(row);
+            // Row i's part, sharper: with `R = Rbar + (R - Rbar)` over the piece's window,
+            // the misfit `E` integrates against the mean `Rbar <= peak` (`integral E` is
+            // a quadrature error, estimated from the quartic through all five nodes) and
+            // against the row's variation across the window, at most `len * slope` (and
+            // `peak`). Rows vary over tens of degrees, pieces span a few: the variation
+            // term is a small part of `e len peak`.
+            let mean_part = Self::misfit_integral([a.0, b.0, c.0], quarter).abs() * rows.peak;
+            let var_part = e[0] * span * (span * rows.slope(row)).min(rows.peak);
+            let row_part = (e[0] * (span * rows.peak).min(1.1)).min(mean_part + var_part);
+            let err = row_part + e[1] * span * rows.gap(row);
             if rf.tape.choose_bool(err > bud * len_u && err > rf.small) {
                 if let Some(depth) = rf.split(depth) {
                     self.build_psi(l, n0, q1, nm, depth, rf, out);
@@ -1276,6 +1287,31 @@ impl<'a> FarSlice<'a> {
             row,
             g,
         });
+    }
+
+    /// `integral E ds` over the nodes' range of the misfit `E = q - f` of the quadratic `f`
+    /// through the nodes at `s` (any order) against the quartic `q` through them and the two
+    /// `quarter` points `(s, q(s) - f(s))`: `E = P (alpha + beta s)` with
+    /// `P = (s - s0)(s - s1)(s - s2)`, a quartic that 3-point Gauss-Legendre integrates
+    /// exactly.
+    fn misfit_integral(s: [f64; 3], quarter: [(f64, f64); 2]) -> f64 {
+        let p = |x: f64| (x - s[0]) * (x - s[1]) * (x - s[2]);
+        let [(x1, r1), (x2, r2)] = quarter;
+        let (y1, y2) = (r1 / p(x1), r2 / p(x2));
+        if !(y1.is_finite() && y2.is_finite()) || x1 == x2 {
+            return f64::INFINITY;
+        }
+        let beta = (y2 - y1) / (x2 - x1);
+        let alpha = y1 - beta * x1;
+        let lo = s[0].min(s[1]).min(s[2]);
+        let hi = s[0].max(s[1]).max(s[2]);
+        let (mid, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+        let node = (0.6f64).sqrt() * half;
+        [(mid - node, 5.0), (mid, 8.0), (mid + node, 5.0)]
+            .iter()
+            .map(|&(x, w)| w / 9.0 * p(x) * (alpha + beta * x))
+            .sum::<f64>()
+            * half
     }
 
     /// A scattered segment by three-node quadrature of the queried `C^N` (paper mode, and
@@ -2198,6 +2234,36 @@ mod tests {
             for (a, b) in portable.iter().zip(&chosen) {
                 assert_eq!(a.to_bits(), b.to_bits(), "beta {beta} sign {sign}");
             }
+        }
+    }
+
+    /// The misfit integral of a quartic is exact (the quartic through five points is
+    /// itself), whatever the nodes' order and spacing.
+    #[test]
+    fn misfit_integral_is_exact_for_quartics() {
+        let f = |x: f64| 0.3 - 1.1 * x + 0.7 * x * x + 2.0 * x.powi(3) - 1.5 * x.powi(4);
+        for s in [[0.0, 0.5, 1.0], [0.9, 0.35, 0.1], [2.0, 2.3, 3.1]] {
+            let c = quadratic_through(s, s.map(f));
+            let quarter = [0.25, 0.75].map(|t| {
+                let x = s[0] + t * (s[2] - s[0]);
+                (x, f(x) - poly(&c, x))
+            });
+            let est = FarSlice::misfit_integral(s, quarter);
+            // Reference: 40-point Gauss-Legendre of f - quadratic over the nodes' range.
+            let (lo, hi) = (s[0].min(s[2]), s[0].max(s[2]));
+            let gl = crate::model::quadrature::GaussLegendre::cached(40);
+            let exact: f64 = gl
+                .nodes
+                .iter()
+                .zip(&gl.weights)
+                .map(|(x, w)| {
+                    let u = 0.5 * (lo + hi) + 0.5 * (hi - lo) * x;
+                    0.5 * (hi - lo) * w * (f(u) - poly(&c, u))
+                })
+                .sum();
+            // Both exact up to rounding of terms of order 1.
+            assert!((est - exact).abs() < 1e-12, "{s:?}: {est} vs {exact}");
+            assert!(exact.abs() > 1e-4, "the case must have a misfit to measure");
         }
     }
 }
