@@ -291,12 +291,33 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
     digest.iter().map(|b| format!("{b:02x}")).collect()
 }
 
+/// Make sure `dir` can take new files before a long job (the directory is created if
+/// missing): a read-only folder otherwise failed `stability` after its two-minute sweep.
+pub fn probe_writable(dir: &Path) -> Result<()> {
+    check_out_dir(dir)?;
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
+    let probe = dir.join(format!(".furfit-probe-{}", std::process::id()));
+    std::fs::File::create(&probe).map_err(|e| {
+        Error::file(
+            dir,
+            format!("cannot write into this folder ({e}); nothing was run"),
+        )
+    })?;
+    let _ = std::fs::remove_file(&probe);
+    Ok(())
+}
+
 /// The ledger furfit keeps in each directory that `render`, `render-convergence`,
 /// `report`, `stability` and `bench-model` write into: the files it wrote there, each with
 /// the SHA-256 of the bytes written. Those commands replace an existing file only when the
 /// ledger lists it with its current content ([`check_replaceable`]), so a user's own file
 /// of the same name (or a furfit output the user edited since) is never lost silently.
 pub const LEDGER: &str = ".furfit-outputs.json";
+/// The lock file beside a [`LEDGER`] that serialises its updates.
+pub const LEDGER_LOCK: &str = ".furfit-outputs.lock";
+/// What to do about a damaged ledger.
+const LEDGER_FIX: &str = "delete it to start a new one (the files it listed are then \
+    protected as files furfit did not write: replace them with --force)";
 
 fn read_ledger(dir: &Path) -> Result<serde_json::Map<String, serde_json::Value>> {
     let path = dir.join(LEDGER);
@@ -306,12 +327,12 @@ fn read_ledger(dir: &Path) -> Result<serde_json::Map<String, serde_json::Value>>
                 Some(serde_json::Value::Object(files)) => Ok(files),
                 _ => Err(Error::file(
                     &path,
-                    "not a furfit ledger (no \"files\" object)",
+                    format!("not a furfit ledger (no \"files\" object); {LEDGER_FIX}"),
                 )),
             },
             _ => Err(Error::file(
                 &path,
-                "not a furfit ledger (not a JSON object)",
+                format!("not a furfit ledger (not a JSON object); {LEDGER_FIX}"),
             )),
         },
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(serde_json::Map::new()),
@@ -365,6 +386,18 @@ pub fn record_outputs(paths: &[PathBuf]) -> Result<()> {
         by_dir.entry(parent_dir(p)).or_default().push(p);
     }
     for (dir, files) in by_dir {
+        // Two furfit runs writing into one folder at once would each read the ledger, add
+        // their files and write it back, the later dropping the earlier's entries: the
+        // read-modify-write holds an exclusive lock on a file beside it (released when
+        // the handle drops, also if the process dies).
+        let lock_path = dir.join(LEDGER_LOCK);
+        let lock = std::fs::OpenOptions::new()
+            .create(true)
+            .truncate(false)
+            .write(true)
+            .open(&lock_path)
+            .map_err(|e| Error::io(&lock_path, e))?;
+        lock.lock().map_err(|e| Error::io(&lock_path, e))?;
         // A ledger that is not one (hand-edited) is replaced: it protects nothing then.
         let mut ledger = read_ledger(&dir).unwrap_or_default();
         for p in files {
@@ -387,6 +420,27 @@ pub fn record_outputs(paths: &[PathBuf]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Concurrent ledger updates into one folder keep every entry (each holds the lock
+    /// for its read-modify-write; without it, runs lost each other's entries).
+    #[test]
+    fn concurrent_records_keep_every_entry() {
+        let dir = tempfile::tempdir().unwrap();
+        let paths: Vec<PathBuf> = (0..16)
+            .map(|k| dir.path().join(format!("f{k}.png")))
+            .collect();
+        std::thread::scope(|sc| {
+            for p in &paths {
+                sc.spawn(move || {
+                    write_atomic(p, p.to_string_lossy().as_bytes()).unwrap();
+                    record_outputs(std::slice::from_ref(p)).unwrap();
+                });
+            }
+        });
+        check_replaceable(&paths, false).unwrap();
+        let ledger = read_ledger(dir.path()).unwrap();
+        assert_eq!(ledger.len(), paths.len());
+    }
 
     /// A furfit output may be replaced while unchanged; a user's file of the same name, or
     /// an output edited since, only with force.

@@ -21,7 +21,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     // The sweep takes minutes: a bad --out fails first, naming the path.
-    crate::io::check_out_dir(&a.out)?;
+    crate::io::probe_writable(&a.out)?;
     let paths = ["csv", "png", "svg"].map(|e| a.out.join(format!("far_field_error_vs_time.{e}")));
     crate::io::check_replaceable(&paths, a.force)?;
     std::fs::create_dir_all(&a.out).map_err(|e| crate::Error::io(&a.out, e))?;

@@ -264,15 +264,22 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             for (id, why) in &o.uncertainty.unconstrained {
                 outln!("  unconstrained: {} ({why})", id.spec().name);
             }
-            if !o.uncertainty.at_bound.is_empty() {
-                let names: Vec<&str> = o
-                    .uncertainty
-                    .at_bound
-                    .iter()
-                    .map(|id| id.spec().name)
-                    .collect();
+            // Parameters the linearisation leaves out (on a bound, or on a singular
+            // direction): every other standard error is conditional on their value.
+            let held: Vec<crate::ParamId> = o
+                .uncertainty
+                .unconstrained
+                .iter()
+                .filter(|(_, why)| {
+                    use crate::fit::uncertainty::{REASON_BOUND, REASON_SINGULAR};
+                    [REASON_BOUND, REASON_SINGULAR].contains(why)
+                })
+                .map(|(id, _)| *id)
+                .collect();
+            if !held.is_empty() {
+                let names: Vec<&str> = held.iter().map(|id| id.spec().name).collect();
                 outln!(
-                    "  note: the other standard errors hold {} fixed at the bound (far too small if the data favour another value); --profile gives intervals that re-solve {}",
+                    "  note: the other standard errors hold {} fixed at the fitted value (far too small if the data favour another value); --profile gives intervals that re-solve {}",
                     names.join(", "),
                     if names.len() == 1 { "it" } else { "them" }
                 );
@@ -301,7 +308,8 @@ fn profile_params(names: &str, opts: &FitOptions) -> anyhow::Result<Vec<crate::P
         return Ok(free);
     }
     let mut out = Vec::new();
-    for name in names.split(',').map(str::trim) {
+    for name in names.split(',').map(|n| n.trim().to_ascii_lowercase()) {
+        let name = name.as_str();
         let id = crate::ParamId::from_name(name).with_context(|| {
             format!(
                 "--profile: unknown parameter '{name}' (expected `all` or names among: {})",

@@ -361,6 +361,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let planned: Vec<PathBuf> = taken.iter().map(|(p, _)| p.clone()).collect();
     crate::io::check_replaceable(&planned, a.force)?;
+    let mut dirs: Vec<PathBuf> = planned
+        .iter()
+        .map(|p| match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
+            _ => PathBuf::from("."),
+        })
+        .collect();
+    dirs.dedup();
+    for d in &dirs {
+        crate::io::probe_writable(d)?;
+    }
     let scene = Scene::build(&s.strand);
     outln!(
         "scene: {} fibers, {} segments; {}x{} at {} spp, mode {}",
@@ -417,6 +428,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::io::write_atomic_all(&files)?;
         let written: Vec<PathBuf> = files.into_iter().map(|(p, _)| p).collect();
         crate::io::record_outputs(&written)?;
+        // AOVs of an earlier render of this name that this one did not write (--no-aovs,
+        // other --lobes) no longer match the beauty image: say so (they are left as they
+        // are; deleting is not this command's to do).
+        let stale: Vec<String> = Lobe::ALL
+            .into_iter()
+            .map(|l| with_suffix(out, &format!("_{}", l.name()), "png"))
+            .filter(|p| p.exists() && !written.contains(p))
+            .map(|p| p.display().to_string())
+            .collect();
+        if !stale.is_empty() {
+            eprintln!(
+                "note: {} from an earlier render {} not part of this one and no longer match {}",
+                stale.join(", "),
+                if stale.len() == 1 { "is" } else { "are" },
+                out.display()
+            );
+        }
         outln!("wrote {} (+ .exr)", out.display());
         if !a.no_aovs {
             outln!(

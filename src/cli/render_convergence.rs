@@ -96,7 +96,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ]
     };
     let paths: Vec<PathBuf> = names.iter().map(|n| a.out.join(n)).collect();
-    crate::io::check_out_dir(&a.out)?;
+    crate::io::probe_writable(&a.out)?;
     for p in &paths {
         crate::io::check_out_file(p)?;
     }

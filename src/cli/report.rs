@@ -19,7 +19,7 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
-    crate::io::check_out_dir(&a.out)?;
+    crate::io::probe_writable(&a.out)?;
     let sum = crate::report::nrmse::write_fit_reports(&a.fits, &a.measurements, &a.out, a.force)?;
     for p in &sum.written {
         outln!("wrote {}", p.display());

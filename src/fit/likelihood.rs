@@ -5,12 +5,17 @@
 //! follows a curved or bounded valley: a parameter pinned near a bound gets a one-sided
 //! interval that ends at the bound, not a symmetric `±SE` that crosses it.
 //!
-//! Each side steps the parameter's unbounded coordinate `u` by `c * SE(u)`,
-//! `c = 1, 2, 4, 8` ([`STEPS`]; `SE(u) = 1` when the linearised one is undefined),
-//! re-solving the others from the previous point (warm start), until `Delta >= 1`; the
-//! crossing is interpolated in `sqrt(Delta)`, which is linear in the step for a quadratic
-//! valley. A side whose `u` reaches the map's clamp (`reparam::U_MAX`: the value sits at
-//! its bound) without crossing ends at the bound; one still below 1 after the last step
+//! Each side steps the parameter's unbounded coordinate `u` by `c * step`,
+//! `c = 1, 2, 4, 8, 16` ([`STEPS`]; `step = SE(u)` at most [`MAX_STEP_U`], which is also
+//! taken when the linearised one is undefined), re-solving the others from the previous
+//! point (warm start), until `Delta >= 1`; the bracketed crossing is then narrowed by up
+//! to [`REFINE`] more re-solves (regula falsi in `sqrt(Delta)`, which is linear in the
+//! step for a quadratic valley, with a bisection when it stalls) until `Delta` is within
+//! [`CROSS_TOL`] of 1. A parameter on its bound (`reparam::at_bound`: the map's
+//! derivative has vanished, so steps of its `u` would not move it) ends at the bound on
+//! that side, and the other side starts from the map's interior edge
+//! (`reparam::interior_edge`) with the map's own step. A side whose `u` reaches the map's
+//! clamp without crossing ends at the bound; one still below 1 after the last step
 //! reports how far it got. A re-solve cheaper than the optimum (`Delta < -0.1`) means the
 //! fit stopped short of the valley's floor; the interval says so.
 
@@ -20,8 +25,15 @@ use super::uncertainty::{residual_variance, Uncertainty};
 use crate::params::ParamId;
 use nalgebra::DVector;
 
-/// Multiples of `SE(u)` tried on each side.
-pub const STEPS: [f64; 4] = [1.0, 2.0, 4.0, 8.0];
+/// Multiples of the step tried on each side.
+pub const STEPS: [f64; 5] = [1.0, 2.0, 4.0, 8.0, 16.0];
+/// Largest step in `u` (a factor e for `exp` maps): a huge linearised `SE(u)` (24 for an
+/// absorption the data barely sees) would jump past the crossing by orders of magnitude.
+pub const MAX_STEP_U: f64 = 1.0;
+/// Re-solves spent narrowing a bracketed crossing.
+pub const REFINE: usize = 6;
+/// `|Delta - 1|` that ends the narrowing.
+pub const CROSS_TOL: f64 = 0.1;
 
 /// `Delta` below this at a profile point means the re-solve beat the reported optimum.
 pub const LOWER_COST: f64 = -0.1;
@@ -90,7 +102,11 @@ pub struct ProfileProblem {
 /// and variance.
 pub fn interval(pp: &ProfileProblem, rss0: f64, s2: f64, resolve: &mut Resolve) -> Interval {
     let u0 = pp.u[pp.j];
-    let step = pp.se_u.filter(|s| s.is_finite() && *s > 0.0).unwrap_or(1.0);
+    let id = pp.id;
+    let se_step = pp
+        .se_u
+        .filter(|s| s.is_finite() && *s > 0.0)
+        .map_or(MAX_STEP_U, |s| s.min(MAX_STEP_U));
     let clamp = reparam::U_MAX;
     let others = |u: &DVector<f64>| {
         DVector::from_iterator(
@@ -103,52 +119,124 @@ pub fn interval(pp: &ProfileProblem, rss0: f64, s2: f64, resolve: &mut Resolve) 
     };
     let mut refits = 0;
     let mut lowest: Option<(f64, f64)> = None;
-    let mut side = |dir: f64| -> End {
-        let mut start = others(&pp.u);
-        let (mut c_prev, mut d_prev) = (0.0f64, 0.0f64);
-        let mut last_u = u0;
-        for &c in &STEPS {
-            let uj = (u0 + dir * c * step).clamp(-clamp, clamp);
-            // At the clamp the value sits on its bound (within ~1e-13): a step that cannot
-            // move further ends the side there.
-            let at_clamp = uj.abs() >= clamp;
-            if uj == last_u {
-                return End::Bound(reparam::to_value(pp.id, uj));
-            }
-            let (rss, sol) = resolve(uj, &start);
-            refits += 1;
-            let d = (rss - rss0) / s2;
-            let x = reparam::to_value(pp.id, uj);
-            if !lowest.is_some_and(|(dl, _)| d >= dl) {
-                lowest = Some((d, x));
-            }
-            let c_eff = (uj - u0).abs() / step;
-            if d >= 1.0 {
-                let (a, b) = (d_prev.max(0.0).sqrt(), d.sqrt());
-                let t = if b > a { (1.0 - a) / (b - a) } else { 1.0 };
-                let c_x = c_prev + t.clamp(0.0, 1.0) * (c_eff - c_prev);
-                return End::Crossing(reparam::to_value(pp.id, u0 + dir * c_x * step));
-            }
-            if at_clamp {
-                return End::Bound(x);
-            }
-            start = sol;
-            (c_prev, d_prev, last_u) = (c_eff, d, uj);
+    let mut probe = |uj: f64, start: &DVector<f64>, refits: &mut usize| {
+        let (rss, sol) = resolve(uj, start);
+        *refits += 1;
+        let d = (rss - rss0) / s2;
+        if !lowest.is_some_and(|(dl, _)| d >= dl) {
+            lowest = Some((d, reparam::to_value(id, uj)));
         }
-        End::Beyond(reparam::to_value(pp.id, last_u))
+        (d, sol)
+    };
+    let mut side = |dir: f64| -> End {
+        let on_bound = reparam::at_bound(id, u0);
+        if on_bound && dir * u0 > 0.0 {
+            // Toward the bound it already sits on.
+            return End::Bound(reparam::to_value(id, u0));
+        }
+        let (base, step) = if on_bound {
+            reparam::interior_edge(id, u0)
+        } else {
+            (u0, se_step)
+        };
+        // The bracket's inner end: `(u, Delta, solution)`, from the fit itself.
+        let mut inner = (u0, 0.0f64, others(&pp.u));
+        let offsets = if on_bound { &[0.0][..] } else { &[][..] };
+        for &c in offsets.iter().chain(&STEPS) {
+            let uj = (base + dir * c * step).clamp(-clamp, clamp);
+            if uj == inner.0 {
+                return End::Bound(reparam::to_value(id, uj));
+            }
+            let (d, sol) = probe(uj, &inner.2, &mut refits);
+            if d >= 1.0 {
+                return End::Crossing(narrow(
+                    inner,
+                    (uj, d, sol),
+                    &mut |u, s| probe(u, s, &mut refits),
+                    id,
+                ));
+            }
+            // Into the region where the value sits on its bound (the map's clamp, an
+            // exp-map coefficient below 1e-4) without crossing: the side ends there.
+            if uj.abs() >= clamp || (reparam::at_bound(id, uj) && dir * uj > 0.0) {
+                return End::Bound(reparam::to_value(id, dir * clamp));
+            }
+            inner = (uj, d, sol);
+        }
+        End::Beyond(reparam::to_value(id, inner.0))
     };
     let lo_dir = side(-1.0);
     let hi_dir = side(1.0);
     // `u` increases with the value on every map, so the -u side is the lower end.
     Interval {
-        id: pp.id,
-        at: reparam::to_value(pp.id, u0),
+        id,
+        at: reparam::to_value(id, u0),
         lo: lo_dir,
         hi: hi_dir,
         // Only a drop above the RSS's rounding counts (noise-free data have s^2 ~ 0, where
         // any rounding is many s^2).
         lowest: lowest.filter(|&(d, _)| d < LOWER_COST && -d * s2 > RSS_ROUNDING * rss0),
         refits,
+    }
+}
+
+/// The value where `Delta = 1` between `inner` (`Delta < 1`) and `outer` (`>= 1`), each
+/// `(u, Delta, solution)`: regula falsi in `sqrt(Delta)` (exact for a quadratic valley),
+/// a bisection when a step would land within a tenth of the bracket of one end, at most
+/// [`REFINE`] probes, ending once `|Delta - 1| <= CROSS_TOL`.
+fn narrow(
+    mut inner: (f64, f64, DVector<f64>),
+    mut outer: (f64, f64, DVector<f64>),
+    probe: &mut Resolve,
+    id: ParamId,
+) -> f64 {
+    let guess = |a: &(f64, f64, DVector<f64>), b: &(f64, f64, DVector<f64>)| {
+        let t = fraction(a.1, b.1);
+        let t = if (0.1..=0.9).contains(&t) { t } else { 0.5 };
+        a.0 + t * (b.0 - a.0)
+    };
+    for _ in 0..REFINE {
+        if (inner.1 - 1.0).abs() <= CROSS_TOL {
+            return reparam::to_value(id, inner.0);
+        }
+        if (outer.1 - 1.0).abs() <= CROSS_TOL {
+            return reparam::to_value(id, outer.0);
+        }
+        let um = guess(&inner, &outer);
+        let (d, sol) = probe(um, &inner.2);
+        if (d - 1.0).abs() <= CROSS_TOL {
+            return reparam::to_value(id, um);
+        }
+        if d < 1.0 {
+            inner = (um, d, sol);
+        } else {
+            outer = (um, d, sol);
+        }
+    }
+    // Out of probes: the interpolation between the last bracket (no bisection fallback).
+    let t = fraction(inner.1, outer.1);
+    reparam::to_value(id, inner.0 + t * (outer.0 - inner.0))
+}
+
+/// Where between two probes with `Delta` `a < 1 <= b` the crossing lies (0 at `a`, 1 at
+/// `b`): linear in `sqrt(Delta)` near a quadratic valley's floor (`a >= 0.1`), linear in
+/// `ln Delta` when `a` is orders of magnitude below 1 (a wall: `Delta` growing
+/// exponentially across the bracket), else linear in `sqrt(Delta)` from 0.
+fn fraction(a: f64, b: f64) -> f64 {
+    let t = if (1e-12..0.1).contains(&a) {
+        -a.ln() / (b / a).ln()
+    } else {
+        let (sa, sb) = (a.max(0.0).sqrt(), b.sqrt());
+        if sb > sa {
+            (1.0 - sa) / (sb - sa)
+        } else {
+            0.5
+        }
+    };
+    if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.5
     }
 }
 
@@ -199,22 +287,32 @@ pub fn intervals(
 /// One line for the terminal: `eta 1.6012 in [1.5870, 1.6130] (profile, 68 %; 6 re-solves)`,
 /// an end at a bound or short of a crossing marked as such.
 pub fn describe(iv: &Interval) -> String {
+    // Four decimals hid small ends ("beyond 0.0000"): small and huge values in
+    // scientific notation.
+    let num = |v: f64| {
+        if v == 0.0 || (1e-2..1e4).contains(&v.abs()) {
+            format!("{v:.4}")
+        } else {
+            format!("{v:.3e}")
+        }
+    };
     let end = |e: End| match e {
-        End::Crossing(v) => format!("{v:.4}"),
-        End::Bound(v) => format!("{v:.4} (bound)"),
-        End::Beyond(v) => format!("beyond {v:.4}"),
+        End::Crossing(v) => num(v),
+        End::Bound(v) => format!("{} (bound)", num(v)),
+        End::Beyond(v) => format!("beyond {}", num(v)),
     };
     let mut s = format!(
-        "profile {}: {:.4} in [{}, {}] (68 %, {} re-solves)",
+        "profile {}: {} in [{}, {}] (68 %, {} re-solves)",
         iv.id.spec().name,
-        iv.at,
+        num(iv.at),
         end(iv.lo),
         end(iv.hi),
         iv.refits
     );
     if let Some((d, x)) = iv.lowest {
         s.push_str(&format!(
-            "; a re-solve at {x:.4} fits better (Delta RSS = {d:.2} s^2): the optimum is not settled along it"
+            "; a re-solve at {} fits better (Delta RSS = {d:.2} s^2): the optimum is not settled along it (refit with --init from there)",
+            num(x)
         ));
     }
     s
@@ -251,7 +349,7 @@ mod tests {
 
     /// A quadratic valley `RSS(u_j) = rss0 + s2 ((u_j - u0) / se)^2` (the others
     /// irrelevant): the profile crosses 1 at exactly `u0 ± se`, which the `sqrt(Delta)`
-    /// interpolation recovers exactly.
+    /// regula falsi recovers in one probe.
     #[test]
     fn quadratic_valley_crosses_at_one_standard_error() {
         let (u0, se, rss0, s2) = (0.3, 0.25, 10.0, 0.01);
@@ -261,27 +359,79 @@ mod tests {
             u: DVector::from_vec(vec![u0, 1.0]),
             se_u: Some(0.6 * se),
         };
-        let mut calls = 0;
-        let mut resolve = |uj: f64, start: &DVector<f64>| {
-            calls += 1;
-            (rss0 + s2 * ((uj - u0) / se).powi(2), start.clone())
-        };
+        let mut resolve =
+            |uj: f64, start: &DVector<f64>| (rss0 + s2 * ((uj - u0) / se).powi(2), start.clone());
         let iv = interval(&pp, rss0, s2, &mut resolve);
         let eta = |u: f64| reparam::to_value(ParamId::Eta, u);
         // Exact in u up to rounding (1e-12 of the value).
         assert!((iv.lo.value() - eta(u0 - se)).abs() < 1e-12, "{iv:?}");
         assert!((iv.hi.value() - eta(u0 + se)).abs() < 1e-12, "{iv:?}");
         assert_eq!((iv.lo.kind(), iv.hi.kind()), ("crossing", "crossing"));
-        // Steps 0.6 se (Delta 0.36) then 1.2 se (1.44) on each side.
-        assert_eq!(iv.refits, 4);
+        // Per side: 0.6 se (Delta 0.36), 1.2 se (1.44), then the crossing itself.
+        assert_eq!(iv.refits, 6);
         assert!(iv.lowest.is_none());
     }
 
-    /// A valley that flattens toward the lower bound (the value pinned near it): the lower
-    /// side ends at the bound, the upper one crosses.
+    /// A valley far from quadratic: flat, then a wall (an absorption the data barely see
+    /// until it darkens everything). The linearised SE(u) of 24 must not put the end next
+    /// to the fit (the first probe lands beyond the wall; interpolating from there gave an
+    /// end 4 % above the fit): narrowing finds `Delta = 1` within CROSS_TOL.
+    #[test]
+    fn wall_is_found_by_narrowing_not_by_one_interpolation() {
+        let (u0, rss0, s2) = (-3.5, 1.0, 1.0);
+        let wall = -1.0; // Delta = exp(8 (u - wall)): 1 at the wall, 0.0004 at u0 + 1.
+        let pp = ProfileProblem {
+            id: ParamId::SigmaCA,
+            j: 0,
+            u: DVector::from_vec(vec![u0]),
+            se_u: Some(24.0),
+        };
+        let mut resolve =
+            |uj: f64, s: &DVector<f64>| (rss0 + s2 * (8.0 * (uj - wall)).exp(), s.clone());
+        let iv = interval(&pp, rss0, s2, &mut resolve);
+        let End::Crossing(hi) = iv.hi else {
+            panic!("{iv:?}")
+        };
+        // Delta within CROSS_TOL of 1: u within ln(1.1) / 8 of the wall.
+        assert!(
+            (hi.ln() - wall).abs() <= 1.1f64.ln() / 8.0 + 1e-12,
+            "{iv:?}"
+        );
+        assert!(iv.refits <= 2 * (STEPS.len() + REFINE), "{iv:?}");
+    }
+
+    /// A coefficient fitted onto its bound 0 (exp map, u = -30): the lower end is the
+    /// bound, and the upper side starts at the map's interior edge (1e-4) and steps by
+    /// decades to the crossing, instead of creeping up from 1e-13.
+    #[test]
+    fn parameter_on_its_bound_gets_a_one_sided_interval() {
+        let (rss0, s2) = (5.0, 0.1);
+        let pp = ProfileProblem {
+            id: ParamId::SigmaMA,
+            j: 0,
+            u: DVector::from_vec(vec![-reparam::U_MAX]),
+            se_u: None,
+        };
+        // Delta = (x / 0.3)^2 in the value x: the end at 0.3.
+        let mut resolve = |uj: f64, s: &DVector<f64>| {
+            let x = reparam::to_value(ParamId::SigmaMA, uj);
+            (rss0 + s2 * (x / 0.3).powi(2), s.clone())
+        };
+        let iv = interval(&pp, rss0, s2, &mut resolve);
+        assert_eq!(iv.lo.kind(), "bound", "{iv:?}");
+        assert!(iv.lo.value() < 1e-12, "{iv:?}");
+        let End::Crossing(hi) = iv.hi else {
+            panic!("{iv:?}")
+        };
+        // Delta within CROSS_TOL of 1: x within 5 % of 0.3.
+        assert!((hi / 0.3 - 1.0).abs() <= 0.05, "{iv:?}");
+    }
+
+    /// A valley that flattens toward the lower bound (the value near it, not on it): the
+    /// lower side ends at the bound, the upper one crosses.
     #[test]
     fn flat_side_ends_at_the_bound() {
-        let (u0, rss0, s2) = (-25.0, 5.0, 0.1);
+        let (u0, rss0, s2) = (-6.0, 5.0, 0.1);
         let pp = ProfileProblem {
             id: ParamId::SigmaMA,
             j: 0,
@@ -301,28 +451,29 @@ mod tests {
     }
 
     /// A re-solve that beats the optimum is reported, and a valley too flat to cross within
-    /// the steps reports how far it went.
+    /// the steps reports how far it went (an exp map upward), or ends at the bound
+    /// (downward, into coefficients below 1e-4).
     #[test]
     fn lower_cost_and_flat_valley_are_reported() {
         let (u0, rss0, s2) = (0.0, 1.0, 1.0);
+        let id = ParamId::SigmaMS;
         let pp = ProfileProblem {
-            id: ParamId::L,
+            id,
             j: 0,
             u: DVector::from_vec(vec![u0]),
             se_u: None,
         };
         let mut resolve = |uj: f64, s: &DVector<f64>| {
-            // A dip of 0.5 at u = -1, otherwise Delta = 0.01 u^2 (crosses at |u| = 10).
+            // A dip of 0.5 at u = -1, otherwise Delta = 0.001 u^2 (crosses at |u| = 31.6,
+            // beyond the last step, 16).
             let dip = if (uj + 1.0).abs() < 1e-12 { -0.5 } else { 0.0 };
-            (rss0 + s2 * (0.01 * uj * uj + dip), s.clone())
+            (rss0 + s2 * (0.001 * uj * uj + dip), s.clone())
         };
         let iv = interval(&pp, rss0, s2, &mut resolve);
         let (d, x) = iv.lowest.expect("the dip");
-        assert!(
-            (d - (-0.49)).abs() < 1e-12 && (x - reparam::to_value(ParamId::L, -1.0)).abs() < 1e-12
-        );
-        // Steps 1, 2, 4, 8 (SE(u) undefined: 1): Delta(8) = 0.64 < 1.
-        assert_eq!(iv.hi, End::Beyond(reparam::to_value(ParamId::L, 8.0)));
-        assert_eq!(iv.lo, End::Beyond(reparam::to_value(ParamId::L, -8.0)));
+        assert!((d - (-0.499)).abs() < 1e-12 && (x - reparam::to_value(id, -1.0)).abs() < 1e-12);
+        assert_eq!(iv.hi, End::Beyond(reparam::to_value(id, 16.0)));
+        // Steps -1, -2, -4, -8, -16: -16 is below ln(1e-4).
+        assert_eq!(iv.lo, End::Bound(reparam::to_value(id, -reparam::U_MAX)));
     }
 }

@@ -158,6 +158,16 @@ pub fn at_bound(id: ParamId, u: f64) -> bool {
     }
 }
 
+/// Where a profile leaves a bound that `u` sits on ([`at_bound`]), and its step: bounded
+/// maps from `U_START_MAX` (on `u`'s side) by 1; `exp` maps from [`EXP_AT_BOUND`] by a
+/// decade (a coefficient the data cannot see, up through the values they can).
+pub fn interior_edge(id: ParamId, u: f64) -> (f64, f64) {
+    match map_of(id) {
+        Map::Exp => (EXP_AT_BOUND.ln(), std::f64::consts::LN_10),
+        _ => (U_START_MAX.copysign(u), 1.0),
+    }
+}
+
 /// [`to_u`] for a start point: on bounded maps limited to `|u| <= U_START_MAX`.
 pub fn to_u_start(id: ParamId, v: f64) -> f64 {
     let u = to_u(id, v);

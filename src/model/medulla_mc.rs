@@ -324,7 +324,7 @@ pub fn simulate_cn<R: Rng>(
         let (d, ev) = photon(rng, tau, g, x, 0.0);
         h.events += ev;
         let k = psi_bin(d[1].atan2(d[0]), n_psi);
-        if h.paths % 2 == 0 {
+        if h.paths.is_multiple_of(2) {
             h.a[k] += 1.0;
             h.wa += 1.0;
         } else {
@@ -374,7 +374,7 @@ pub fn simulate_cm<R: Rng>(
         } else {
             &mut back
         };
-        if (n / strata) % 2 == 0 {
+        if (n / strata).is_multiple_of(2) {
             h.a[k] += w;
             h.wa += w;
         } else {

@@ -37,7 +37,7 @@ impl AxisStats {
         let mut k = 0;
         while k < steps.len() {
             let run = steps[k..].iter().take_while(|s| **s == steps[k]).count();
-            if best.map_or(true, |(_, n)| run > n) {
+            if best.is_none_or(|(_, n)| run > n) {
                 best = Some((steps[k], run));
             }
             k += run;

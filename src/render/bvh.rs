@@ -649,7 +649,7 @@ fn build_rec(order: &mut [usize], first: usize, ctx: &BuildCtx) -> Vec<Node> {
                 continue;
             }
             let cost = n as f64 * area(&acc) + right_cnt[k] as f64 * right_area[k];
-            if best.map_or(true, |b| cost < b.0) {
+            if best.is_none_or(|b| cost < b.0) {
                 best = Some((cost, axis, lo + k as f64 / scale));
             }
         }

@@ -400,7 +400,7 @@ pub fn trace_path(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Outc
             }
         }
         // Keep the direction unit length against rounding drift.
-        if events % 64 == 0 {
+        if events.is_multiple_of(64) {
             d = normalize(d);
         }
     }
