@@ -473,14 +473,24 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
             max_of(&r.ms[1][1]),
         );
         log(&format!(
-            "{:<50} evals {:>7}  NaN/Inf {}  neg {} (raw {})  capped {}/{}  tol unsc {tus} scat {tss}  paper unsc {pus} scat {pss}  strict scat {sss}  ms(tol) {mtu:.1e}/{mts:.1e}  ({:.1} s)",
-            case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.capped, r.slices, r.seconds
+            "{:<50} evals {:>7}  NaN/Inf {}  neg {} (raw {})  capped {}/{}  tol unsc {tus} scat {tss}  paper unsc {pus} scat {pss}  strict scat {sss}  ms(tol) {}/{}  ({:.1} s)",
+            case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.capped, r.slices, cell(mtu), cell(mts), r.seconds
         ));
-        let _ = writeln!(
+        // A case without a lobe family has no error for it (NaN): an empty CSV cell.
+        let e = |x: f64| {
+            if x.is_nan() {
+                String::new()
+            } else {
+                format!("{x:.3e}")
+            }
+        };
+        let _ =
+            writeln!(
             csv,
-            "\"{}\",{},{},{},{},{:.3e},{:.3e},{},{},{},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.3e},{:.2}",
-            case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.worst_dip[0], r.worst_dip[1],
-            r.slices, r.capped, refs, tu, tum, ts, tsm, pu, pum, ps, psm, mtu, mts, mpu, mps, ss, ssm, mss, r.seconds
+            "\"{}\",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.2}",
+            case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, e(r.worst_dip[0]), e(r.worst_dip[1]),
+            r.slices, r.capped, refs, e(tu), e(tum), e(ts), e(tsm), e(pu), e(pum), e(ps), e(psm),
+            e(mtu), e(mts), e(mpu), e(mps), e(ss), e(ssm), e(mss), r.seconds
         );
         let _ = writeln!(
             table,
