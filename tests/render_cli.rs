@@ -191,19 +191,10 @@ fn render_checks_output_paths_before_rendering() {
     let dir = tempfile::tempdir().unwrap();
     let regular = dir.path().join("regular");
     std::fs::write(&regular, "keep").unwrap();
-    let o = furfit(&[
-        "render",
-        "--params",
-        "red-fox",
-        "--size",
-        "8x8",
-        "--spp",
-        "1",
-        "--fibers",
-        "20",
-        "--out",
-        regular.join("a.png").to_str().unwrap(),
-    ]);
+    let o = render(
+        dir.path(),
+        &["--out", regular.join("a.png").to_str().unwrap()],
+    );
     assert!(!o.status.success());
     // Refused up front (no scene was built) with the real reason, not "File exists".
     assert!(stderr(&o).contains("not a directory"), "{}", stderr(&o));
