@@ -303,3 +303,34 @@ fn fit_leaves_a_bound_the_data_do_not_favour() {
         assert_exact(&fit, &truth, &ParamId::ALL);
     }
 }
+
+/// kappa = 0 truth with 5 % noise: the fit ends with kappa on its bound, while a profile
+/// re-solve of g finds a fit more than 1 s^2 better (a medulla fitting noise); `--profile`
+/// then polishes again from that point, and the reported result is the better one: no
+/// interval's re-solve beats it by more than the re-polish threshold.
+#[test]
+fn profile_repolishes_from_a_better_re_solve() {
+    let truth =
+        FurParams::from_file_units([1.49, 0.0, 2.64, 9.45, 17.63, 0.39, 3.15, 0.21, 0.79, 0.68])
+            .unwrap();
+    // Seed 2 of 1-8 is such a case (the re-solve of g beat the first optimum by 1.1 s^2);
+    // seeds 1, 4 and 6 found smaller improvements, which are only reported.
+    let data = synth(&truth, 0.05, 2);
+    let o = FitOptions {
+        profile: vec![ParamId::Kappa, ParamId::G, ParamId::SigmaMS],
+        ..opts()
+    };
+    let fit = fit_data(&data, &o, None).unwrap();
+    assert!(
+        fit.termination.contains("polished again"),
+        "{}",
+        fit.termination
+    );
+    for iv in &fit.profile {
+        assert!(
+            iv.lowest
+                .is_none_or(|(d, _)| d >= furfit::fit::likelihood::REPOLISH),
+            "{iv:?}"
+        );
+    }
+}

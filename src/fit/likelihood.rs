@@ -79,9 +79,17 @@ pub struct Interval {
     pub hi: End,
     /// The lowest `Delta` met (negative: a better fit exists with `id` moved) and where.
     pub lowest: Option<(f64, f64)>,
+    /// The free coordinates of that better fit (the re-solve with `id` at its value),
+    /// when `lowest` is reported.
+    pub better: Option<DVector<f64>>,
     /// Re-solves spent.
     pub refits: usize,
 }
+
+/// A profile re-solve better than the optimum by more than this (in `s^2`: a change of
+/// the fit the data can tell) makes the fitter polish again from it
+/// ([`super::fit_data`]); smaller improvements are only reported.
+pub const REPOLISH: f64 = -1.0;
 
 /// A re-solve with the parameter's coordinate fixed at a `u`, from a start for the other
 /// free coordinates: `(RSS, their solution)`.
@@ -118,13 +126,18 @@ pub fn interval(pp: &ProfileProblem, rss0: f64, s2: f64, resolve: &mut Resolve) 
         )
     };
     let mut refits = 0;
-    let mut lowest: Option<(f64, f64)> = None;
+    let mut lowest: Option<(f64, f64, DVector<f64>)> = None;
     let mut probe = |uj: f64, start: &DVector<f64>, refits: &mut usize| {
         let (rss, sol) = resolve(uj, start);
         *refits += 1;
         let d = (rss - rss0) / s2;
-        if !lowest.is_some_and(|(dl, _)| d >= dl) {
-            lowest = Some((d, reparam::to_value(id, uj)));
+        if !lowest.as_ref().is_some_and(|(dl, _, _)| d >= *dl) {
+            // The full free coordinates of this re-solve: `uj` back at position `j`.
+            let mut full = Vec::with_capacity(sol.len() + 1);
+            full.extend(sol.iter().take(pp.j));
+            full.push(uj);
+            full.extend(sol.iter().skip(pp.j));
+            lowest = Some((d, reparam::to_value(id, uj), DVector::from_vec(full)));
         }
         (d, sol)
     };
@@ -175,7 +188,13 @@ pub fn interval(pp: &ProfileProblem, rss0: f64, s2: f64, resolve: &mut Resolve) 
         hi: hi_dir,
         // Only a drop above the RSS's rounding counts (noise-free data have s^2 ~ 0, where
         // any rounding is many s^2).
-        lowest: lowest.filter(|&(d, _)| d < LOWER_COST && -d * s2 > RSS_ROUNDING * rss0),
+        lowest: lowest
+            .as_ref()
+            .filter(|(d, _, _)| *d < LOWER_COST && -d * s2 > RSS_ROUNDING * rss0)
+            .map(|(d, x, _)| (*d, *x)),
+        better: lowest
+            .filter(|(d, _, _)| *d < LOWER_COST && -d * s2 > RSS_ROUNDING * rss0)
+            .map(|(_, _, u)| u),
         refits,
     }
 }

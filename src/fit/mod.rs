@@ -550,8 +550,8 @@ pub fn fit_data(
         &sub,
         u.clone(),
         iters,
-        termination,
-        trace,
+        termination.clone(),
+        trace.clone(),
         cands.len(),
         chosen.len(),
         clock,
@@ -559,7 +559,6 @@ pub fn fit_data(
     if !opts.profile.is_empty() {
         say("profile likelihood");
         let t = Instant::now();
-        let (r, _) = full.evaluate_at(&u);
         let mut refit = |p: &LogResidualProblem, start: DVector<f64>| {
             run_lm(
                 p,
@@ -572,8 +571,55 @@ pub fn fit_data(
             )
             .map_or(start, |run| run.u)
         };
+        let (r, _) = full.evaluate_at(&u);
         out.profile =
             likelihood::intervals(&full, &u, &r, &out.uncertainty, &opts.profile, &mut refit);
+        // A profile re-solve that fits better than the optimum by more than the data's
+        // resolution: the fit stopped short (a valley the polish left on a bound). Polish
+        // again from there, and when that wins, the result and its intervals are the new
+        // point's (once).
+        let better = out
+            .profile
+            .iter()
+            .filter_map(|iv| iv.lowest.map(|(d, _)| (d, iv.better.clone())))
+            .filter(|(d, b)| *d < likelihood::REPOLISH && b.is_some())
+            .min_by(|a, b| a.0.total_cmp(&b.0));
+        if let Some((d, Some(start))) = better {
+            say("polishing from a better profile point");
+            let run = polish_from(start)?;
+            if run.cost < cost {
+                let mut trace = trace;
+                trace.extend(entries("retry", iters, &run));
+                let iters = iters + run.iters;
+                let termination = format!(
+                    "{} (polished again from a profile re-solve {d:.1} s^2 below the first optimum)",
+                    run.termination
+                );
+                let u = run.u;
+                out = finish(
+                    data,
+                    opts,
+                    &full,
+                    &sub,
+                    u.clone(),
+                    iters,
+                    termination,
+                    trace,
+                    cands.len(),
+                    chosen.len(),
+                    clock,
+                )?;
+                let (r, _) = full.evaluate_at(&u);
+                out.profile = likelihood::intervals(
+                    &full,
+                    &u,
+                    &r,
+                    &out.uncertainty,
+                    &opts.profile,
+                    &mut refit,
+                );
+            }
+        }
         out.profile_time_s = t.elapsed().as_secs_f64();
     }
     Ok(out)
