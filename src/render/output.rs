@@ -136,8 +136,18 @@ pub fn write_contact_sheet(
     {
         let root = BitMapBackend::with_buffer(&mut buf, (w as u32, h as u32)).into_drawing_area();
         let mut x0 = 0;
+        // One size for every label: 18 px, smaller where the longest would run into the
+        // next tile (up to about 0.75 em per character after the 6 px indent; at least 6).
+        let px = tiles
+            .iter()
+            .map(|(label, img)| {
+                let room = (img.width as f64 - 10.0).max(1.0);
+                room / (0.75 * label.chars().count().max(1) as f64)
+            })
+            .fold(18.0f64, f64::min)
+            .max(6.0);
         for (label, img) in tiles {
-            let style = TextStyle::from((FONT, 18).into_font()).color(&WHITE);
+            let style = TextStyle::from((FONT, px).into_font()).color(&WHITE);
             root.draw(&Text::new(
                 label.clone(),
                 (x0 as i32 + 6, th as i32 + 5),
