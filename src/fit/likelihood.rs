@@ -86,6 +86,10 @@ pub struct Interval {
     pub refits: usize,
 }
 
+/// A re-solve of a problem with one more parameter fixed, from a start for its free
+/// coordinates: their solution and its RSS.
+pub type Refit<'r> = dyn FnMut(&LogResidualProblem, DVector<f64>) -> (DVector<f64>, f64) + 'r;
+
 /// A profile re-solve better than the optimum by more than this (in `s^2`: a change of
 /// the fit the data can tell) makes the fitter polish again from it
 /// ([`super::fit_data`]); smaller improvements are only reported.
@@ -180,21 +184,17 @@ pub fn interval(pp: &ProfileProblem, rss0: f64, s2: f64, resolve: &mut Resolve) 
     };
     let lo_dir = side(-1.0);
     let hi_dir = side(1.0);
+    // Only a drop above the RSS's rounding counts (noise-free data have s^2 ~ 0, where any
+    // rounding is many s^2).
+    let better = lowest.filter(|(d, _, _)| *d < LOWER_COST && -d * s2 > RSS_ROUNDING * rss0);
     // `u` increases with the value on every map, so the -u side is the lower end.
     Interval {
         id,
         at: reparam::to_value(id, u0),
         lo: lo_dir,
         hi: hi_dir,
-        // Only a drop above the RSS's rounding counts (noise-free data have s^2 ~ 0, where
-        // any rounding is many s^2).
-        lowest: lowest
-            .as_ref()
-            .filter(|(d, _, _)| *d < LOWER_COST && -d * s2 > RSS_ROUNDING * rss0)
-            .map(|(d, x, _)| (*d, *x)),
-        better: lowest
-            .filter(|(d, _, _)| *d < LOWER_COST && -d * s2 > RSS_ROUNDING * rss0)
-            .map(|(_, _, u)| u),
+        lowest: better.as_ref().map(|(d, x, _)| (*d, *x)),
+        better: better.map(|(_, _, u)| u),
         refits,
     }
 }
@@ -261,14 +261,14 @@ fn fraction(a: f64, b: f64) -> f64 {
 
 /// Profile intervals of `ids` (free parameters of `full`) at the fitted coordinates `u`
 /// with residuals `r` and linearised uncertainty `unc`; `refit` re-solves a problem with
-/// one more parameter fixed.
+/// one more parameter fixed from a start, returning the solution and its RSS.
 pub fn intervals(
     full: &LogResidualProblem,
     u: &DVector<f64>,
     r: &DVector<f64>,
     unc: &Uncertainty,
     ids: &[ParamId],
-    refit: &mut dyn FnMut(&LogResidualProblem, DVector<f64>) -> DVector<f64>,
+    refit: &mut Refit,
 ) -> Vec<Interval> {
     let free = full.layout.free();
     let rss0 = r.norm_squared();
@@ -291,12 +291,13 @@ pub fn intervals(
             let mut layout = full.layout.clone();
             layout.fixed[id.index()] = Some(reparam::to_value(id, uj));
             let sub = LogResidualProblem::new(full.data, layout, full.far);
-            let sol = if start.is_empty() {
-                start.clone()
+            if start.is_empty() {
+                // Nothing left to re-solve.
+                (sub.residuals(&[]).norm_squared(), start.clone())
             } else {
-                refit(&sub, start.clone())
-            };
-            (sub.residuals(sol.as_slice()).norm_squared(), sol)
+                let (sol, rss) = refit(&sub, start.clone());
+                (rss, sol)
+            }
         };
         out.push(interval(&pp, rss0, s2, &mut resolve));
     }

@@ -207,14 +207,16 @@ struct RunResult {
     fd_columns: u64,
 }
 
-/// Starts of second polishes on all samples after the first ended at `u` (see step 4 of
-/// [`fit_data`]): the `--init` start `init_u` when it costs less than `u` there, and when
+/// Starts of second polishes on all samples after the first ended at `u` with `cost` (see
+/// step 4 of [`fit_data`]): the `--init` start `init_u` when it costs less there, and when
 /// `u` has parameters on their bounds ([`reparam::at_bound`]), the best other candidate
 /// with them inside: another start's LM end (by its subsample cost), else the best
 /// scored start.
+#[allow(clippy::too_many_arguments)]
 fn second_polish_starts(
     full: &LogResidualProblem,
     u: &DVector<f64>,
+    cost: f64,
     init_u: Option<DVector<f64>>,
     runs: &[RunResult],
     order: &[usize],
@@ -222,7 +224,7 @@ fn second_polish_starts(
 ) -> Vec<(&'static str, DVector<f64>)> {
     let mut out = Vec::new();
     if let Some(init) = init_u {
-        if full.cost(init.as_slice()) < full.cost(u.as_slice()) {
+        if full.cost(init.as_slice()) < cost {
             out.push(("--init", init));
         }
     }
@@ -488,16 +490,19 @@ pub fn fit_data(
     let mut iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
     // An LM run on all samples (its evaluations counted in `full`), and its trace entries
     // as the `stage` after `offset` iterations.
-    let polish_from = |start: DVector<f64>| -> Result<RunResult> {
-        let run = run_lm(
-            &full,
+    let lm_on = |p: &LogResidualProblem, start: DVector<f64>| {
+        run_lm(
+            p,
             start,
             opts.max_iters,
             opts.ftol,
             opts.step_se,
             opts.broyden,
             clock,
-        )?;
+        )
+    };
+    let polish_from = |start: DVector<f64>| -> Result<RunResult> {
+        let run = lm_on(&full, start)?;
         full.evals.fetch_add(run.evals, Ordering::Relaxed);
         full.fd_columns.fetch_add(run.fd_columns, Ordering::Relaxed);
         Ok(run)
@@ -514,23 +519,24 @@ pub fn fit_data(
             })
             .collect()
     };
-    let (u, termination) = if use_sub {
+    // The run's own best cost is the cost at `u` on all samples (without a subsample the
+    // runs were on all samples already).
+    let (u, termination, cost) = if use_sub {
         say(&format!("polishing on all {} samples", data.len()));
         let polish = polish_from(best_run.u)?;
         trace.extend(entries("full", best_run.iters, &polish));
         iters += polish.iters;
-        (polish.u, polish.termination)
+        (polish.u, polish.termination, polish.cost)
     } else {
-        (best_run.u, best_run.termination)
+        (best_run.u, best_run.termination, best_run.cost)
     };
     // 4. Second polishes on all samples. A bounded map's derivative vanishes at its bound,
     // so LM cannot leave a bound that the subsample's model led it to, even where all
     // samples favour an interior value (noise-free data, fitted exactly from another
     // start, ended on a bound); and a --init start must never end worse than it began.
     let init_u = opts.init.map(|_| scored[0].2.clone());
-    let retries = second_polish_starts(&full, &u, init_u, &runs, &order, &scored);
-    let (mut u, mut termination) = (u, termination);
-    let mut cost = full.cost(u.as_slice());
+    let retries = second_polish_starts(&full, &u, cost, init_u, &runs, &order, &scored);
+    let (mut u, mut termination, mut cost) = (u, termination, cost);
     for (why, start) in retries {
         say(&format!("second polish from {why}"));
         let run = polish_from(start)?;
@@ -543,37 +549,39 @@ pub fn fit_data(
             termination = format!("{} (second polish from {why})", run.termination);
         }
     }
-    let mut out = finish(
-        data,
-        opts,
-        &full,
-        &sub,
-        u.clone(),
-        iters,
-        termination.clone(),
-        trace.clone(),
-        cands.len(),
-        chosen.len(),
-        clock,
-    )?;
+    let finish_at = |u: &DVector<f64>, iters: u64, termination: String, trace| {
+        finish(
+            data,
+            opts,
+            &full,
+            &sub,
+            u.clone(),
+            iters,
+            termination,
+            trace,
+            cands.len(),
+            chosen.len(),
+            clock,
+        )
+    };
+    let mut out = finish_at(&u, iters, termination, trace.clone())?;
     if !opts.profile.is_empty() {
         say("profile likelihood");
         let t = Instant::now();
-        let mut refit = |p: &LogResidualProblem, start: DVector<f64>| {
-            run_lm(
-                p,
-                start.clone(),
-                opts.max_iters,
-                opts.ftol,
-                opts.step_se,
-                opts.broyden,
-                clock,
-            )
-            .map_or(start, |run| run.u)
+        // A re-solve with one more parameter fixed: its solution and RSS (2 x its cost).
+        let mut refit = |p: &LogResidualProblem, start: DVector<f64>| match lm_on(p, start.clone())
+        {
+            Ok(run) => (run.u, 2.0 * run.cost),
+            Err(_) => {
+                let rss = p.residuals(start.as_slice()).norm_squared();
+                (start, rss)
+            }
         };
-        let (r, _) = full.evaluate_at(&u);
-        out.profile =
-            likelihood::intervals(&full, &u, &r, &out.uncertainty, &opts.profile, &mut refit);
+        let mut profile_at = |u: &DVector<f64>, out: &FitOutcome| {
+            let (r, _) = full.evaluate_at(u);
+            likelihood::intervals(&full, u, &r, &out.uncertainty, &opts.profile, &mut refit)
+        };
+        out.profile = profile_at(&u, &out);
         // A profile re-solve that fits better than the optimum by more than the data's
         // resolution: the fit stopped short (a valley the polish left on a bound). Polish
         // again from there, and when that wins, the result and its intervals are the new
@@ -581,43 +589,21 @@ pub fn fit_data(
         let better = out
             .profile
             .iter()
-            .filter_map(|iv| iv.lowest.map(|(d, _)| (d, iv.better.clone())))
-            .filter(|(d, b)| *d < likelihood::REPOLISH && b.is_some())
+            .filter_map(|iv| Some((iv.lowest?.0, iv.better.clone()?)))
+            .filter(|(d, _)| *d < likelihood::REPOLISH)
             .min_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((d, Some(start))) = better {
+        if let Some((d, start)) = better {
             say("polishing from a better profile point");
             let run = polish_from(start)?;
             if run.cost < cost {
                 let mut trace = trace;
                 trace.extend(entries("retry", iters, &run));
-                let iters = iters + run.iters;
                 let termination = format!(
                     "{} (polished again from a profile re-solve {d:.1} s^2 below the first optimum)",
                     run.termination
                 );
-                let u = run.u;
-                out = finish(
-                    data,
-                    opts,
-                    &full,
-                    &sub,
-                    u.clone(),
-                    iters,
-                    termination,
-                    trace,
-                    cands.len(),
-                    chosen.len(),
-                    clock,
-                )?;
-                let (r, _) = full.evaluate_at(&u);
-                out.profile = likelihood::intervals(
-                    &full,
-                    &u,
-                    &r,
-                    &out.uncertainty,
-                    &opts.profile,
-                    &mut refit,
-                );
+                out = finish_at(&run.u, iters + run.iters, termination, trace)?;
+                out.profile = profile_at(&run.u, &out);
             }
         }
         out.profile_time_s = t.elapsed().as_secs_f64();
