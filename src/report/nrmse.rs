@@ -513,24 +513,22 @@ pub fn write_fit_reports(
         .collect();
     planned.extend(fits.iter().flat_map(|f| fig11::outputs(f, out)));
     crate::io::check_replaceable(&planned, force)?;
-    let sum = write_planned(&fits, measurements, out);
-    // Recorded even when a part failed: what was written is furfit's.
-    let written: Vec<PathBuf> = match &sum {
-        Ok(s) => s.written.clone(),
-        Err(_) => planned.iter().filter(|p| p.exists()).cloned().collect(),
-    };
-    crate::io::record_outputs(
-        &written
-            .into_iter()
-            .filter(|p| planned.contains(p))
-            .collect::<Vec<_>>(),
-    )?;
-    sum
+    let mut sum = ReportSummary::default();
+    let result = write_planned(&fits, measurements, out, &mut sum);
+    // Recorded even when a part failed: what this run wrote is furfit's (and only that: an
+    // existing file a failed run did not reach stays as the ledger had it).
+    crate::io::record_outputs(&sum.written)?;
+    result.map(|()| sum)
 }
 
-fn write_planned(fits: &[FitFile], measurements: &Path, out: &Path) -> Result<ReportSummary> {
+/// Write the planned reports, listing each file in `sum.written` once it is written.
+fn write_planned(
+    fits: &[FitFile],
+    measurements: &Path,
+    out: &Path,
+    sum: &mut ReportSummary,
+) -> Result<()> {
     use super::{fig11, fit_time, model_vs_sim};
-    let mut sum = ReportSummary::default();
     write(fits, out)?;
     sum.written.push(out.join("nrmse.md"));
     sum.written.push(out.join("nrmse.csv"));
@@ -601,7 +599,7 @@ fn write_planned(fits: &[FitFile], measurements: &Path, out: &Path) -> Result<Re
     let p = out.join("model_vs_simulation.md");
     crate::io::write_atomic(&p, model_vs_sim::markdown(&entries).as_bytes())?;
     sum.written.push(p);
-    Ok(sum)
+    Ok(())
 }
 
 #[cfg(test)]
