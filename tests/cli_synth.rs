@@ -7,6 +7,24 @@ fn furfit() -> Command {
     Command::new(env!("CARGO_BIN_EXE_furfit"))
 }
 
+/// `synth` of the cat preset on the smallest grid (one theta pair, two phi): quick runs for
+/// option and output checks.
+fn tiny_synth() -> Command {
+    let mut c = furfit();
+    c.args([
+        "synth",
+        "--params",
+        "cat",
+        "--theta-i",
+        "0",
+        "--theta-r",
+        "0",
+        "--phi",
+        "0,90",
+    ]);
+    c
+}
+
 #[test]
 fn synth_csv_round_trip_matches_library_prediction() {
     let dir = tempfile::tempdir().unwrap();
@@ -260,17 +278,7 @@ fn long_jobs_refuse_an_out_under_a_file_first() {
 fn synth_replaces_only_its_own_profiles_and_only_with_force() {
     let dir = tempfile::tempdir().unwrap();
     let synth = |out: &std::path::Path, extra: &[&str]| {
-        furfit()
-            .args([
-                "synth",
-                "--params",
-                "cat",
-                "--theta-i",
-                "0",
-                "--theta-r",
-                "0",
-            ])
-            .args(["--phi", "0,90"])
+        tiny_synth()
             .args(extra)
             .arg("--out")
             .arg(out)
@@ -333,17 +341,8 @@ fn synth_replaces_only_its_own_profiles_and_only_with_force() {
 fn synth_warns_about_ignored_far_field_options() {
     let dir = tempfile::tempdir().unwrap();
     let run = |extra: &[&str]| {
-        let o = furfit()
-            .args([
-                "synth",
-                "--params",
-                "cat",
-                "--theta-i",
-                "0",
-                "--theta-r",
-                "0",
-            ])
-            .args(["--phi", "0,90", "--force", "--out"])
+        let o = tiny_synth()
+            .args(["--force", "--out"])
             .arg(dir.path().join("w.csv"))
             .args(extra)
             .output()
