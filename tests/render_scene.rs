@@ -6,6 +6,20 @@ use furfit::render::bsdf::{Mode, Tint};
 use furfit::render::scene::{Environment, StrandSpec};
 use furfit::render::{render_scene, RenderSettings, Scene};
 
+/// `furfit render` with `args`, then `--out out`; the run must succeed (its stderr is the
+/// failure message).
+fn render_ok(args: &[&str], out: &std::path::Path) -> std::process::Output {
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
+        .arg("render")
+        .args(args)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    o
+}
+
 fn small(mode: Mode) -> RenderSettings {
     RenderSettings {
         width: 32,
@@ -181,18 +195,20 @@ fn lobe_aovs_add_up_to_the_beauty() {
 fn cli_render_writes_png_exr_and_aovs() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("fox.png");
-    let st = std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
-        .args([
-            "render", "--params", "red-fox", "--size", "24x16", "--spp", "2",
-        ])
-        .args(["--fibers", "100", "--threads", "1", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(
-        st.status.success(),
-        "{}",
-        String::from_utf8_lossy(&st.stderr)
+    let st = render_ok(
+        &[
+            "--params",
+            "red-fox",
+            "--size",
+            "24x16",
+            "--spp",
+            "2",
+            "--fibers",
+            "100",
+            "--threads",
+            "1",
+        ],
+        &out,
     );
     let text = String::from_utf8_lossy(&st.stdout);
     assert!(text.contains("Mrays/s"), "{text}");
@@ -286,19 +302,19 @@ fn cli_render_takes_colour_from_rgb_fit_channels() {
     let blue = write_fit("blue.json", &darker);
     let render = |extra: &[&str], out: &str| {
         let out = dir.path().join(out);
-        let st = std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
-            .args(["render", "--size", "16x16", "--spp", "2", "--fibers", "60"])
-            .args(["--threads", "1", "--no-aovs"])
-            .args(extra)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
-        assert!(
-            st.status.success(),
-            "{}",
-            String::from_utf8_lossy(&st.stderr)
-        );
+        let mut args = vec![
+            "--size",
+            "16x16",
+            "--spp",
+            "2",
+            "--fibers",
+            "60",
+            "--threads",
+            "1",
+            "--no-aovs",
+        ];
+        args.extend_from_slice(extra);
+        let st = render_ok(&args, &out);
         (
             image::open(&out).unwrap().to_rgb8(),
             String::from_utf8_lossy(&st.stderr).into_owned(),
