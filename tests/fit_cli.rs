@@ -69,6 +69,16 @@ fn fit(root: &Path, species: &str, out: &str, seed: &str) -> serde_json::Value {
         "fit failed: {}",
         String::from_utf8_lossy(&o.stderr)
     );
+    // stderr is a pipe here, not a terminal: the stages are logged one line each (a
+    // spinner would draw nothing), so a long fit in a batch log shows where it is.
+    let err = String::from_utf8_lossy(&o.stderr);
+    for stage in ["global stage: scoring", "multi-start LM:"] {
+        assert!(
+            err.lines()
+                .any(|l| l.starts_with(&format!("{species}: {stage}")) && l.ends_with(" s]")),
+            "no '{stage}' line on stderr:\n{err}"
+        );
+    }
     let text = std::fs::read_to_string(root.join(out)).unwrap();
     serde_json::from_str(&text).unwrap()
 }
@@ -843,6 +853,14 @@ fn fit_profile_option() {
         out.contains("profile eta:") && out.contains("profile beta_m:"),
         "{out}"
     );
+    // Each profiled parameter is announced on stderr (a log line here: not a terminal).
+    let err = String::from_utf8_lossy(&o.stderr);
+    for line in [
+        "profile likelihood: eta (1 of 2)",
+        "profile likelihood: beta_m (2 of 2)",
+    ] {
+        assert!(err.contains(line), "no '{line}' on stderr:\n{err}");
+    }
     let v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(tmp.path().join("p.json")).unwrap()).unwrap();
     for name in ["eta", "beta_m"] {

@@ -4,6 +4,7 @@ use crate::fit::job::{fit_loaded, jobs_for_all, load_inputs_full, species_name, 
 use crate::fit::FitOptions;
 use crate::FurParams;
 use anyhow::Context;
+use std::io::IsTerminal;
 use std::path::PathBuf;
 
 /// Largest `--starts`: the global stage keeps every scored start (about 0.25 KB each,
@@ -203,8 +204,24 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             indicatif::ProgressStyle::with_template("{spinner} {prefix}: {msg} [{elapsed}]")
                 .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
         );
-        bar.enable_steady_tick(std::time::Duration::from_millis(200));
-        let say = |m: &str| bar.set_message(m.to_string());
+        // A spinner on a terminal; in a log (stderr not a terminal, where indicatif draws
+        // nothing) one line per stage, so a long fit shows where it is.
+        let tty = std::io::stderr().is_terminal();
+        if tty {
+            bar.enable_steady_tick(std::time::Duration::from_millis(200));
+        }
+        let started = std::time::Instant::now();
+        let say = |m: &str| {
+            if tty {
+                bar.set_message(m.to_string());
+            } else {
+                eprintln!(
+                    "{}: {m} [{:.1} s]",
+                    job.species,
+                    started.elapsed().as_secs_f64()
+                );
+            }
+        };
         let res = fit_loaded(job, inputs, &opts, &load, Some(&say));
         bar.finish_and_clear();
         let (_, sums) = res.with_context(|| format!("fitting {}", job.species))?;
@@ -266,16 +283,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             // Parameters the linearisation leaves out (on a bound, or on a singular
             // direction): every other standard error is conditional on their value.
-            let held: Vec<crate::ParamId> = o
-                .uncertainty
-                .unconstrained
-                .iter()
-                .filter(|(_, why)| {
-                    use crate::fit::uncertainty::{REASON_BOUND, REASON_SINGULAR};
-                    [REASON_BOUND, REASON_SINGULAR].contains(why)
-                })
-                .map(|(id, _)| *id)
-                .collect();
+            let held = o.uncertainty.held();
             if !held.is_empty() {
                 let names: Vec<&str> = held.iter().map(|id| id.spec().name).collect();
                 outln!(

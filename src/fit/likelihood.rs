@@ -261,7 +261,8 @@ fn fraction(a: f64, b: f64) -> f64 {
 
 /// Profile intervals of `ids` (free parameters of `full`) at the fitted coordinates `u`
 /// with residuals `r` and linearised uncertainty `unc`; `refit` re-solves a problem with
-/// one more parameter fixed from a start, returning the solution and its RSS.
+/// one more parameter fixed from a start, returning the solution and its RSS; `say`
+/// hears which parameter is being profiled (each costs several re-solves).
 pub fn intervals(
     full: &LogResidualProblem,
     u: &DVector<f64>,
@@ -269,15 +270,23 @@ pub fn intervals(
     unc: &Uncertainty,
     ids: &[ParamId],
     refit: &mut Refit,
+    say: &dyn Fn(&str),
 ) -> Vec<Interval> {
     let free = full.layout.free();
     let rss0 = r.norm_squared();
     let s2 = residual_variance(r, free.len());
     let mut out = Vec::new();
-    for &id in ids {
+    let todo: Vec<ParamId> = ids.iter().copied().filter(|id| free.contains(id)).collect();
+    for (k, &id) in todo.iter().enumerate() {
         let Some(j) = free.iter().position(|&f| f == id) else {
             continue;
         };
+        say(&format!(
+            "profile likelihood: {} ({} of {})",
+            id.spec().name,
+            k + 1,
+            todo.len()
+        ));
         let se_u = unc.se[id.index()]
             .map(|se| se / reparam::derivative(id, u[j]).abs())
             .filter(|s| s.is_finite());

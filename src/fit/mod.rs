@@ -566,7 +566,6 @@ pub fn fit_data(
     };
     let mut out = finish_at(&u, iters, termination, trace.clone())?;
     if !opts.profile.is_empty() {
-        say("profile likelihood");
         let t = Instant::now();
         // A re-solve with one more parameter fixed: its solution and RSS (2 x its cost).
         let mut refit = |p: &LogResidualProblem, start: DVector<f64>| match lm_on(p, start.clone())
@@ -579,7 +578,15 @@ pub fn fit_data(
         };
         let mut profile_at = |u: &DVector<f64>, out: &FitOutcome| {
             let (r, _) = full.evaluate_at(u);
-            likelihood::intervals(&full, u, &r, &out.uncertainty, &opts.profile, &mut refit)
+            likelihood::intervals(
+                &full,
+                u,
+                &r,
+                &out.uncertainty,
+                &opts.profile,
+                &mut refit,
+                &say,
+            )
         };
         out.profile = profile_at(&u, &out);
         // A profile re-solve that fits better than the optimum by more than the data's

@@ -63,7 +63,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
     let unconstrained: Vec<Value> = unc
         .unconstrained
         .iter()
-        .map(|(id, why)| json!({"key": id.spec().name, "reason": why}))
+        .map(|(id, why)| json!({"key": id.spec().name, "reason": why.as_str()}))
         .collect();
     let keys: Vec<&str> = unc.free.iter().map(|id| id.spec().name).collect();
     let matrix: Vec<Vec<Value>> = (0..unc.correlation.nrows())
@@ -93,7 +93,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "unconstrained": unconstrained,
             "fixed": fixed,
             "method": "linearised: s^2 (J^T J)^-1 in the solver's bounded-map coordinates, mapped to file units by the map's derivative",
-            "at_bound": unc.at_bound.iter().map(|id| id.spec().name).collect::<Vec<_>>(),
+            "at_bound": unc.at_bound().iter().map(|id| id.spec().name).collect::<Vec<_>>(),
             "profile": (!out.profile.is_empty())
                 .then(|| crate::fit::likelihood::to_json(&out.profile, out.profile_time_s)),
         },

@@ -17,14 +17,43 @@ use nalgebra::{DMatrix, DVector};
 
 /// SE(u) above which a parameter counts as unconstrained.
 pub const MAX_SE_U: f64 = 2.0;
-/// The reason given for a parameter on its bound ([`reparam::at_bound`]).
-pub const REASON_BOUND: &str = "on its bound, where the linearised standard error is undefined";
-/// The reason given for a parameter on a singular direction of `J^T J` (left out of the
-/// pseudo-inverse, like one on its bound: the others' errors are conditional on both).
-pub const REASON_SINGULAR: &str = "no information in the data at this value (singular direction)";
-/// The reason given for a parameter with `SE(u) > MAX_SE_U`: it stays in the covariance
-/// (unlike one on a bound or a singular direction, which the others are conditional on).
-pub const REASON_WIDE: &str = "standard error spans most of its range";
+/// Why a free parameter counts as not constrained by the data.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Why {
+    /// On its bound ([`reparam::at_bound`]): the map's derivative all but vanishes there.
+    Bound,
+    /// On a singular direction of `J^T J`, left out of the pseudo-inverse.
+    Singular,
+    /// `SE(u) > MAX_SE_U`: it stays in the covariance.
+    Wide,
+    /// A medulla parameter while `kappa < KAPPA_ABSENT`.
+    NoMedulla,
+}
+
+impl Why {
+    /// The reason as fit files and the fit command print it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Why::Bound => "on its bound, where the linearised standard error is undefined",
+            Why::Singular => "no information in the data at this value (singular direction)",
+            Why::Wide => "standard error spans most of its range",
+            Why::NoMedulla => "kappa ~ 0: no medulla, scattered lobes absent",
+        }
+    }
+
+    /// The linearisation holds such a parameter fixed at its value (on a bound or a
+    /// singular direction), so every other standard error is conditional on it.
+    pub fn held(self) -> bool {
+        matches!(self, Why::Bound | Why::Singular)
+    }
+}
+
+impl std::fmt::Display for Why {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
 /// kappa below which the medulla parameters count as unconstrained whatever their
 /// standard errors say. At kappa = 0.02 the scattered lobes still carried a median 13 %
 /// of a profile in an audit (and g came back to 6e-4), so the rule waits for a medulla
@@ -36,17 +65,36 @@ pub struct Uncertainty {
     /// File-unit standard error per parameter (`None`: fixed or infinite).
     pub se: [Option<f64>; N_PARAMS],
     /// Parameters flagged as not constrained by the data, with the reason.
-    pub unconstrained: Vec<(ParamId, &'static str)>,
+    pub unconstrained: Vec<(ParamId, Why)>,
     /// Free parameters in the order of `correlation`.
     pub free: Vec<ParamId>,
     /// Correlation matrix of the free parameters (in `u`; NaN where undefined).
     pub correlation: DMatrix<f64>,
     /// Residual variance `s^2 = sum r^2 / (n - p - 1)` (`p` free parameters and the exposure).
     pub s2: f64,
+}
+
+impl Uncertainty {
     /// Free parameters on their bound ([`reparam::at_bound`]): the map's derivative all but
     /// vanishes there, so the linearisation holds them fixed and every other standard
     /// error is conditional on their bound value (profile intervals are not).
-    pub at_bound: Vec<ParamId>,
+    pub fn at_bound(&self) -> Vec<ParamId> {
+        self.unconstrained
+            .iter()
+            .filter(|(_, why)| *why == Why::Bound)
+            .map(|(id, _)| *id)
+            .collect()
+    }
+
+    /// Free parameters the linearisation holds fixed ([`Why::held`]): every other
+    /// standard error is conditional on their fitted values.
+    pub fn held(&self) -> Vec<ParamId> {
+        self.unconstrained
+            .iter()
+            .filter(|(_, why)| why.held())
+            .map(|(id, _)| *id)
+            .collect()
+    }
 }
 
 /// A coordinate loading more than this on the null directions of [`pseudo_inverse`] is not
@@ -102,7 +150,6 @@ pub fn estimate(
             free,
             correlation: DMatrix::zeros(0, 0),
             s2,
-            at_bound: Vec::new(),
         };
     }
     let (mut cov, null_load) = pseudo_inverse(&(jac.transpose() * jac));
@@ -110,27 +157,25 @@ pub fn estimate(
     let mut se = [None; N_PARAMS];
     let mut unconstrained = Vec::new();
     let kappa = layout.file_values(u.as_slice())[ParamId::Kappa.index()];
-    let mut at_bound = Vec::new();
     for (j, id) in free.iter().enumerate() {
         let se_u = cov[(j, j)].max(0.0).sqrt();
         if reparam::at_bound(*id, u[j]) {
             // Not "no information": the data may well pin it (another start recovers an
             // interior value), but not through a derivative that has vanished.
-            at_bound.push(*id);
-            unconstrained.push((*id, REASON_BOUND));
+            unconstrained.push((*id, Why::Bound));
             continue;
         }
         if null_load[j] > NULL_LOAD {
-            unconstrained.push((*id, REASON_SINGULAR));
+            unconstrained.push((*id, Why::Singular));
             continue;
         }
         se[id.index()] = Some(reparam::derivative(*id, u[j]).abs() * se_u);
         if se_u > MAX_SE_U {
-            unconstrained.push((*id, REASON_WIDE));
+            unconstrained.push((*id, Why::Wide));
         } else if kappa < KAPPA_ABSENT
             && matches!(id, ParamId::SigmaMS | ParamId::SigmaMA | ParamId::G)
         {
-            unconstrained.push((*id, "kappa ~ 0: no medulla, scattered lobes absent"));
+            unconstrained.push((*id, Why::NoMedulla));
         }
     }
     let mut corr = DMatrix::from_element(p, p, f64::NAN);
@@ -148,6 +193,5 @@ pub fn estimate(
         free,
         correlation: corr,
         s2,
-        at_bound,
     }
 }
