@@ -214,3 +214,43 @@ fn inspect_labels_uneven_steps() {
         "{out}"
     );
 }
+
+/// A species folder whose profile carries no label but whose `metadata.json` says the data
+/// is synthetic (DATA.md: the folder's metadata file says what the data is): inspect and
+/// fit label it synthetic, from the folder and from a file named inside it alike; without
+/// that file the data count as measured, and inspect says so.
+#[test]
+fn folder_metadata_labels_data_synthetic() {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("deer");
+    std::fs::create_dir(&dir).unwrap();
+    let mut csv = String::from("theta_i,theta_r,phi,value\n");
+    for (k, phi) in [0, 60, 120, 180].iter().enumerate() {
+        csv.push_str(&format!("0,10,{phi},{}\n", 1.0 + k as f64));
+    }
+    std::fs::write(dir.join("profile.csv"), csv).unwrap();
+    let file = dir.join("profile.csv");
+    let (ok, out, err) = inspect(&[dir.as_os_str()]);
+    assert!(ok, "{err}");
+    assert!(out.contains("data     measured (no synthetic label"), "{out}");
+
+    std::fs::write(
+        dir.join("metadata.json"),
+        r#"{"synthetic": true, "source": "furfit synth + noise"}"#,
+    )
+    .unwrap();
+    for arg in [dir.as_os_str(), file.as_os_str()] {
+        let (ok, out, err) = inspect(&[arg]);
+        assert!(ok, "{err}");
+        assert!(out.contains("data     synthetic"), "{out}");
+        assert!(
+            out.contains("metadata.json labels the data synthetic"),
+            "{out}"
+        );
+    }
+    // A broken metadata file of a species folder is an error naming it and the line.
+    std::fs::write(dir.join("metadata.json"), "{\"synthetic\": tru}").unwrap();
+    let (ok, _, err) = inspect(&[dir.as_os_str()]);
+    assert!(!ok);
+    assert!(err.contains("metadata.json:1:"), "{err}");
+}

@@ -1003,3 +1003,49 @@ fn report_shows_every_channel_and_marks_fixed_parameters() {
         );
     }
 }
+
+/// `fit measurements/<species>/profile.csv` is named after the folder (two species'
+/// `profile.csv` would otherwise share `fits/profile.json`); a fit file of other data is
+/// replaced only with `--force`, while a refit of the same data (also after it was
+/// edited) replaces it freely.
+#[test]
+fn fit_names_profile_files_by_folder_and_keeps_fits_of_other_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    make_species(root, "vole");
+    let mouse = furfit::FurParams::preset("mouse").unwrap().to_file_units();
+    let run = |input: &str, extra: &[&str]| {
+        let mut c = fit_cmd(root);
+        c.arg(input).args(extra);
+        fix_all_but(&mut c, &mouse, &[]);
+        c.output().unwrap()
+    };
+    let o = run("measurements/mouse/profile.csv", &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fit: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("fits/mouse.json")).unwrap())
+            .unwrap();
+    assert_eq!(fit["species"], "mouse", "{}", fit["species"]);
+    assert!(!root.join("fits/profile.json").exists());
+
+    // Another species' data into the same fit file: refused, the file unchanged.
+    let before = std::fs::read(root.join("fits/mouse.json")).unwrap();
+    let o = run("measurements/vole", &["--out", "fits/mouse.json"]);
+    fails_with(o, &["fits/mouse.json", "holds a fit of other data", "--force"]);
+    assert_eq!(std::fs::read(root.join("fits/mouse.json")).unwrap(), before);
+
+    // A refit of the edited data replaces it; so does --force for other data.
+    let csv = root.join("measurements/mouse/profile.csv");
+    let mut text = std::fs::read_to_string(&csv).unwrap();
+    text.push_str("# edited\n");
+    std::fs::write(&csv, text).unwrap();
+    let o = run("measurements/mouse", &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run("measurements/vole", &["--out", "fits/mouse.json", "--force"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let fit: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("fits/mouse.json")).unwrap())
+            .unwrap();
+    assert_eq!(fit["species"], "vole");
+}

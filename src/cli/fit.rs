@@ -34,6 +34,10 @@ pub struct Args {
     /// using all --threads, so the total thread count stays --threads).
     #[arg(long)]
     pub all: bool,
+    /// Replace an existing fit file that was made from other data (a refit of the same
+    /// data replaces it without this).
+    #[arg(long)]
+    pub force: bool,
     /// With --all: the folder of species folders to fit.
     #[arg(long, default_value = "measurements")]
     pub measurements: PathBuf,
@@ -189,8 +193,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         floor_notes.push(notes);
     }
     // Every output too, so `--all` cannot stop at the n-th species after n - 1 fits.
-    for job in &jobs {
+    for (job, inputs) in jobs.iter().zip(&loaded) {
         crate::fit::job::check_out(&job.out)?;
+        crate::fit::job::check_replace_fit(&job.out, &inputs.files, a.force)?;
     }
     for ((job, inputs), floor_notes) in jobs.iter().zip(&loaded).zip(&floor_notes) {
         // What inspect would say about the data (duplicates, a radians warning) is said

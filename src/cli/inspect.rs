@@ -79,9 +79,12 @@ fn describe(path: &std::path::Path, l: &profile::Loaded) -> Vec<String> {
             out.push(format!("    {key}: {v}"));
         }
     }
-    if p.is_synthetic() {
-        out.push("  (synthetic data)".into());
-    }
+    // Said either way: reports label their data by the same test.
+    out.push(if p.is_synthetic() {
+        "  data     synthetic".into()
+    } else {
+        "  data     measured (no synthetic label in the file or its folder's metadata.json)".into()
+    });
     for n in &l.notes {
         out.push(format!("  note: {n}"));
     }

@@ -16,22 +16,86 @@ use std::path::{Path, PathBuf};
 /// One species to fit.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Job {
-    /// Species name (folder name or file stem).
+    /// Species name ([`species_name`]).
     pub species: String,
     /// Profile files and/or species folders, merged.
     pub inputs: Vec<PathBuf>,
     pub out: PathBuf,
 }
 
-/// Species name of an input: the folder name, or the file stem.
+/// Species name of an input: the folder name, or the file stem (the folder's name for a
+/// `profile.*` file).
 pub fn species_name(p: &Path) -> String {
-    let name = if p.is_dir() {
-        p.file_name()
-    } else {
-        p.file_stem()
+    // The folder's own name, as given (a symlinked folder keeps its link's name); `.` and
+    // `..` have none, so their real name is looked up.
+    let folder_name = |d: &Path| {
+        d.file_name()
+            .map(|n| n.to_owned())
+            .or_else(|| d.canonicalize().ok()?.file_name().map(|n| n.to_owned()))
+            .map(|n| n.to_string_lossy().into_owned())
     };
-    name.map(|s| s.to_string_lossy().into_owned())
+    if p.is_dir() {
+        if let Some(n) = folder_name(p) {
+            return n;
+        }
+    } else if p
+        .file_stem()
+        .is_some_and(|s| s.eq_ignore_ascii_case("profile"))
+    {
+        // `measurements/<species>/profile.csv`, the layout's name for a species' profile,
+        // is named after its folder (as `fit <folder>` is): two species' `profile.csv`
+        // would otherwise both become "profile" and write one fit file.
+        let dir = match p.parent() {
+            Some(d) if !d.as_os_str().is_empty() => d,
+            _ => Path::new("."),
+        };
+        if let Some(n) = folder_name(dir) {
+            return n;
+        }
+    }
+    p.file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "profile".into())
+}
+
+/// Check that writing the fit of `files` to `out` loses no other fit: an existing fit file
+/// is replaced freely when it was made from the same data (a file it records has one of
+/// `files`' paths or contents: a refit, also after the data were edited or from another
+/// folder), and only with `force` otherwise (two datasets whose fits take one name).
+pub fn check_replace_fit(out: &Path, files: &[ReadFile], force: bool) -> Result<()> {
+    if force || !out.exists() {
+        return Ok(());
+    }
+    let v = crate::io::read_json(out)?;
+    let recorded = v["data"]["files"].as_array().cloned().unwrap_or_default();
+    let same_path = |a: &str, b: &Path| {
+        let a = Path::new(a);
+        a == b
+            || matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
+    };
+    let same = recorded.iter().any(|r| {
+        let path = r["path"].as_str().unwrap_or_default();
+        let sha = r["sha256"].as_str().unwrap_or_default();
+        files
+            .iter()
+            .any(|f| f.sha256 == sha || same_path(path, &f.path))
+    });
+    if same {
+        return Ok(());
+    }
+    let names: Vec<&str> = recorded.iter().filter_map(|r| r["path"].as_str()).collect();
+    Err(Error::file(
+        out,
+        format!(
+            "exists and holds a fit of other data ({}); give --force to replace it, or --out \
+             another path",
+            if names.is_empty() {
+                "no data files recorded".to_string()
+            } else {
+                names.join(", ")
+            }
+        ),
+    ))
 }
 
 /// Every species folder under `measurements` (sorted), one job each.

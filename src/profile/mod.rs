@@ -26,6 +26,7 @@ use std::path::{Path, PathBuf};
 
 pub mod csv;
 pub mod npz;
+pub mod provenance;
 pub mod summary;
 pub mod yan;
 
@@ -298,8 +299,26 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Profile> {
     load_full(path, opts).map(|l| l.profile)
 }
 
-/// [`load`], also returning the format and the loader's notes.
+/// [`load`], also returning the format and the loader's notes. A `metadata.json` beside
+/// the file that labels the data synthetic labels the profile too
+/// ([`provenance::apply_folder_label`]; one that does not read is a note here).
 pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
+    let mut l = load_file(path, opts)?;
+    if let Some(dir) = path.parent() {
+        let dir = if dir.as_os_str().is_empty() {
+            Path::new(".")
+        } else {
+            dir
+        };
+        let notes = provenance::apply_folder_label(&mut l.profile, dir, false)?;
+        l.notes.extend(notes);
+    }
+    Ok(l)
+}
+
+/// [`load_full`] without its folder's `metadata.json` label ([`load_dir`] applies that
+/// once to the merged profile).
+fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let format = Format::from_path(path)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if matches!(format, Format::Csv | Format::Yan) {
@@ -491,7 +510,7 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let mut format = None;
     let mut read = Vec::new();
     for f in &files {
-        let l = load_full(f, opts)?;
+        let l = load_file(f, opts)?;
         format.get_or_insert(l.format);
         read.extend(l.files);
         notes.extend(l.notes.into_iter().map(|n| format!("{}: {n}", f.display())));
@@ -503,6 +522,7 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
             "{collapsed} identical duplicate sample(s) across files collapsed"
         ));
     }
+    notes.extend(provenance::apply_folder_label(&mut profile, dir, true)?);
     profile.source = Some(dir.to_path_buf());
     Ok(Loaded {
         profile,
