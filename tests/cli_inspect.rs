@@ -232,7 +232,10 @@ fn folder_metadata_labels_data_synthetic() {
     let file = dir.join("profile.csv");
     let (ok, out, err) = inspect(&[dir.as_os_str()]);
     assert!(ok, "{err}");
-    assert!(out.contains("data     measured (no synthetic label"), "{out}");
+    assert!(
+        out.contains("data     measured (no synthetic label"),
+        "{out}"
+    );
 
     std::fs::write(
         dir.join("metadata.json"),

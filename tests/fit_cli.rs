@@ -1032,7 +1032,10 @@ fn fit_names_profile_files_by_folder_and_keeps_fits_of_other_data() {
     // Another species' data into the same fit file: refused, the file unchanged.
     let before = std::fs::read(root.join("fits/mouse.json")).unwrap();
     let o = run("measurements/vole", &["--out", "fits/mouse.json"]);
-    fails_with(o, &["fits/mouse.json", "holds a fit of other data", "--force"]);
+    fails_with(
+        o,
+        &["fits/mouse.json", "holds a fit of other data", "--force"],
+    );
     assert_eq!(std::fs::read(root.join("fits/mouse.json")).unwrap(), before);
 
     // A refit of the edited data replaces it; so does --force for other data.
@@ -1042,7 +1045,10 @@ fn fit_names_profile_files_by_folder_and_keeps_fits_of_other_data() {
     std::fs::write(&csv, text).unwrap();
     let o = run("measurements/mouse", &[]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = run("measurements/vole", &["--out", "fits/mouse.json", "--force"]);
+    let o = run(
+        "measurements/vole",
+        &["--out", "fits/mouse.json", "--force"],
+    );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let fit: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(root.join("fits/mouse.json")).unwrap())

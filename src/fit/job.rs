@@ -70,8 +70,7 @@ pub fn check_replace_fit(out: &Path, files: &[ReadFile], force: bool) -> Result<
     let recorded = v["data"]["files"].as_array().cloned().unwrap_or_default();
     let same_path = |a: &str, b: &Path| {
         let a = Path::new(a);
-        a == b
-            || matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
+        a == b || matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
     };
     let same = recorded.iter().any(|r| {
         let path = r["path"].as_str().unwrap_or_default();
