@@ -484,6 +484,60 @@ impl FurParams {
     }
 }
 
+/// One channel of a multi-channel fit file (its `channels` array, `fit::job`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct FitChannel {
+    /// The channel's name (`data.channel`).
+    pub name: String,
+    pub params: FurParams,
+    pub exposure: f64,
+}
+
+/// The channels of a fit file's JSON (`v` as [`FurParams::load_json`] returns it): empty
+/// for a parameter file or a single-channel fit. `spec` names the file in errors.
+pub fn fit_channels(v: &Value, spec: &str) -> Result<Vec<FitChannel>> {
+    let Some(chs) = v.get("channels").and_then(|c| c.as_array()) else {
+        return Ok(Vec::new());
+    };
+    chs.iter()
+        .enumerate()
+        .map(|(i, ch)| {
+            let name = ch["data"]["channel"]
+                .as_str()
+                .map_or_else(|| format!("{i}"), str::to_string);
+            let (params, exposure) = FurParams::from_json_value(ch).map_err(|e| {
+                Error::Invalid(format!("{spec}: channel '{name}' (channels[{i}]): {e}"))
+            })?;
+            Ok(FitChannel {
+                name,
+                params,
+                exposure,
+            })
+        })
+        .collect()
+}
+
+/// The channel `name` of a multi-channel fit's `channels` (`spec` names the file), or an
+/// error listing the channels there are; `--channel` of `synth` and `simulate`.
+pub fn select_channel<'a>(
+    channels: &'a [FitChannel],
+    name: &str,
+    spec: &str,
+) -> Result<&'a FitChannel> {
+    if channels.len() < 2 {
+        return Err(Error::Invalid(format!(
+            "--channel {name}: {spec} is not a fit with several channels"
+        )));
+    }
+    channels.iter().find(|c| c.name == name).ok_or_else(|| {
+        let names: Vec<&str> = channels.iter().map(|c| c.name.as_str()).collect();
+        Error::Invalid(format!(
+            "--channel {name}: {spec} has channels {}",
+            names.join(", ")
+        ))
+    })
+}
+
 fn json_number(v: &Value) -> Option<f64> {
     v.as_f64()
 }

@@ -408,6 +408,45 @@ pub fn synthesize(
     prof
 }
 
+/// [`synthesize`] once per channel of a multi-channel fit (`(name, parameters, exposure)`;
+/// an `exposure` given overrides every channel's): one profile with those named channels.
+/// Its metadata are the first channel's, with `params`, `exposure` and `capped_slices`
+/// per channel (`params_<name>`, ...) instead of one value.
+#[allow(clippy::too_many_arguments)]
+pub fn synthesize_channels(
+    channels: &[(String, FurParams, f64)],
+    theta_i: &[f64],
+    theta_r: &[f64],
+    phi: &[f64],
+    model_kind: ModelKind,
+    lobes: LobeSet,
+    exposure: Option<f64>,
+    opts: &FarOptions,
+) -> Profile {
+    let mut out = Profile::default();
+    for (c, (name, params, k)) in channels.iter().enumerate() {
+        let k = exposure.unwrap_or(*k);
+        let p = synthesize(params, theta_i, theta_r, phi, model_kind, lobes, k, opts);
+        if c == 0 {
+            out.metadata = p.metadata.clone();
+            out.metadata.retain(|(key, _)| {
+                !matches!(key.as_str(), "params" | "exposure" | "capped_slices")
+            });
+        }
+        for key in ["params", "exposure", "capped_slices"] {
+            if let Some(v) = p.meta(key) {
+                out.set_meta(&format!("{key}_{name}"), v.to_string());
+            }
+        }
+        out.channels.push(name.clone());
+        out.samples.extend(p.samples.into_iter().map(|mut s| {
+            s.channel = c;
+            s
+        }));
+    }
+    out
+}
+
 /// Save a synthesized profile (`.csv` or `.npz`, atomically) with the shared profile
 /// writers.
 pub fn save(path: &Path, prof: &Profile) -> crate::Result<()> {

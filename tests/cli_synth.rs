@@ -3,6 +3,9 @@
 
 use std::process::Command;
 
+mod common;
+use common::rgb_fit;
+
 fn furfit() -> Command {
     Command::new(env!("CARGO_BIN_EXE_furfit"))
 }
@@ -10,11 +13,13 @@ fn furfit() -> Command {
 /// `synth` of the cat preset on the smallest grid (one theta pair, two phi): quick runs for
 /// option and output checks.
 fn tiny_synth() -> Command {
+    synth_tiny_grid("cat".as_ref())
+}
+
+/// `synth --params params` on the smallest grid.
+fn synth_tiny_grid(params: &std::ffi::OsStr) -> Command {
     let mut c = furfit();
-    c.args([
-        "synth",
-        "--params",
-        "cat",
+    c.args(["synth", "--params"]).arg(params).args([
         "--theta-i",
         "0",
         "--theta-r",
@@ -370,4 +375,80 @@ fn synth_warns_about_ignored_far_field_options() {
     );
     assert_eq!(run(&["--tol", "1e-3", "--scattered-step", "strict"]), "");
     assert_eq!(run(&["--tol", "none", "--segments", "4"]), "");
+}
+
+fn csv_values(path: &std::path::Path) -> Vec<(String, f64)> {
+    let p = furfit::profile::load(path, &Default::default()).unwrap();
+    p.samples
+        .iter()
+        .map(|s| {
+            let name = p.channels.get(s.channel).cloned().unwrap_or_default();
+            (name, s.value)
+        })
+        .collect()
+}
+
+/// `synth` of a multi-channel fit writes every channel, each from its own parameters and
+/// exposure (not the primary's for all), and says so; `--channel` picks one.
+#[test]
+fn synth_writes_every_channel_of_a_multi_channel_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = rgb_fit(dir.path());
+    let run = |extra: &[&str], out: &str| {
+        let mut c = synth_tiny_grid(fit.as_os_str());
+        c.args(extra).arg("--out").arg(dir.path().join(out));
+        c.output().unwrap()
+    };
+    let o = run(&[], "all.csv");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("has channels r, g, b: one output channel each"),
+        "{err}"
+    );
+    let all = csv_values(&dir.path().join("all.csv"));
+    assert_eq!(all.len(), 6, "{all:?}");
+    let o = run(&["--channel", "g"], "g.csv");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let g = csv_values(&dir.path().join("g.csv"));
+    let all_g: Vec<f64> = all.iter().filter(|(n, _)| n == "g").map(|v| v.1).collect();
+    // The same computation for the same channel: equal to the last bit.
+    assert_eq!(all_g, g.iter().map(|v| v.1).collect::<Vec<_>>());
+    let text = std::fs::read_to_string(dir.path().join("g.csv")).unwrap();
+    assert!(text.contains("# channel_of_fit: g"), "{text}");
+    // The channels differ (absorption 0.1 / 0.4 / 1.6, exposure 2 / 3 / 5): the g channel
+    // is not the r channel rescaled or copied.
+    let all_r: Vec<f64> = all.iter().filter(|(n, _)| n == "r").map(|v| v.1).collect();
+    assert!(
+        (all_g[0] / all_r[0] - 1.5).abs() > 1e-3,
+        "{all_g:?} {all_r:?}"
+    );
+    // g alone equals a parameter file of g's parameters at exposure 3.
+    let mut pg = furfit::FurParams::preset("cat").unwrap().to_json_value();
+    pg["sigma_c_a"] = serde_json::json!(0.4);
+    let pfile = dir.path().join("g_params.json");
+    std::fs::write(&pfile, pg.to_string()).unwrap();
+    let mut c = synth_tiny_grid(pfile.as_os_str());
+    c.args(["--exposure", "3", "--out"])
+        .arg(dir.path().join("pg.csv"));
+    assert!(c.output().unwrap().status.success());
+    let pgv: Vec<f64> = csv_values(&dir.path().join("pg.csv"))
+        .iter()
+        .map(|v| v.1)
+        .collect();
+    assert_eq!(pgv, all_g);
+
+    let o = run(&["--channel", "x"], "x.csv");
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--channel x") && err.contains("has channels r, g, b"),
+        "{err}"
+    );
+    let mut c = tiny_synth();
+    c.args(["--channel", "r", "--out"])
+        .arg(dir.path().join("cat.csv"));
+    let o = c.output().unwrap();
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a fit with several channels"));
 }

@@ -2,6 +2,8 @@
 
 use std::process::Command;
 
+mod common;
+
 fn furfit() -> Command {
     Command::new(env!("CARGO_BIN_EXE_furfit"))
 }
@@ -437,4 +439,42 @@ fn max_paths_without_rel_noise_is_said() {
     );
     let o = tiny_run(&dir.path().join("t"), &[]);
     assert!(!String::from_utf8_lossy(&o.stderr).contains("warning"));
+}
+
+/// A multi-channel fit is simulated one channel per run: the primary (top-level) channel
+/// by default, said on stderr and recorded, or the one `--channel` names.
+#[test]
+fn simulate_says_which_channel_of_a_fit_it_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = common::rgb_fit(dir.path());
+    let run = |extra: &[&str], out: &str| {
+        furfit()
+            .args(["simulate", "--params"])
+            .arg(&fit)
+            .args(["--theta-i", "0", "--theta-r", "-10:10:10", "--phi", "0,90"])
+            .args(["--paths", "2000", "--threads", "1", "--out"])
+            .arg(dir.path().join(out))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let meta = |out: &str| -> serde_json::Value {
+        let text = std::fs::read_to_string(dir.path().join(out).join("metadata.json")).unwrap();
+        serde_json::from_str(&text).unwrap()
+    };
+    let o = run(&[], "primary");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("simulating its primary channel r"), "{err}");
+    let m = meta("primary");
+    assert_eq!(m["channel_of_fit"], "r");
+    assert_eq!(m["params"]["sigma_c_a"], 0.1);
+    let o = run(&["--channel", "b"], "blue");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let m = meta("blue");
+    assert_eq!(m["channel_of_fit"], "b");
+    assert_eq!(m["params"]["sigma_c_a"], 1.6);
+    let o = run(&["--channel", "x"], "x");
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("has channels r, g, b"));
 }

@@ -78,6 +78,10 @@ pub struct Args {
     /// are not replaced even with it).
     #[arg(long)]
     pub force: bool,
+    /// For a fit file with several channels (e.g. r, g, b): the channel to simulate
+    /// (default: the fit's primary channel, its top level).
+    #[arg(long)]
+    pub channel: Option<String>,
     /// Species label for the metadata (default: the preset name, if --params is one).
     #[arg(long)]
     pub species: Option<String>,
@@ -125,7 +129,30 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     // Before the simulation: a bad name should not cost a run.
     output::check_file_name(&a.file)?;
     output::check_replace(&out, &a.file, a.force)?;
-    let (params, _exposure) = FurParams::load(&spec)?;
+    let (params, _exposure, json) = FurParams::load_json(&spec)?;
+    let fitted = match &json {
+        Some(v) => crate::params::fit_channels(v, &spec)?,
+        None => Vec::new(),
+    };
+    // One channel per simulation (each costs a full run): --channel, else the fit's
+    // primary channel (its top level), said on stderr and recorded.
+    let (params, channel) = match a.channel.as_deref() {
+        Some(c) => {
+            let f = crate::params::select_channel(&fitted, c, &spec)?;
+            (f.params, Some(f.name.clone()))
+        }
+        None if fitted.len() > 1 => {
+            let primary = json.as_ref().and_then(|v| v["data"]["channel"].as_str());
+            let names: Vec<&str> = fitted.iter().map(|c| c.name.as_str()).collect();
+            let primary = primary.unwrap_or(names[0]).to_string();
+            eprintln!(
+                "note: {spec} has channels {}: simulating its primary channel {primary} (--channel NAME for another)",
+                names.join(", ")
+            );
+            (params, Some(primary))
+        }
+        None => (params, None),
+    };
     let species = a
         .species
         .clone()
@@ -224,6 +251,9 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         meta.push(("species".into(), sp.clone()));
     }
     meta.push(("params".into(), params.to_json_value().to_string()));
+    if let Some(c) = &channel {
+        meta.push(("channel_of_fit".into(), c.clone()));
+    }
     meta.push(("seed".into(), a.seed.to_string()));
     meta.push(("paths_per_theta_i".into(), s.paths.to_string()));
     meta.push((
@@ -244,6 +274,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         // Which profile this record describes (simulate --force checks it).
         "file": a.file,
         "params": params.to_json_value(),
+        "channel_of_fit": channel,
         "params_units": "angles in degrees, lengths per unit fiber radius",
         "seed": a.seed,
         "paths_per_theta_i": s.paths,

@@ -27,6 +27,11 @@ pub struct Args {
     /// Lobes to include: R,TT,TRT,TTs,TRTs or all.
     #[arg(long, default_value = "all")]
     pub lobes: String,
+    /// For a fit file with several channels (e.g. r, g, b): the channel to synthesize, or
+    /// `all` (the default: one output channel per fitted channel, each with its own
+    /// parameters and exposure).
+    #[arg(long)]
+    pub channel: Option<String>,
     /// Exposure scale k (default: the parameter file's, else 1).
     #[arg(long, allow_negative_numbers = true)]
     pub exposure: Option<f64>,
@@ -71,9 +76,36 @@ fn check_out(out: &Path, force: bool) -> anyhow::Result<()> {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     check_out(&a.out, a.force).context("--out")?;
-    let (params, file_k) = FurParams::load(&a.params)?;
-    for n in crate::model::FurModel::table_notes(&params) {
-        eprintln!("note: {n}");
+    let (params, file_k, json) = FurParams::load_json(&a.params)?;
+    let fitted = match &json {
+        Some(v) => crate::params::fit_channels(v, &a.params)?,
+        None => Vec::new(),
+    };
+    let names: Vec<&str> = fitted.iter().map(|c| c.name.as_str()).collect();
+    // (name, parameters, exposure) per output channel; an unnamed single one for a preset,
+    // a parameter file or a single-channel fit.
+    let channels: Vec<(String, FurParams, f64)> = match a.channel.as_deref() {
+        None | Some("all") if fitted.len() > 1 => {
+            eprintln!(
+                "note: {} has channels {}: one output channel each (--channel NAME for one)",
+                a.params,
+                names.join(", ")
+            );
+            fitted
+                .iter()
+                .map(|c| (c.name.clone(), c.params, c.exposure))
+                .collect()
+        }
+        None => vec![(String::new(), params, file_k)],
+        Some(c) => {
+            let f = crate::params::select_channel(&fitted, c, &a.params)?;
+            vec![(f.name.clone(), f.params, f.exposure)]
+        }
+    };
+    for (_, p, _) in &channels {
+        for n in crate::model::FurModel::table_notes(p) {
+            eprintln!("note: {n}");
+        }
     }
     let ti = parse_theta_grid("--theta-i", &a.theta_i)?;
     let tr = parse_theta_grid("--theta-r", &a.theta_r)?;
@@ -90,9 +122,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let kind = ModelKind::parse(&a.model)?;
     let lobes = LobeSet::parse(&a.lobes)?;
-    let exposure = a.exposure.unwrap_or(file_k);
-    if !(exposure.is_finite() && exposure > 0.0) {
-        anyhow::bail!("--exposure must be a finite number > 0, got {exposure}");
+    if let Some(k) = a.exposure.filter(|k| !(k.is_finite() && *k > 0.0)) {
+        anyhow::bail!("--exposure must be a finite number > 0, got {k}");
     }
     let opts = a.far.options()?;
     let unused = (kind != ModelKind::Far).then(|| format!("--model {}", kind.name()));
@@ -100,23 +131,48 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     let t0 = std::time::Instant::now();
-    let mut prof = synth::synthesize(&params, &ti, &tr, &phi, kind, lobes, exposure, &opts);
+    let mut prof = match channels.as_slice() {
+        [(name, p, k)] => {
+            let mut prof = synth::synthesize(
+                p,
+                &ti,
+                &tr,
+                &phi,
+                kind,
+                lobes,
+                a.exposure.unwrap_or(*k),
+                &opts,
+            );
+            if !name.is_empty() {
+                prof.set_meta("channel_of_fit", name.clone());
+            }
+            prof
+        }
+        many => synth::synthesize_channels(many, &ti, &tr, &phi, kind, lobes, a.exposure, &opts),
+    };
     let dt = t0.elapsed().as_secs_f64();
-    if let Some(c) = prof.meta("capped_slices").filter(|c| !c.starts_with("0 ")) {
-        eprintln!(
-            "note: {c} theta_d slices hit the far field's refinement limit; their values are not guaranteed to --tol (recorded as capped_slices in the file)"
-        );
+    for (key, c) in &prof.metadata {
+        if key.starts_with("capped_slices") && !c.starts_with("0 ") {
+            eprintln!(
+                "note: {c} theta_d slices hit the far field's refinement limit; their values are not guaranteed to --tol (recorded as {key} in the file)"
+            );
+        }
     }
     let cmd: Vec<String> = std::env::args().collect();
     prof.set_meta("command", cmd.join(" "));
     synth::save(&a.out, &prof)?;
     let n = prof.samples.len();
     outln!(
-        "wrote {} samples ({} theta_i x {} theta_r x {} phi, model {}) to {} in {:.3} s ({:.3e} samples/s)",
+        "wrote {} samples ({} theta_i x {} theta_r x {} phi{}, model {}) to {} in {:.3} s ({:.3e} samples/s)",
         n,
         ti.len(),
         tr.len(),
         phi.len(),
+        if prof.channels.len() > 1 {
+            format!(" x {} channels", prof.channels.len())
+        } else {
+            String::new()
+        },
         kind.name(),
         a.out.display(),
         dt,
