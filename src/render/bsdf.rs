@@ -215,24 +215,15 @@ impl Tint {
     /// case): each channel's fitted absorption. `Ok(None)` for a fit without such
     /// channels; an error names the channel whose parameters are invalid.
     pub fn from_fit_channels(v: &serde_json::Value) -> crate::Result<Option<Tint>> {
-        let Some(chs) = v["channels"].as_array() else {
-            return Ok(None);
-        };
         let mut found: [Option<FurParams>; 3] = [None; 3];
-        for ch in chs {
-            let name = ch["data"]["channel"]
-                .as_str()
-                .unwrap_or("")
-                .to_ascii_lowercase();
-            let slot = match name.as_str() {
+        for ch in crate::params::fit_channels(v, "the fit file")? {
+            let slot = match ch.name.to_ascii_lowercase().as_str() {
                 "r" | "red" => 0,
                 "g" | "green" => 1,
                 "b" | "blue" => 2,
                 _ => continue,
             };
-            let (p, _) = FurParams::from_json_value(ch)
-                .map_err(|e| crate::Error::Invalid(format!("fit channel '{name}': {e}")))?;
-            found[slot] = Some(p);
+            found[slot] = Some(ch.params);
         }
         let [Some(r), Some(g), Some(b)] = found else {
             return Ok(None);
