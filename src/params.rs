@@ -466,7 +466,7 @@ impl FurParams {
             } else if e.kind() == std::io::ErrorKind::NotFound {
                 Error::Invalid(format!(
                     "'{spec}' is neither a preset nor an existing parameter/fit file (presets: {})",
-                    PRESETS.map(|p| p.name).join(", ")
+                    preset_names().join(", ")
                 ))
             } else {
                 Error::io(path, e)
@@ -656,6 +656,11 @@ const fn preset(name: &'static str, values: [f64; N_PARAMS], ours: f64, yan: f64
         paper_nrmse: ours,
         paper_nrmse_yan2015: yan,
     }
+}
+
+/// The presets' names (seed Table 4 order).
+pub fn preset_names() -> Vec<&'static str> {
+    PRESETS.iter().map(|p| p.name).collect()
 }
 
 /// Find a preset's record (for the paper's NRMSE) by name.

@@ -501,6 +501,41 @@ fn report_refuses_data_that_changed_since_the_fit() {
     fails_with(o, &["fig11", "measurements/mouse", "SHA-256"]);
 }
 
+/// model_vs_simulation pairs a species folder with its fit only while the folder holds the
+/// data the fit was made from (the digests fig11 checks too).
+#[test]
+fn model_vs_simulation_drops_a_fit_of_changed_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    fit(root, "mouse", "fits/mouse.json", "1");
+    let row = || {
+        let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
+        mvs.lines()
+            .find(|l| l.starts_with("| mouse |"))
+            .unwrap()
+            .to_string()
+    };
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(row().ends_with('%') || row().contains("% |"), "{}", row());
+    assert!(!row().contains("refit"), "{}", row());
+    let prof = root.join("measurements/mouse/profile.csv");
+    let mut text = std::fs::read_to_string(&prof).unwrap();
+    text.push_str("20,65,0,0.5\n");
+    std::fs::write(&prof, text).unwrap();
+    let _ = furfit()
+        .current_dir(root)
+        .args(["report", "--force"])
+        .output()
+        .unwrap();
+    assert!(
+        row().contains("(the data changed since the fit: refit)"),
+        "{}",
+        row()
+    );
+}
+
 /// Two fits of one species (`mouse.json`, `mouse-v2.json`) get their own figures and
 /// table columns, named by their files.
 #[test]

@@ -7,7 +7,7 @@
 //! reports it as it comes out.
 
 use super::nrmse::FitFile;
-use crate::error::Result;
+use crate::error::{Error, Result};
 use crate::fit::forward::{predict_points, Points};
 use crate::fit::problem::nrmse;
 use crate::model::far::FarOptions;
@@ -17,17 +17,38 @@ use crate::profile::Profile;
 use std::fmt::Write as _;
 use std::path::Path;
 
-/// True parameters from `measurements/<species>/metadata.json` (`params` object).
-pub fn true_params(species_dir: &Path) -> Result<Option<FurParams>> {
-    let p = species_dir.join("metadata.json");
+/// True parameters from `measurements/<species>/metadata.json` (`params`: a parameter
+/// object or a preset name), with the file's description of the data (`what`, else
+/// `source`), or `None` when the file or its `params` is absent. Errors name the file and
+/// the key.
+pub fn true_params(species_dir: &Path) -> Result<Option<(FurParams, Option<String>)>> {
+    let p = species_dir.join(crate::profile::provenance::FOLDER_METADATA);
     if !p.exists() {
         return Ok(None);
     }
     let v = crate::io::read_json(&p)?;
-    match v.get("params") {
-        Some(obj) => Ok(Some(FurParams::from_json_value(obj)?.0)),
-        None => Ok(None),
-    }
+    let truth = match v.get("params") {
+        None => return Ok(None),
+        Some(serde_json::Value::String(name)) => FurParams::preset(name).ok_or_else(|| {
+            Error::file(
+                &p,
+                format!(
+                    "key 'params': '{name}' is not a preset name (presets: {})",
+                    crate::params::preset_names().join(", ")
+                ),
+            )
+        })?,
+        Some(obj) => {
+            FurParams::from_json_value(obj)
+                .map_err(|e| Error::file(&p, format!("key 'params': {e}")))?
+                .0
+        }
+    };
+    let what = ["what", "source"]
+        .iter()
+        .find_map(|k| v.get(*k).and_then(|w| w.as_str()))
+        .map(str::to_string);
+    Ok(Some((truth, what)))
 }
 
 /// NRMSE (MODEL.md, optimal exposure) of the far-field model at `params` on channel
@@ -63,53 +84,86 @@ pub fn nrmse_at(
 /// One species' entry.
 pub struct Entry {
     pub species: String,
+    /// The channel compared, for a profile with named channels.
+    pub channel: Option<String>,
+    /// What the data are (metadata.json `what`/`source`, else the data's label).
+    pub data: String,
     pub truth: FurParams,
     pub nrmse_truth: f64,
     pub exposure_truth: f64,
     pub n_valid: usize,
     pub fit: Option<FitFile>,
+    /// Why the species' fit is not shown (its data changed since), if so.
+    pub fit_note: Option<String>,
 }
 
-/// The Markdown report.
-pub fn markdown(entries: &[Entry]) -> String {
-    let mut s = String::from("# Far-field model vs the virtual goniometer\n\n");
+impl Entry {
+    /// The species, with the channel compared when the data name channels.
+    fn name(&self) -> String {
+        match &self.channel {
+            Some(c) => format!("{} [channel {c}]", self.species),
+            None => self.species.clone(),
+        }
+    }
+}
+
+/// The Markdown report; `unusable` lists the species folders whose true parameters or data
+/// could not be read, with why.
+pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
+    let mut s = String::from("# Far-field model at the true parameters vs the data\n\n");
     let _ = writeln!(
         s,
-        "Data: SYNTHETIC profiles from the independent Monte Carlo virtual goniometer \
-         (`measurements/<species>/`, true parameters in its `metadata.json`). \
+        "Data: each species folder whose `metadata.json` records the true parameters \
+         (`params`); the shipped `measurements/` are SYNTHETIC profiles from the independent \
+         Monte Carlo virtual goniometer, and each row says what its data are. \
          \"NRMSE at truth\" evaluates the far-field model (tolerance mode, 1e-4 of each \
          lobe's peak, as `furfit fit` uses by default) at the TRUE \
-         parameters with the optimal exposure: it is the model's own error against this \
-         simulation. A fit usually does better by moving parameters away from the truth to \
+         parameters with the optimal exposure: it is the model's own error against these \
+         data. A fit usually does better by moving parameters away from the truth to \
          absorb that error, which is why fitted and true values differ. \
          \"NRMSE of fit\" is from `fits/<species>.json` when that fit was made from this \
-         folder. SE is the fit's linearised standard error, s^2 (J^T J)^-1: it assumes \
+         folder's current data. SE is the fit's linearised standard error, s^2 (J^T J)^-1: it assumes \
          independent residuals, but here they are mostly model error, correlated between \
          neighbouring samples, so it understates the real spread, most on shallow \
          directions (equally good fits can differ by more than one SE there).\n"
     );
+    for (species, why) in unusable {
+        let _ = writeln!(s, "- {species}: not compared: {why}");
+    }
+    if !unusable.is_empty() {
+        s.push('\n');
+    }
     if entries.is_empty() {
-        s.push_str("No species folder with a metadata.json `params` object was found.\n");
+        s.push_str(if unusable.is_empty() {
+            "No species folder with a metadata.json `params` entry was found.\n"
+        } else {
+            "No species folder could be compared (see above).\n"
+        });
         return s;
     }
     s.push_str(
-        "| species | valid samples | NRMSE at truth | NRMSE of fit |\n|---|---:|---:|---:|\n",
+        "| species | data | valid samples | NRMSE at truth | NRMSE of fit |\n|---|---|---:|---:|---:|\n",
     );
     for e in entries {
         let _ = writeln!(
             s,
-            "| {} | {} | {:.2}% | {} |",
-            e.species,
+            "| {} | {} | {} | {:.2}% | {} |",
+            e.name(),
+            e.data.replace('|', "/"),
             e.n_valid,
             100.0 * e.nrmse_truth,
-            e.fit
-                .as_ref()
-                .map(|f| format!("{:.2}%", 100.0 * f.nrmse))
-                .unwrap_or_else(|| "(no fit of this data)".into())
+            match (&e.fit, &e.fit_note) {
+                (Some(f), _) => format!("{:.2}%", 100.0 * f.nrmse),
+                (None, Some(_)) => "(the data changed since the fit: refit)".into(),
+                (None, None) => "(no fit of this data)".into(),
+            }
         );
     }
     for e in entries {
-        let _ = writeln!(s, "\n## {}\n", e.species);
+        let _ = writeln!(s, "\n## {}\n", e.name());
+        if let Some(n) = &e.fit_note {
+            let _ = writeln!(s, "Fit not shown: {n}\n");
+        }
         s.push_str("| parameter | unit | true | fitted | SE | fitted - true |\n|---|---|---:|---:|---:|---:|\n");
         let t = e.truth.to_file_units();
         for id in ParamId::ALL {
@@ -143,4 +197,66 @@ pub fn markdown(entries: &[Entry]) -> String {
         let _ = writeln!(s, "\nExposure at truth: {:.4e}.", e.exposure_truth);
     }
     s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `params` may name a preset (as `--params` does); a bad entry is an error naming
+    /// the metadata file and the key; the data's description comes from `what`/`source`.
+    #[test]
+    fn true_params_from_preset_names_objects_and_errors() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        let write = |text: &str| std::fs::write(dir.join("metadata.json"), text).unwrap();
+        assert!(true_params(dir).unwrap().is_none());
+        write(r#"{"params": "deer", "source": "synthetic: furfit synth + 3 % noise"}"#);
+        let (p, what) = true_params(dir).unwrap().unwrap();
+        assert_eq!(p, FurParams::preset("deer").unwrap());
+        assert_eq!(what.as_deref(), Some("synthetic: furfit synth + 3 % noise"));
+        let obj = FurParams::preset("mouse").unwrap().to_json_value();
+        write(&serde_json::json!({"params": obj, "what": "lab data"}).to_string());
+        let (p, what) = true_params(dir).unwrap().unwrap();
+        assert_eq!(p, FurParams::preset("mouse").unwrap());
+        assert_eq!(what.as_deref(), Some("lab data"));
+        write(r#"{"params": "unicorn"}"#);
+        let e = true_params(dir).unwrap_err().to_string();
+        assert!(
+            e.contains("metadata.json") && e.contains("'params'") && e.contains("unicorn"),
+            "{e}"
+        );
+        write(r#"{"params": [1, 2]}"#);
+        let e = true_params(dir).unwrap_err().to_string();
+        assert!(e.contains("metadata.json") && e.contains("'params'"), "{e}");
+        write(r#"{"what": "no truth here"}"#);
+        assert!(true_params(dir).unwrap().is_none());
+    }
+
+    /// A folder whose truth could not be read is listed as such, not as "none found";
+    /// the compared channel is named.
+    #[test]
+    fn markdown_lists_unusable_folders_and_names_the_channel() {
+        let md = markdown(&[], &[("deer".into(), "bad params".into())]);
+        assert!(md.contains("- deer: not compared: bad params"), "{md}");
+        assert!(!md.contains("was found"), "{md}");
+        assert!(markdown(&[], &[]).contains("No species folder with a metadata.json"));
+        let e = Entry {
+            species: "fur".into(),
+            channel: Some("g".into()),
+            data: "synthetic | noisy".into(),
+            truth: FurParams::preset("cat").unwrap(),
+            nrmse_truth: 0.01,
+            exposure_truth: 1.0,
+            n_valid: 10,
+            fit: None,
+            fit_note: Some("changed".into()),
+        };
+        let md = markdown(&[e], &[]);
+        assert!(
+            md.contains("| fur [channel g] | synthetic / noisy | 10 | 1.00% | (the data changed since the fit: refit) |"),
+            "{md}"
+        );
+        assert!(md.contains("Fit not shown: changed"), "{md}");
+    }
 }

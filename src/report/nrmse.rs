@@ -250,25 +250,37 @@ impl FitFile {
             vec![dir]
         };
         let loaded = crate::fit::job::load_inputs_full(&inputs, &self.load)?;
-        if self.sha256.len() == self.files.len() && !self.sha256.is_empty() {
-            let mut have: Vec<&str> = loaded.files.iter().map(|f| f.sha256.as_str()).collect();
-            let mut want: Vec<&str> = self.sha256.iter().map(String::as_str).collect();
-            have.sort_unstable();
-            want.sort_unstable();
-            if have != want {
-                let what = inputs
-                    .iter()
-                    .map(|p| p.display().to_string())
-                    .collect::<Vec<_>>()
-                    .join(", ");
-                return Err(Error::Invalid(format!(
-                    "{what} does not hold the data this fit was made from (SHA-256 differs \
-                     from {}); refit or restore the data",
-                    self.path.display()
-                )));
-            }
-        }
+        self.check_digests(&inputs, &loaded.files)?;
         Ok(loaded.profile)
+    }
+
+    /// The files read from `inputs` have the digests this fit recorded (fit files without
+    /// digests are taken on trust).
+    pub(crate) fn check_digests(
+        &self,
+        inputs: &[PathBuf],
+        read: &[crate::profile::ReadFile],
+    ) -> Result<()> {
+        if self.sha256.len() != self.files.len() || self.sha256.is_empty() {
+            return Ok(());
+        }
+        let mut have: Vec<&str> = read.iter().map(|f| f.sha256.as_str()).collect();
+        let mut want: Vec<&str> = self.sha256.iter().map(String::as_str).collect();
+        have.sort_unstable();
+        want.sort_unstable();
+        if have == want {
+            return Ok(());
+        }
+        let what = inputs
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ");
+        Err(Error::Invalid(format!(
+            "{what} does not hold the data this fit was made from (SHA-256 differs from {}); \
+             refit or restore the data",
+            self.path.display()
+        )))
     }
 
     /// Whether every file the fit recorded lies in `dir` (so its loader options apply to
@@ -548,6 +560,7 @@ fn write_planned(
     }
     // Model vs simulation: every species folder with true parameters.
     let mut entries = Vec::new();
+    let mut unusable = Vec::new();
     if let Ok(rd) = std::fs::read_dir(measurements) {
         let mut dirs: Vec<PathBuf> = rd
             .filter_map(|e| e.ok().map(|e| e.path()))
@@ -556,30 +569,43 @@ fn write_planned(
         dirs.sort();
         for d in dirs {
             let species = crate::fit::job::species_name(&d);
-            let truth = match model_vs_sim::true_params(&d) {
+            let mut skip = |why: String| {
+                sum.skipped
+                    .push((species.clone(), format!("model_vs_simulation: {why}")));
+                unusable.push((species.clone(), why));
+            };
+            let (truth, what) = match model_vs_sim::true_params(&d) {
                 Ok(Some(t)) => t,
                 Ok(None) => continue,
                 Err(e) => {
-                    sum.skipped
-                        .push((species, format!("model_vs_simulation: {e}")));
+                    skip(e.to_string());
                     continue;
                 }
             };
             // A fit of other data (its own files) has other loader options and an NRMSE
             // that is not comparable: listed without it.
-            let fit = fits
+            let mut fit = fits
                 .iter()
                 .find(|f| f.primary && f.species == species && f.fitted_from(&d))
                 .cloned();
             let load = fit.as_ref().map(|f| f.load.clone()).unwrap_or_default();
-            let prof = match crate::fit::job::load_inputs(std::slice::from_ref(&d), &load) {
+            let inputs = [d.clone()];
+            let loaded = match crate::fit::job::load_inputs_full(&inputs, &load) {
                 Ok(p) => p,
                 Err(e) => {
-                    sum.skipped
-                        .push((species, format!("model_vs_simulation: {e}")));
+                    skip(e.to_string());
                     continue;
                 }
             };
+            // As for fig11: a fit made before the data changed is not this data's fit.
+            let mut fit_note = None;
+            if let Some(f) = &fit {
+                if let Err(e) = f.check_digests(&inputs, &loaded.files) {
+                    fit_note = Some(e.to_string());
+                    fit = None;
+                }
+            }
+            let prof = loaded.profile;
             let ch = fit
                 .as_ref()
                 .and_then(|f| prof.channels.iter().position(|c| *c == f.channel))
@@ -587,17 +613,26 @@ fn write_planned(
             if let Some((e, k, n)) = model_vs_sim::nrmse_at(&truth, &prof, ch) {
                 entries.push(model_vs_sim::Entry {
                     species,
+                    channel: prof.channels.get(ch).cloned(),
+                    data: what.unwrap_or_else(|| {
+                        if prof.is_synthetic() {
+                            "synthetic (labelled so in the data)".into()
+                        } else {
+                            "measured (no synthetic label)".into()
+                        }
+                    }),
                     truth,
                     nrmse_truth: e,
                     exposure_truth: k,
                     n_valid: n,
                     fit,
+                    fit_note,
                 });
             }
         }
     }
     let p = out.join("model_vs_simulation.md");
-    crate::io::write_atomic(&p, model_vs_sim::markdown(&entries).as_bytes())?;
+    crate::io::write_atomic(&p, model_vs_sim::markdown(&entries, &unusable).as_bytes())?;
     sum.written.push(p);
     Ok(())
 }
