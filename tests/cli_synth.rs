@@ -452,3 +452,26 @@ fn synth_writes_every_channel_of_a_multi_channel_fit() {
     assert!(!o.status.success());
     assert!(String::from_utf8_lossy(&o.stderr).contains("not a fit with several channels"));
 }
+
+/// The recorded `# command:` pastes back into a shell: arguments with spaces are quoted,
+/// argv[0] is plain `furfit`.
+#[test]
+fn synth_records_a_runnable_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("lt.csv");
+    let o = tiny_synth()
+        .args(["--lobes", "R, TT", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let cmd = text
+        .lines()
+        .find_map(|l| l.strip_prefix("# command: "))
+        .unwrap();
+    assert!(
+        cmd.starts_with("furfit synth --params cat ") && cmd.contains(" --lobes 'R, TT' --out "),
+        "{cmd}"
+    );
+}

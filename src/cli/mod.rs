@@ -238,6 +238,44 @@ impl FarArgs {
     }
 }
 
+/// `a` as one shell word: unchanged when it holds only characters no shell treats
+/// specially, else in single quotes (an embedded `'` as `'\''`).
+pub(crate) fn shell_quote(a: &str) -> String {
+    if !a.is_empty()
+        && a.chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_./:,=+".contains(c))
+    {
+        a.to_string()
+    } else {
+        format!("'{}'", a.replace('\'', "'\\''"))
+    }
+}
+
+/// This run's command line as files record it (`# command:`), ready to paste into a
+/// shell: argv[0] as plain `furfit` (reproducible anywhere), every argument quoted as
+/// needed ([`shell_quote`]).
+pub(crate) fn command_line() -> String {
+    std::iter::once("furfit".to_string())
+        .chain(std::env::args().skip(1).map(|x| shell_quote(&x)))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+#[cfg(test)]
+mod quote_tests {
+    use super::shell_quote;
+
+    #[test]
+    fn shell_quote_leaves_plain_words_and_quotes_the_rest() {
+        assert_eq!(shell_quote("-180:180:2"), "-180:180:2");
+        assert_eq!(shell_quote("fits/red-fox.json"), "fits/red-fox.json");
+        assert_eq!(shell_quote("R, TT"), "'R, TT'");
+        assert_eq!(shell_quote("it's"), "'it'\\''s'");
+        assert_eq!(shell_quote(""), "''");
+        assert_eq!(shell_quote("a$b"), "'a$b'");
+    }
+}
+
 pub mod bench_model;
 pub mod fit;
 pub mod inspect;

@@ -184,10 +184,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let command = format!(
         "furfit render-convergence --params {} --size {pw}x{ph} --frame {fw}x{fh} \
          --max-spp {} --ref-spp {} --modes {} --seed {} --repeats {} --threads {}{}",
-        a.params,
+        super::shell_quote(&a.params),
         a.max_spp,
         a.ref_spp,
-        a.modes,
+        super::shell_quote(&a.modes),
         a.seed,
         a.repeats,
         a.threads,

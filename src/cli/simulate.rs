@@ -90,16 +90,6 @@ pub struct Args {
     pub bench: bool,
 }
 
-fn quote(a: &str) -> String {
-    if a.chars()
-        .all(|c| c.is_ascii_alphanumeric() || "-_./:,=+".contains(c))
-    {
-        a.to_string()
-    } else {
-        format!("'{}'", a.replace('\'', "'\\''"))
-    }
-}
-
 fn progress_bar(total: u64) -> indicatif::ProgressBar {
     let pb = indicatif::ProgressBar::with_draw_target(
         Some(total),
@@ -233,11 +223,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         seed: a.seed,
     };
     let m = measure::apply(&sim, &fx);
-    // argv[0] is recorded as plain `furfit` so the command is reproducible anywhere.
-    let command: Vec<String> = std::iter::once("furfit".to_string())
-        .chain(std::env::args().skip(1).map(|x| quote(&x)))
-        .collect();
-    let command = command.join(" ");
+    let command = super::command_line();
     let rel_after = simulate::median_rel_noise(&sim, a.noise_above);
     let valid = m.count(None);
     let mut meta: Vec<(String, String)> = vec![

@@ -158,8 +158,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
-    let cmd: Vec<String> = std::env::args().collect();
-    prof.set_meta("command", cmd.join(" "));
+    prof.set_meta("command", super::command_line());
     synth::save(&a.out, &prof)?;
     let n = prof.samples.len();
     outln!(
