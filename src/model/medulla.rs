@@ -34,6 +34,12 @@
 //!   no photon scatters; the stored slice is the limit `tau -> 0` (one scattering event
 //!   uniformly placed on the chord), so `C^M` is continuous in `tau`. A slice that receives
 //!   no weight at all (not reachable on the shipped grid) falls back to `cos(theta_r) / 2`.
+//! * Not reciprocal: as the seed's `M_s = C^M` (Eq. 19), a density per radian of exit
+//!   inclination normalised for each `theta_i`, the scattered lobes do not satisfy
+//!   `f(theta_i, theta_r) = f(theta_r, theta_i)`: a diffuse exit density carries a
+//!   `cos theta_r` that the swap moves to `cos theta_i` (at `phi = 0` the swapped values
+//!   differ by about `cos theta_r / cos theta_i`). R, TT and TRT are reciprocal exactly.
+//!   We keep the paper's definition (its fits and ours are made with it).
 //!
 //! # Grids, interpolation and clamping
 //! Shipped grid ([`crate::model::medulla_mc::McGrid::standard`]): 35 `tau` in `[0, 20]`,
