@@ -416,3 +416,80 @@ fn render_never_replaces_a_file_furfit_did_not_write() {
     // Now furfit's: a rerun without --force is fine.
     assert!(all(&[]).status.success());
 }
+
+/// The PNG text chunks (keyword -> text) of a file.
+fn png_text(path: &Path) -> Vec<(String, String)> {
+    let dec = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(path).unwrap()));
+    let mut reader = dec.read_info().unwrap();
+    // Text after the image data is read with it.
+    let mut buf = vec![0; reader.output_buffer_size().unwrap()];
+    reader.next_frame(&mut buf).unwrap();
+    reader.finish().unwrap();
+    reader
+        .info()
+        .utf8_text
+        .iter()
+        .map(|t| (t.keyword.clone(), t.get_text().unwrap()))
+        .collect()
+}
+
+/// Renders carry what made them: the furfit version, the command, the source of the
+/// parameters (a fit says it was fitted to synthetic data), the mode and sampling, and the
+/// parameters; an AOV names its lobe; the contact sheet lists its fits.
+#[test]
+fn renders_carry_their_provenance_in_png_text() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = fit_file();
+    let out = dir.path().join("fox.png");
+    let o = furfit(&[
+        "render",
+        "--fit",
+        fit.to_str().unwrap(),
+        "--size",
+        "8x8",
+        "--spp",
+        "1",
+        "--fibers",
+        "20",
+        "--threads",
+        "1",
+        "--mode",
+        "far",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let get = |path: &Path, key: &str| {
+        png_text(path)
+            .into_iter()
+            .find(|(k, _)| k == key)
+            .map(|(_, v)| v)
+            .unwrap_or_else(|| panic!("no {key} in {}", path.display()))
+    };
+    assert!(get(&out, "Software").starts_with("furfit "));
+    assert!(get(&out, "Source").starts_with("furfit render --fit "));
+    let d = get(&out, "Description");
+    assert!(
+        d.starts_with("image rendered by furfit from fit file ")
+            && d.contains("species red-fox, fitted to SYNTHETIC data")
+            && d.contains("mode far, 8x8, 1 spp, seed "),
+        "{d}"
+    );
+    assert!(get(&out, "Comment").contains("\"sigma_c_a\""));
+    let aov = dir.path().join("fox_TT.png");
+    assert!(get(&aov, "Description").starts_with("TT lobe AOV rendered by furfit"));
+
+    let fits = dir.path().join("fits");
+    std::fs::create_dir(&fits).unwrap();
+    std::fs::copy(&fit, fits.join("red-fox.json")).unwrap();
+    let sheet = dir.path().join("sheet.png");
+    let o = render_all(&fits, &sheet, &["--no-aovs"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let d = get(&sheet, "Description");
+    assert!(
+        d.starts_with("contact sheet rendered by furfit")
+            && d.contains("red-fox: fit file ")
+            && d.contains("SYNTHETIC"),
+        "{d}"
+    );
+}

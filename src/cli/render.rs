@@ -287,8 +287,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for w in ignored(&a, &s) {
         eprintln!("warning: {w}");
     }
-    // (name, parameters, the fit file's r, g, b channels when it has them)
-    let jobs: Vec<(String, FurParams, Option<Tint>)> = if a.all {
+    // (name, parameters, the fit file's r, g, b channels when it has them, where the
+    // parameters come from)
+    let jobs: Vec<(String, FurParams, Option<Tint>, String)> = if a.all {
         let dir = a.fits_dir.clone().unwrap_or_else(|| "fits".into());
         let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
             .with_context(|| format!("reading {}", dir.display()))?
@@ -304,8 +305,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .map(|f| {
                 let spec = f.to_string_lossy();
                 let name = f.file_stem().unwrap().to_string_lossy().into_owned();
-                let (p, colour) = load_with_colour(&spec)?;
-                Ok((name, p, colour))
+                let (p, colour, about) = load_with_colour(&spec)?;
+                Ok((name, p, colour, about))
             })
             .collect::<anyhow::Result<_>>()?
     } else {
@@ -319,19 +320,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .clone()
             .or(a.params.clone())
             .context("give --fit FILE, --params FILE|PRESET or --all")?;
-        let (p, colour) = load_with_colour(&spec)?;
+        let (p, colour, about) = load_with_colour(&spec)?;
         let name = Path::new(&spec)
             .file_stem()
             .map(|s| s.to_string_lossy().into_owned())
             .unwrap_or(spec.clone());
-        vec![(name, p, colour)]
+        vec![(name, p, colour, about)]
     };
     // Every output path is checked before the (possibly long) renders, so a bad --out
     // fails at once, before anything is written (a render that fails later still leaves
     // the species finished before it).
     let outs: Vec<PathBuf> = jobs
         .iter()
-        .map(|(name, _, _)| {
+        .map(|(name, ..)| {
             if a.all {
                 a.out.with_file_name(format!("{name}.png"))
             } else {
@@ -343,7 +344,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.all {
         taken.push((a.out.clone(), "the contact sheet"));
     }
-    for ((name, _, _), out) in jobs.iter().zip(&outs) {
+    for ((name, ..), out) in jobs.iter().zip(&outs) {
         for (_, p) in outputs(out, &s, !a.no_aovs) {
             if let Some((_, owner)) = taken.iter().find(|(q, _)| *q == p) {
                 bail!(
@@ -383,7 +384,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         s.mode.name()
     );
     let mut tiles = Vec::new();
-    for ((name, p, colour), out) in jobs.iter().zip(&outs) {
+    let command = super::command_line();
+    let mut sheet_about = Vec::new();
+    for ((name, p, colour, about), out) in jobs.iter().zip(&outs) {
         for n in crate::model::FurModel::table_notes(p) {
             eprintln!("note: {name}: {n}");
         }
@@ -413,14 +416,41 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             r.rays,
             r.rays_per_second() / 1e6
         );
+        // What made the image travels with its PNGs (text chunks).
+        let text = |what: &str| -> Vec<(&'static str, String)> {
+            vec![
+                ("Software", crate::TOOL_VERSION.to_string()),
+                ("Source", command.clone()),
+                (
+                    "Description",
+                    format!(
+                        "{what} rendered by furfit from {about}; mode {}, {}x{}, {} spp, \
+                         seed {}; ACES tone map, sRGB, exposure {} EV",
+                        s.mode.name(),
+                        s.width,
+                        s.height,
+                        s.spp,
+                        s.seed,
+                        a.exposure
+                    ),
+                ),
+                ("Comment", format!("parameters {}", p.to_json_value())),
+            ]
+        };
+        sheet_about.push(format!("{name}: {about}"));
         // The PNG, the EXR and the AOVs are written as one: all or none.
         let files = outputs(out, &s, !a.no_aovs)
             .into_iter()
             .map(|(image, p)| {
                 let bytes = match image {
-                    Image::Png => output::png_bytes(&r.beauty, a.exposure, &p)?,
+                    Image::Png => output::png_bytes(&r.beauty, a.exposure, &text("image"), &p)?,
                     Image::Exr => output::exr_bytes(&r.beauty, &p)?,
-                    Image::Aov(l) => output::png_bytes(&r.lobes[l.index()], a.exposure, &p)?,
+                    Image::Aov(l) => output::png_bytes(
+                        &r.lobes[l.index()],
+                        a.exposure,
+                        &text(&format!("{} lobe AOV", l.name())),
+                        &p,
+                    )?,
                 };
                 Ok((p, bytes))
             })
@@ -455,22 +485,50 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         tiles.push((name.clone(), r.beauty));
     }
     if a.all {
-        output::write_contact_sheet(&tiles, a.exposure, &a.out)?;
+        let text = [
+            ("Software", crate::TOOL_VERSION.to_string()),
+            ("Source", command.clone()),
+            (
+                "Description",
+                format!(
+                    "contact sheet rendered by furfit, mode {}, {} spp, seed {}: {}",
+                    s.mode.name(),
+                    s.spp,
+                    s.seed,
+                    sheet_about.join("; ")
+                ),
+            ),
+        ];
+        output::write_contact_sheet(&tiles, a.exposure, &text, &a.out)?;
         crate::io::record_outputs(std::slice::from_ref(&a.out))?;
         outln!("wrote contact sheet {}", a.out.display());
     }
     Ok(())
 }
 
-/// The parameters of a preset, parameter file or fit file, and the colour of a fit file
+/// The parameters of a preset, parameter file or fit file, the colour of a fit file
 /// with r, g, b channels ([`Tint::from_fit_channels`]; whether given as --fit or --params,
-/// which takes fit files too), from one read of the file. The fit's exposure k is a
+/// which takes fit files too), and where they come from (for the images' text: a fit says
+/// whether its data were synthetic), from one read of the file. The fit's exposure k is a
 /// measurement scale, not a light level: not used here.
-fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>)> {
+fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, String)> {
     let (p, _, json) = FurParams::load_json(spec)?;
-    let colour = match json {
-        Some(v) => Tint::from_fit_channels(&v).with_context(|| format!("--fit {spec}"))?,
-        None => None,
+    let Some(v) = json else {
+        return Ok((p, None, format!("preset {spec} (seed Table 4)")));
     };
-    Ok((p, colour))
+    let colour = Tint::from_fit_channels(&v).with_context(|| format!("--fit {spec}"))?;
+    let about = if v.get("solver").is_some() {
+        let data = match v["data"]["synthetic"].as_bool() {
+            Some(true) => "SYNTHETIC data",
+            Some(false) => "measured data",
+            None => "data of unrecorded kind",
+        };
+        match v["species"].as_str() {
+            Some(sp) => format!("fit file {spec} (species {sp}, fitted to {data})"),
+            None => format!("fit file {spec} (fitted to {data})"),
+        }
+    } else {
+        format!("parameter file {spec}")
+    };
+    Ok((p, colour, about))
 }

@@ -53,25 +53,48 @@ pub fn tonemap(img: &Image, exposure_ev: f64) -> Vec<u8> {
         .collect()
 }
 
-/// PNG bytes of an 8-bit RGB buffer (`path` only names the target in errors).
-fn encode(bytes: Vec<u8>, w: usize, h: usize, path: &Path) -> crate::Result<Vec<u8>> {
-    let img = image::RgbImage::from_raw(w as u32, h as u32, bytes)
-        .ok_or_else(|| crate::Error::file(path, "image buffer has the wrong size"))?;
-    let mut buf = Cursor::new(Vec::new());
-    img.write_to(&mut buf, image::ImageFormat::Png)
-        .map_err(|e| crate::Error::file(path, format!("PNG encoding failed: {e}")))?;
-    Ok(buf.into_inner())
+/// Text stored in a PNG beside the pixels (iTXt: UTF-8), as `(keyword, text)` with the
+/// PNG spec's keywords (`Software`, `Source`, `Description`, `Comment`): a shared image
+/// keeps what made it.
+pub type PngText = [(&'static str, String)];
+
+/// PNG bytes of an 8-bit RGB buffer with `text` chunks (`path` only names the target in
+/// errors).
+fn encode(
+    bytes: Vec<u8>,
+    w: usize,
+    h: usize,
+    text: &PngText,
+    path: &Path,
+) -> crate::Result<Vec<u8>> {
+    let fail =
+        |e: png::EncodingError| crate::Error::file(path, format!("PNG encoding failed: {e}"));
+    if bytes.len() != w * h * 3 {
+        return Err(crate::Error::file(path, "image buffer has the wrong size"));
+    }
+    let mut out = Vec::new();
+    let mut enc = png::Encoder::new(&mut out, w as u32, h as u32);
+    enc.set_color(png::ColorType::Rgb);
+    enc.set_depth(png::BitDepth::Eight);
+    for (key, value) in text {
+        enc.add_itxt_chunk(key.to_string(), value.clone())
+            .map_err(fail)?;
+    }
+    let mut writer = enc.write_header().map_err(fail)?;
+    writer.write_image_data(&bytes).map_err(fail)?;
+    writer.finish().map_err(fail)?;
+    Ok(out)
 }
 
-/// The tone-mapped sRGB PNG's bytes, for [`crate::io::write_atomic_all`] (`path` names
-/// the target in errors).
-pub fn png_bytes(img: &Image, exposure_ev: f64, path: &Path) -> crate::Result<Vec<u8>> {
-    encode(tonemap(img, exposure_ev), img.width, img.height, path)
-}
-
-/// Write the tone-mapped sRGB PNG.
-pub fn write_png(img: &Image, exposure_ev: f64, path: &Path) -> crate::Result<()> {
-    write_atomic(path, &png_bytes(img, exposure_ev, path)?)
+/// The tone-mapped sRGB PNG's bytes with `text` chunks, for
+/// [`crate::io::write_atomic_all`] (`path` names the target in errors).
+pub fn png_bytes(
+    img: &Image,
+    exposure_ev: f64,
+    text: &PngText,
+    path: &Path,
+) -> crate::Result<Vec<u8>> {
+    encode(tonemap(img, exposure_ev), img.width, img.height, text, path)
 }
 
 /// The linear image as 32-bit float OpenEXR bytes (`path` names the target in errors).
@@ -112,6 +135,7 @@ pub fn read_exr(path: &Path) -> crate::Result<Image> {
 pub fn write_contact_sheet(
     tiles: &[(String, Image)],
     exposure_ev: f64,
+    text: &PngText,
     path: &Path,
 ) -> crate::Result<()> {
     use plotters::prelude::*;
@@ -159,7 +183,7 @@ pub fn write_contact_sheet(
         root.present()
             .map_err(|e| crate::Error::file(path, format!("drawing failed: {e}")))?;
     }
-    write_atomic(path, &encode(buf, w, h, path)?)
+    write_atomic(path, &encode(buf, w, h, text, path)?)
 }
 
 #[cfg(test)]
