@@ -65,24 +65,23 @@ fn render(dir: &Path, extra: &[&str]) -> Output {
     with_defaults(&["render"], &defaults, extra)
 }
 
+/// The smallest render: quick runs for option and output checks.
+const SMALLEST: [&str; 8] = [
+    "--size",
+    "8x8",
+    "--spp",
+    "1",
+    "--fibers",
+    "20",
+    "--threads",
+    "1",
+];
+
 /// `render --all` of the fits in `fits` at the smallest settings, the sheet at `sheet`.
 fn render_all(fits: &Path, sheet: &Path, extra: &[&str]) -> Output {
-    let mut args = vec![
-        "render",
-        "--all",
-        "--fits-dir",
-        fits.to_str().unwrap(),
-        "--size",
-        "8x8",
-        "--spp",
-        "1",
-        "--fibers",
-        "20",
-        "--threads",
-        "1",
-        "--out",
-        sheet.to_str().unwrap(),
-    ];
+    let mut args = vec!["render", "--all", "--fits-dir", fits.to_str().unwrap()];
+    args.extend_from_slice(&SMALLEST);
+    args.extend_from_slice(&["--out", sheet.to_str().unwrap()]);
     args.extend_from_slice(extra);
     furfit(&args)
 }
@@ -441,23 +440,10 @@ fn renders_carry_their_provenance_in_png_text() {
     let dir = tempfile::tempdir().unwrap();
     let fit = fit_file();
     let out = dir.path().join("fox.png");
-    let o = furfit(&[
-        "render",
-        "--fit",
-        fit.to_str().unwrap(),
-        "--size",
-        "8x8",
-        "--spp",
-        "1",
-        "--fibers",
-        "20",
-        "--threads",
-        "1",
-        "--mode",
-        "far",
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let mut args = vec!["render", "--fit", fit.to_str().unwrap()];
+    args.extend_from_slice(&SMALLEST);
+    args.extend_from_slice(&["--mode", "far", "--out", out.to_str().unwrap()]);
+    let o = furfit(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     let get = |path: &Path, key: &str| {
         png_text(path)
