@@ -475,3 +475,40 @@ fn synth_records_a_runnable_command() {
         "{cmd}"
     );
 }
+
+/// An exposure that overflows a value is an error, not a profile with `inf` in it (which
+/// the loaders refuse); nothing is written.
+#[test]
+fn synth_refuses_an_exposure_that_overflows() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut p = furfit::FurParams::preset("cat").unwrap().to_json_value();
+    p["beta_m"] = serde_json::json!(0.01);
+    let alpha = p["alpha"].as_f64().unwrap();
+    let pfile = dir.path().join("sharp.json");
+    std::fs::write(&pfile, p.to_string()).unwrap();
+    let out = dir.path().join("o.csv");
+    // theta_r at the R lobe's centre (-theta_i + alpha): M_R ~ 2000 there, so the value
+    // exceeds 1 and 1e308 times it overflows.
+    let o = furfit()
+        .args(["synth", "--params"])
+        .arg(&pfile)
+        .args([
+            "--theta-i",
+            "0",
+            "--theta-r",
+            &format!("{alpha}"),
+            "--phi",
+            "0",
+        ])
+        .args(["--exposure", "1e308", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--exposure") && err.contains("overflows"),
+        "{err}"
+    );
+    assert!(!out.exists());
+}

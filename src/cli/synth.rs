@@ -151,6 +151,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         many => synth::synthesize_channels(many, &ti, &tr, &phi, kind, lobes, a.exposure, &opts),
     };
     let dt = t0.elapsed().as_secs_f64();
+    // The model is finite (the stability report checks it); only a huge exposure can
+    // overflow, and a profile with inf in it would not load back.
+    if let Some(s) = prof.samples.iter().find(|s| !s.value.is_finite()) {
+        bail!(
+            "--exposure: the value at theta_i {}, theta_r {}, phi {} overflows ({}); use a smaller exposure",
+            s.theta_i,
+            s.theta_r,
+            s.phi,
+            s.value
+        );
+    }
     for (key, c) in &prof.metadata {
         if key.starts_with("capped_slices") && !c.starts_with("0 ") {
             eprintln!(
