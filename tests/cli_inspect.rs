@@ -257,3 +257,65 @@ fn folder_metadata_labels_data_synthetic() {
     assert!(!ok);
     assert!(err.contains("metadata.json:1:"), "{err}");
 }
+
+/// phi written in 0..360 reads in every format (CSV, npz, lone .npy, Yan), wrapped to
+/// (-180, 180] after `--phi-offset`; a CSV's 270 and an npz's `np.arange(0, 360, 5.)` were
+/// "out of range [-180, 180]", and the offset could not rescue them.
+#[test]
+fn inspect_reads_phi_0_to_360_in_every_format() {
+    use ndarray::{Array1, ArrayD, IxDyn};
+    use ndarray_npy::{NpzWriter, WriteNpyExt};
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let phis: Vec<f64> = (0..72).map(|k| 5.0 * k as f64).collect();
+    let mut csv = String::from("theta_i,theta_r,phi,value\n");
+    let mut yan = String::from("# theta_i: 0\n");
+    for p in &phis {
+        csv.push_str(&format!("0,10,{p},1\n"));
+        yan.push_str(&format!("{p} 10 1\n"));
+    }
+    std::fs::write(d.join("a.csv"), csv).unwrap();
+    std::fs::write(d.join("a.txt"), yan).unwrap();
+    let value = ArrayD::<f64>::from_elem(IxDyn(&[1, 1, 72]), 1.0);
+    let mut w = NpzWriter::new(std::fs::File::create(d.join("a.npz")).unwrap());
+    w.add_array("theta_i", &Array1::from(vec![0.0])).unwrap();
+    w.add_array("theta_r", &Array1::from(vec![10.0])).unwrap();
+    w.add_array("phi", &Array1::from(phis.clone())).unwrap();
+    w.add_array("value", &value).unwrap();
+    w.finish().unwrap();
+    value
+        .write_npy(std::fs::File::create(d.join("a.npy")).unwrap())
+        .unwrap();
+    let names = ["a.csv", "a.npz", "a.txt", "a.npy"];
+    let run = |extra: &[&str]| {
+        let mut args: Vec<std::ffi::OsString> =
+            names.iter().map(|n| d.join(n).into_os_string()).collect();
+        args.extend(["--theta-i", "0", "--theta-r", "10", "--phi", "0:355:5"].map(Into::into));
+        args.extend(extra.iter().map(Into::into));
+        let refs: Vec<&std::ffi::OsStr> = args.iter().map(|s| s.as_os_str()).collect();
+        inspect(&refs)
+    };
+    let (ok, out, err) = run(&[]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        out.matches("phi      72 distinct, -175 .. 180 deg, step 5 deg")
+            .count(),
+        4,
+        "{out}"
+    );
+    // The offset applies before the wrap, alike in every format.
+    let (ok, out, err) = run(&["--phi-offset", "-180"]);
+    assert!(ok, "{err}");
+    assert_eq!(
+        out.matches("phi      72 distinct, -175 .. 180 deg, step 5 deg")
+            .count(),
+        4,
+        "{out}"
+    );
+    // One row: 270 with --phi-offset -180 is 90.
+    std::fs::write(d.join("b.csv"), "theta_i,theta_r,phi,value\n0,0,270,1\n").unwrap();
+    let b = d.join("b.csv");
+    let (ok, out, err) = inspect(&[b.as_os_str(), "--phi-offset".as_ref(), "-180".as_ref()]);
+    assert!(ok, "{err}");
+    assert!(out.contains("phi      1 distinct, 90 .. 90 deg"), "{out}");
+}

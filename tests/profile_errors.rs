@@ -74,8 +74,10 @@ fn csv_angle_out_of_range() {
     let e = csv_err(&format!("{HEAD}90.5,0,0,1\n"));
     assert_at(&e, "bad.csv", 3, "column 1 (theta_i)");
     assert!(e.contains("out of range"), "{e}");
-    let e = csv_err(&format!("{HEAD}0,0,-180,1\n0,0,180.001,1\n"));
+    // phi may be written in [-360, 360] (e.g. 0..360) and is wrapped; beyond is an error.
+    let e = csv_err(&format!("{HEAD}0,0,-180,1\n0,0,360.001,1\n"));
     assert_at(&e, "bad.csv", 4, "column 3 (phi)");
+    assert!(e.contains("out of range [-360, 360]"), "{e}");
 }
 
 #[test]
@@ -103,9 +105,17 @@ fn csv_duplicate_column_in_header() {
 
 #[test]
 fn csv_duplicate_sample_with_different_value() {
-    // -180 and 180 are the same direction, so these two rows clash.
+    // -180 and 180 are the same direction, so these two rows clash: on the phi column,
+    // saying it is a wrap.
     let e = csv_err(&format!("{HEAD}0,10,180,1\n0,10,0,2\n0,10,-180,1.5\n"));
-    assert_at(&e, "bad.csv", 5, "column 4 (value)");
+    assert_at(&e, "bad.csv", 5, "column 3 (phi)");
+    assert!(
+        e.contains("phi -180 wraps to 180, which line 3 already holds with a different value"),
+        "{e}"
+    );
+    // Written alike: on the value column.
+    let e = csv_err(&format!("{HEAD}0,10,20,1\n0,10,20,2\n"));
+    assert_at(&e, "bad.csv", 4, "column 4 (value)");
     assert!(e.contains("line 3") && e.contains("different value"), "{e}");
 }
 
@@ -319,8 +329,11 @@ fn npz_conflicting_cells_for_one_direction() {
     v[[0, 0, 3]] = 2.0;
     e.push(("value.npy", npy_bytes(&v)));
     let msg = npz_err(&e);
+    // Named on the phi axis as a wrap, with the 3 indices of the 3-D value array.
     assert!(
-        msg.contains("array 'value'") && msg.contains("[0, 0, 0, 0]"),
+        msg.contains(
+            "array 'phi': element 3: phi 180 and phi -180 on element 0 are the same direction"
+        ) && msg.contains("cells [0, 0, 0] and [0, 0, 3]"),
         "{msg}"
     );
 }
@@ -404,6 +417,9 @@ fn yan_bad_token() {
 #[test]
 fn yan_duplicate_and_missing_theta_i() {
     let e = err_of("y.txt", b"0 0 1\n360 0 2\n", &yan_opts());
+    assert_at(&e, "y.txt", 2, "column 1 (phi)");
+    assert!(e.contains("phi 360 wraps to 0, which line 1"), "{e}");
+    let e = err_of("y.txt", b"0 0 1\n0 0 2\n", &yan_opts());
     assert_at(&e, "y.txt", 2, "column 3 (value)");
     let e = err_of("y.txt", b"0 0 1\n", &LoadOptions::default());
     assert!(

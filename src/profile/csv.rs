@@ -16,9 +16,11 @@
 //!   case-insensitively; any order. Required: `theta_i, theta_r, phi, value`; optional:
 //!   `sigma, channel, phi_i`; any other column is ignored (its cells are never parsed).
 //!   A known column named twice is an error.
-//! - Angles: `theta_i`, `theta_r` in [-90, 90], `phi` in [-180, 180] degrees, finite.
-//!   `phi = -180` is read as `180` (MODEL.md wraps phi to (-180, 180]; they are the same
-//!   direction) and `-0` as `0`, so a grid has one spelling per direction.
+//! - Angles: `theta_i`, `theta_r` in [-90, 90], `phi` in [-360, 360] degrees, finite.
+//!   phi is wrapped to MODEL.md's (-180, 180] as every reader does ([`super::read_phi`]:
+//!   `-180` is read as `180`, `270` as `-90`; a phi already in (-180, 180] is kept as
+//!   written) and `-0` as `0`, so a grid has one spelling per direction. The convention
+//!   options of [`LoadOptions`] apply as each row is read ([`parse_with`]).
 //! - `value`: empty, `nan` (any case), or `<= 0` gives an *invalid* sample, kept and counted
 //!   ([`Profile::n_invalid`]). An infinite value is an error (it is not a measurement).
 //! - `sigma`: empty or `nan` means "no sigma"; otherwise finite and `>= 0`.
@@ -31,7 +33,8 @@
 //! - Two rows with the same `(theta_i, theta_r, phi, channel)`: if every other field is
 //!   identical (NaN equal to NaN) the repeat is dropped and a note says how many were
 //!   collapsed (concatenated files are common and harmless); any difference is an error
-//!   naming both lines.
+//!   naming both lines (on the phi column, saying so, when the two phi differ as written
+//!   and only wrap alike, e.g. a sweep's 0 and 360).
 //! - Errors name the file, the 1-based line and the column (number and name): a non-number,
 //!   a non-finite or out-of-range angle, a missing required column, a row with the wrong
 //!   number of fields, a conflicting duplicate. An empty file (no header) or a header with
@@ -47,14 +50,21 @@
 //! line breaks and values may not contain line breaks (an error, not a silent edit).
 
 use super::{
-    canonical_phi, check_angle, check_channel_name, check_measured, dedupe_notes, split_lines,
-    Field, Profile, Sample,
+    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_notes, read_phi,
+    split_lines, wrap_conflict, Field, LoadOptions, Profile, Sample,
 };
 use crate::error::{Error, Result};
 use std::path::Path;
 
-/// Parse CSV bytes; `path` is used in error messages only. Returns the profile and notes.
+/// Parse CSV bytes without convention options; `path` is used in error messages only.
+/// Returns the profile and notes.
 pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
+    parse_with(bytes, path, &LoadOptions::default())
+}
+
+/// [`parse`] with the convention options of `opts` (`flip_phi`, `phi_offset`,
+/// `flip_theta_r`) applied to each row as it is read.
+pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, Vec<String>)> {
     let perr = |line: usize, column: String, msg: String| Error::Parse {
         file: path.to_path_buf(),
         line,
@@ -149,6 +159,8 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     let mut cols = Columns::default();
     let mut samples: Vec<Sample> = Vec::new();
     let mut lines: Vec<usize> = Vec::new();
+    // Each sample's phi as written (for a wrap's duplicate message).
+    let mut raw_phi: Vec<f64> = Vec::new();
     let mut channels: Vec<String> = Vec::new();
     let mut record = ::csv::ByteRecord::new();
     loop {
@@ -212,13 +224,17 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
                 .map(Some)
                 .map_err(|_| perr(line, label(i), format!("'{t}' is not a number")))
         };
-        let angle = |i: usize, limit: f64| -> Result<f64> {
-            let v = number(i)?.ok_or_else(|| perr(line, label(i), "missing angle".into()))?;
-            check_angle(&names[i], v, limit).map_err(|m| perr(line, label(i), m))
+        let angle = |i: usize| -> Result<f64> {
+            number(i)?.ok_or_else(|| perr(line, label(i), "missing angle".into()))
         };
-        let theta_i = angle(cols.theta_i, 90.0)?;
-        let theta_r = angle(cols.theta_r, 90.0)?;
-        let phi = canonical_phi(angle(cols.phi, 180.0)?);
+        let theta = |i: usize| -> Result<f64> {
+            check_angle(&names[i], angle(i)?, 90.0).map_err(|m| perr(line, label(i), m))
+        };
+        let theta_i = theta(cols.theta_i)?;
+        let theta_r = convert_theta_r(opts, theta(cols.theta_r)?);
+        let phi_as_written = angle(cols.phi)?;
+        let phi = read_phi(&names[cols.phi], phi_as_written, opts)
+            .map_err(|m| perr(line, label(cols.phi), m))?;
         let value = number(cols.value)?.unwrap_or(f64::NAN);
         // CSV's spellings of "none": an empty cell, and `nan` for sigma.
         let sigma = match cols.sigma {
@@ -261,6 +277,7 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
             phi_i,
         });
         lines.push(line);
+        raw_phi.push(phi_as_written);
     }
     if samples.is_empty() {
         return Err(Error::file(
@@ -269,13 +286,18 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
         ));
     }
     let names = header.unwrap_or_default();
-    let value_label = format!("column {} ({})", cols.value + 1, names[cols.value]);
-    let mut notes = dedupe_notes(&mut samples, |i, j, what| {
-        perr(
-            lines[j],
-            value_label.clone(),
-            format!("{what}; first on line {}", lines[i]),
-        )
+    let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
+    let mut notes = dedupe_notes(&mut samples, |c| {
+        let (i, j) = (c.first, c.repeat);
+        let first_at = format!("line {}", lines[i]);
+        match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {
+            Some(m) => perr(lines[j], label(cols.phi), m),
+            None => perr(
+                lines[j],
+                label(cols.value),
+                format!("{}; first on {first_at}", c.what()),
+            ),
+        }
     })?;
     if separator_rows > 0 {
         notes.push(format!(
@@ -480,6 +502,55 @@ mod tests {
         assert_eq!(pr.samples.len(), 2);
         assert_eq!(notes.len(), 1);
         assert!(notes[0].contains('2'), "{}", notes[0]);
+    }
+
+    /// phi in [0, 360) reads (270 was "out of range [-180, 180]"), wrapped to (-180, 180],
+    /// with the offset applied before the wrap.
+    #[test]
+    fn phi_up_to_360_wraps() {
+        let text = "theta_i,theta_r,phi,value\n0,0,270,1\n0,0,355,2\n0,0,-360,3\n";
+        let (pr, _) = p(text).unwrap();
+        let phis: Vec<f64> = pr.samples.iter().map(|s| s.phi).collect();
+        assert_eq!(phis, vec![-90.0, -5.0, 0.0]);
+        let opts = LoadOptions {
+            phi_offset: -180.0,
+            ..Default::default()
+        };
+        let (pr, _) = parse_with(text.as_bytes(), Path::new("t.csv"), &opts).unwrap();
+        let phis: Vec<f64> = pr.samples.iter().map(|s| s.phi).collect();
+        assert_eq!(phis, vec![90.0, 175.0, 180.0]);
+        let e = p("theta_i,theta_r,phi,value\n0,0,-360.5,1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:2: column 3 (phi): phi = -360.5 deg is out of range [-360, 360]"),
+            "{e}"
+        );
+    }
+
+    /// Rows clashing only because phi wrapped (0 and 360) are named as such on the phi
+    /// column (it quoted "phi 0" for a line saying 360 and pointed at the value column);
+    /// an ordinary clash keeps its message, identical endpoints still collapse.
+    #[test]
+    fn wrap_endpoint_clash_says_so() {
+        let e = p("theta_i,theta_r,phi,value\n30,10,0,1\n30,10,360,1.1\n")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "t.csv:3: column 3 (phi): phi 360 wraps to 0, which line 2 already holds with a \
+             different value (1 vs 1.1); drop one of the two endpoint measurements"
+        );
+        let e = p("theta_i,theta_r,phi,value\n30,10,5,1\n30,10,5,1.1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:3: column 4 (value): duplicate sample (theta_i 30, theta_r 10, phi 5, channel 0)")
+                && e.ends_with("first on line 2"),
+            "{e}"
+        );
+        let (pr, notes) = p("theta_i,theta_r,phi,value\n30,10,0,1\n30,10,360,1\n").unwrap();
+        assert_eq!((pr.samples.len(), notes.len()), (1, 1));
     }
 
     #[test]

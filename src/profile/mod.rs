@@ -2,7 +2,9 @@
 //! (CSV per DATA.md, `.npy`/`.npz` dense grids, the Yan-2015 text format).
 //!
 //! Angles are stored in **degrees**, exactly as read (unless [`LoadOptions`] asks for a
-//! convention conversion), so that a profile round-trips through every format bit for bit; use [`Sample::angles_rad`] to get the radians the model needs.
+//! convention conversion, or a phi written outside (-180, 180] is wrapped into it), so that a
+//! profile round-trips through every format bit for bit; use [`Sample::angles_rad`] to get
+//! the radians the model needs.
 //!
 //! Entry points: [`load`] / [`load_full`] pick the reader by extension ([`csv`], [`npz`]
 //! for `.npz` and lone `.npy`, [`yan`] for `.txt`/`.dat`), [`save`] writes `.csv` or `.npz`
@@ -11,11 +13,15 @@
 //! `furfit inspect` prints.
 //!
 //! Choices shared by every reader (each documented again in its module):
-//! - angles are normalised once: `-0` -> `0` and `phi = -180` -> `180` (MODEL.md's
-//!   (-180, 180] wrap), so one direction has one spelling;
+//! - angles are normalised once: `-0` -> `0`, and any finite phi in [-360, 360] (files
+//!   written in [0, 360) are common) is converted by the [`LoadOptions`] conventions and
+//!   wrapped to MODEL.md's (-180, 180] (`-180` -> `180`, `270` -> `-90`) by one function,
+//!   [`read_phi`], so one direction has one spelling whatever the format;
 //! - a repeated direction (same `theta_i, theta_r, phi, channel`) whose other fields are
 //!   identical is collapsed into its first occurrence with a note in [`Loaded::notes`]; a
-//!   repeat that differs is an error naming both places;
+//!   repeat that differs is an error naming both places (and, when the two were written
+//!   with different phi that wrap alike, e.g. a sweep's 0 and 360, saying so:
+//!   [`wrap_conflict`]);
 //! - invalid values (NaN, `<= 0`) are kept as samples, never dropped;
 //! - a file whose every angle lies within +-3.2 (not all 0) gets a warning note: the values
 //!   look like radians, but files hold degrees ([`radians_warning`]).
@@ -210,7 +216,7 @@ pub struct LoadOptions {
     pub theta_i: Option<Vec<f64>>,
     /// Outgoing angle grid (degrees) for a lone `.npy`.
     pub theta_r: Option<Vec<f64>>,
-    /// Azimuth grid (degrees) for a lone `.npy`.
+    /// Azimuth grid (degrees) for a lone `.npy`; read like a file's phi ([`read_phi`]).
     pub phi: Option<Vec<f64>>,
     /// Degrees added to every file's phi (after `flip_phi`) before wrapping to (-180, 180]:
     /// data written in another azimuth convention, whatever the format ([`convention`]).
@@ -244,29 +250,72 @@ impl LoadOptions {
     }
 }
 
-/// The angle convention conversion of `opts` applied to a file's `(theta_r, phi)`: negate
-/// theta_r if `flip_theta_r`; negate phi if `flip_phi`, add `phi_offset`, then wrap phi to
-/// (-180, 180]. The same for every format, so lab data in another convention reads alike
-/// whatever its file type. A non-finite phi comes back non-finite for the caller to refuse.
-pub(crate) fn convention(opts: &LoadOptions, theta_r: f64, phi: f64) -> (f64, f64) {
-    let theta_r = if opts.flip_theta_r { -theta_r } else { theta_r } + 0.0;
-    let phi = if opts.flip_phi { -phi } else { phi } + opts.phi_offset;
-    (theta_r, if phi.is_finite() { wrap_phi(phi) } else { phi })
+/// Largest |phi| (degrees) a profile may hold as written, in every format: azimuths come in
+/// (-180, 180] or [0, 360) (or negated), and are wrapped to (-180, 180] by [`read_phi`].
+/// Beyond one turn a value is a typo, not a convention.
+pub(crate) const PHI_LIMIT: f64 = 360.0;
+
+/// A phi as a file (or a lone `.npy`'s `--phi` grid) writes it, read under `opts`: finite and
+/// within [-[`PHI_LIMIT`], `PHI_LIMIT`], negated if `flip_phi`, plus `phi_offset`, then
+/// wrapped to (-180, 180]. Every reader calls it, so the formats cannot drift apart and the
+/// offset applies before the wrap (a file in [0, 360) may take `--phi-offset -180`). With
+/// no conversion a phi in (-180, 180] comes back bit for bit ([`wrap_phi`] is the identity
+/// there, `-0` and `-180` aside). `name` labels the message, which the caller places.
+pub(crate) fn read_phi(name: &str, v: f64, opts: &LoadOptions) -> std::result::Result<f64, String> {
+    let v = check_angle(name, v, PHI_LIMIT)?;
+    let p = if opts.flip_phi { -v } else { v } + opts.phi_offset;
+    if !p.is_finite() {
+        return Err(format!(
+            "{name} {v} plus the phi offset {} is not finite",
+            opts.phi_offset
+        ));
+    }
+    Ok(wrap_phi(p))
 }
 
-/// [`convention`] over a loaded CSV / npz profile (the Yan reader converts row by row).
-/// Without conversion options the profile is untouched, so files round-trip bit for bit.
-fn apply_convention(profile: &mut Profile, opts: &LoadOptions, path: &Path) -> Result<()> {
-    if !opts.flip_phi && !opts.flip_theta_r && opts.phi_offset == 0.0 {
-        return Ok(());
+/// A theta_r as a file writes it (already range-checked), under `opts`: negated if
+/// `flip_theta_r`; `-0` becomes `0`.
+pub(crate) fn convert_theta_r(opts: &LoadOptions, theta_r: f64) -> f64 {
+    let t = if opts.flip_theta_r { -theta_r } else { theta_r };
+    t + 0.0
+}
+
+/// Does `opts` change phi as read (so a message about a wrap names the options too)?
+fn converts_phi(opts: &LoadOptions) -> bool {
+    opts.flip_phi || opts.phi_offset != 0.0
+}
+
+/// The message for two conflicting samples of one file that are one direction only because
+/// their phi, written differently, wrapped alike (a full sweep's 0 and 360, or -180 and
+/// 180); `None` when both were written alike (an ordinary duplicate). `raw_first` and
+/// `raw_repeat` are the phi as written, `first_at` the first one's place (`line 2`,
+/// `element 0`), `c` the conflict, `cells` optional extra context after the difference
+/// (npz cells). Shared by the readers so they word it alike.
+pub(crate) fn wrap_conflict(
+    raw_first: f64,
+    raw_repeat: f64,
+    first_at: &str,
+    c: &Conflict,
+    cells: &str,
+    opts: &LoadOptions,
+) -> Option<String> {
+    if raw_first == raw_repeat {
+        return None;
     }
-    if !opts.phi_offset.is_finite() {
-        return Err(Error::file(path, "the phi offset must be finite"));
-    }
-    for s in &mut profile.samples {
-        (s.theta_r, s.phi) = convention(opts, s.theta_r, s.phi);
-    }
-    Ok(())
+    let (diff, phi) = (&c.diff, c.phi);
+    let head = if raw_first == phi && !converts_phi(opts) {
+        format!("phi {raw_repeat} wraps to {phi}, which {first_at} already holds with a different {diff}{cells}")
+    } else {
+        let how = if converts_phi(opts) {
+            "after --flip-phi / --phi-offset and the wrap to (-180, 180]"
+        } else {
+            "once wrapped to (-180, 180]"
+        };
+        format!(
+            "phi {raw_repeat} and phi {raw_first} on {first_at} are the same direction (both {phi} {how}), with a different {diff}{cells}"
+        )
+    };
+    Some(format!("{head}; drop one of the two endpoint measurements"))
 }
 
 /// One file a loader read: its path, format and the SHA-256 of the bytes it parsed (what
@@ -293,8 +342,8 @@ pub struct Loaded {
 /// Load a profile file, choosing the loader by extension: `.csv` ([`csv`]), `.npz`
 /// ([`npz`]), `.npy` ([`npz::parse_npy`], needs the three axis grids in `opts`),
 /// `.txt`/`.dat` ([`yan`]). The convention options of `opts` (`flip_phi`, `phi_offset`,
-/// `flip_theta_r`) apply to every format ([`convention`]). `Profile::source` is set to
-/// `path`.
+/// `flip_theta_r`) apply to every format, as each reader reads its angles ([`read_phi`],
+/// [`convert_theta_r`]). `Profile::source` is set to `path`.
 pub fn load(path: &Path, opts: &LoadOptions) -> Result<Profile> {
     load_full(path, opts).map(|l| l.profile)
 }
@@ -325,14 +374,11 @@ fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
         check_not_utf16(&bytes, path)?;
     }
     let (mut profile, notes) = match format {
-        Format::Csv => csv::parse(&bytes, path)?,
-        Format::Npz => npz::parse_npz(&bytes, path)?,
+        Format::Csv => csv::parse_with(&bytes, path, opts)?,
+        Format::Npz => npz::parse_npz_with(&bytes, path, opts)?,
         Format::Npy => npz::parse_npy(&bytes, path, opts)?,
         Format::Yan => yan::parse(&bytes, path, opts)?,
     };
-    if format != Format::Yan {
-        apply_convention(&mut profile, opts, path)?;
-    }
     profile.source = Some(path.to_path_buf());
     let mut notes = notes;
     notes.extend(radians_warning(&profile));
@@ -592,10 +638,12 @@ pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
             origin.push(k);
         }
     }
-    let collapsed = dedupe(&mut out.samples, |first, dup, what| {
+    let collapsed = dedupe(&mut out.samples, |c| {
         Error::Invalid(format!(
-            "{}: {what}; the first copy is in {}",
-            sources[origin[dup]], sources[origin[first]]
+            "{}: {}; the first copy is in {}",
+            sources[origin[c.repeat]],
+            c.what(),
+            sources[origin[c.first]]
         ))
     })?;
     Ok((out, collapsed))
@@ -757,10 +805,35 @@ pub fn same_sample(a: &Sample, b: &Sample) -> bool {
         && same_opt(a.phi_i, b.phi_i)
 }
 
+/// Two samples of one direction that differ, as [`dedupe`] reports them.
+#[derive(Clone, Debug)]
+pub(crate) struct Conflict {
+    /// Index (into the samples given to [`dedupe`]) of the first occurrence.
+    pub first: usize,
+    /// Index of the repeat that differs from it.
+    pub repeat: usize,
+    /// What differs, e.g. `value (1 vs 1.1)`.
+    pub diff: String,
+    /// The direction, e.g. `theta_i 30, theta_r 10, phi 0, channel 0`.
+    pub at: String,
+    /// The direction's phi as stored (both samples' phi, once wrapped).
+    pub phi: f64,
+}
+
+impl Conflict {
+    /// `duplicate sample (<at>) with a different <diff>`.
+    pub(crate) fn what(&self) -> String {
+        format!(
+            "duplicate sample ({}) with a different {}",
+            self.at, self.diff
+        )
+    }
+}
+
 /// [`dedupe`], returning the loader notes it warrants (one line when rows were collapsed).
 pub(crate) fn dedupe_notes<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<Vec<String>>
 where
-    F: Fn(usize, usize, String) -> Error,
+    F: Fn(Conflict) -> Error,
 {
     let collapsed = dedupe(samples, conflict)?;
     Ok(if collapsed > 0 {
@@ -774,11 +847,11 @@ where
 
 /// Remove identical duplicate samples (same `theta_i, theta_r, phi, channel` and the same
 /// value, sigma and phi_i), keeping the first; returns how many were removed. A repeat
-/// with any different field is an error built by `conflict(first_index, repeat_index,
-/// what_differs)`, indices into the original `samples`.
+/// with any different field is an error built by `conflict` from the [`Conflict`] (indices
+/// into the original `samples`).
 pub(crate) fn dedupe<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<usize>
 where
-    F: Fn(usize, usize, String) -> Error,
+    F: Fn(Conflict) -> Error,
 {
     let mut seen: HashMap<(u64, u64, u64, usize), usize> = HashMap::with_capacity(samples.len());
     let mut drop = vec![false; samples.len()];
@@ -804,12 +877,17 @@ where
                 } else {
                     None
                 };
-                if let Some(d) = diff {
-                    let what = format!(
-                        "duplicate sample (theta_i {}, theta_r {}, phi {}, channel {}) with a different {d}",
-                        s.theta_i, s.theta_r, s.phi, s.channel
-                    );
-                    return Err(conflict(i, j, what));
+                if let Some(diff) = diff {
+                    return Err(conflict(Conflict {
+                        first: i,
+                        repeat: j,
+                        diff,
+                        at: format!(
+                            "theta_i {}, theta_r {}, phi {}, channel {}",
+                            s.theta_i, s.theta_r, s.phi, s.channel
+                        ),
+                        phi: s.phi,
+                    }));
                 }
                 drop[j] = true;
             }
@@ -857,6 +935,43 @@ mod tests {
         );
         let (m, _) = merge(vec![part("a.csv", &[], 0.0), part("b.csv", &[], 5.0)]).unwrap();
         assert_eq!((m.samples.len(), m.channels.len()), (2, 0));
+    }
+
+    /// Any finite phi in [-360, 360] reads in every format (a CSV's 270 was "out of range
+    /// [-180, 180]"), wrapped to (-180, 180] after the convention options; values already
+    /// there keep their bits, so files still round-trip exactly.
+    #[test]
+    fn read_phi_takes_one_turn_and_wraps_after_the_offset() {
+        let none = LoadOptions::default();
+        let r = |v: f64, o: &LoadOptions| read_phi("phi", v, o);
+        for (v, want) in [
+            (270.0, -90.0),
+            (360.0, 0.0),
+            (-360.0, 0.0),
+            (-180.0, 180.0),
+            (355.0, -5.0),
+            (-270.0, 90.0),
+        ] {
+            assert_eq!(r(v, &none), Ok(want), "{v}");
+        }
+        for v in [0.1, -179.99999999999997, 1.0 / 3.0, 180.0, -0.0] {
+            assert_eq!(r(v, &none).unwrap().to_bits(), (v + 0.0).to_bits(), "{v}");
+        }
+        let e = r(360.5, &none).unwrap_err();
+        assert!(e.contains("out of range [-360, 360]"), "{e}");
+        assert!(r(f64::NAN, &none).unwrap_err().contains("finite"));
+        // The offset applies before the wrap: 270 - 180 = 90 (a range check before the
+        // offset refused it), and flip then offset: -270 + 0 -> 90.
+        let off = LoadOptions {
+            phi_offset: -180.0,
+            ..Default::default()
+        };
+        assert_eq!(r(270.0, &off), Ok(90.0));
+        let flip = LoadOptions {
+            flip_phi: true,
+            ..Default::default()
+        };
+        assert_eq!(r(270.0, &flip), Ok(90.0));
     }
 
     #[test]

@@ -6,7 +6,7 @@
 //! |---|---|---|---|
 //! | `theta_i` | float64 or integer | `[I]` | incident inclinations, degrees, in [-90, 90] (required) |
 //! | `theta_r` | float64 or integer | `[R]` | outgoing inclinations, degrees, in [-90, 90] (required) |
-//! | `phi` | float64 or integer | `[P]` | relative azimuths, degrees, in [-180, 180] (required) |
+//! | `phi` | float64 or integer | `[P]` | relative azimuths, degrees, in [-360, 360] (required) |
 //! | `value` | float64 | `[I, R, P]` or `[I, R, P, C]` | intensity; NaN = missing (required) |
 //! | `present` | uint8 (or bool) | same as `value` | 1 = a sample exists at this cell, 0 = none (optional) |
 //! | `sigma` | float64 | same as `value` | standard error; NaN = none (optional) |
@@ -27,12 +27,15 @@
 //! 3-D one; none may be empty, as in CSV); a 4-D `value` without names gets the names `"0"`, `"1"`, .... The writer
 //! writes a 3-D `value` for a profile without channel names, 4-D otherwise.
 //!
-//! Axis values are normalised as in the CSV reader (`-0` -> `0`, `phi = -180` -> `180`). Two
-//! cells that land on the same direction (an axis holding both -180 and 180, or a repeated
-//! axis value) are duplicates: identical ones are collapsed (with a note), different ones are
-//! an error naming the `value` array and both cells. Samples come out in grid order
-//! (`theta_i`, `theta_r`, `phi`, channel, in array order); the writer sorts each axis
-//! ascending, so a written-and-reloaded profile is in [`Profile::sort_grid_order`] order.
+//! Axis values are normalised as in the CSV reader (`-0` -> `0`; phi, any finite value in
+//! [-360, 360], converted by the [`LoadOptions`] conventions and wrapped to (-180, 180] by
+//! [`super::read_phi`], so `np.arange(0, 360, 5.)` reads). Two cells that land on the same
+//! direction (a phi axis holding both 0 and 360 or -180 and 180, or a repeated axis value)
+//! are duplicates: identical ones are collapsed (with a note), different ones are an error
+//! naming both cells (with as many indices as `value` has axes; a wrap's pair on the `phi`
+//! array, saying so). Samples come out in grid order (`theta_i`, `theta_r`, `phi`, channel,
+//! in array order); the writer sorts each axis ascending, so a written-and-reloaded profile
+//! is in [`Profile::sort_grid_order`] order.
 //!
 //! Before an array is decoded its header is checked against the bytes actually present, so
 //! a truncated or corrupt array is an error naming it (never a huge allocation or a panic);
@@ -48,8 +51,8 @@
 //! the command line) and their lengths must match the array's shape.
 
 use super::{
-    canonical_phi, check_angle, check_channel_name, check_measured, dedupe, LoadOptions, Profile,
-    Sample,
+    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe, read_phi,
+    wrap_conflict, LoadOptions, Profile, Sample,
 };
 use crate::error::{Error, Result};
 use ndarray::{ArrayD, Dimension, IxDyn};
@@ -265,8 +268,19 @@ struct MetaJson {
     channels: Vec<String>,
 }
 
-/// Read a furfit `.npz` (see the module doc). Returns the profile and loader notes.
+/// Read a furfit `.npz` (see the module doc) without convention options. Returns the
+/// profile and loader notes.
 pub fn parse_npz(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
+    parse_npz_with(bytes, path, &LoadOptions::default())
+}
+
+/// [`parse_npz`] with the convention options of `opts` (`flip_phi`, `phi_offset`,
+/// `flip_theta_r`) applied to the axes as they are read.
+pub fn parse_npz_with(
+    bytes: &[u8],
+    path: &Path,
+    opts: &LoadOptions,
+) -> Result<(Profile, Vec<String>)> {
     let mut zip = zip::ZipArchive::new(Cursor::new(bytes)).map_err(|e| {
         Error::file(
             path,
@@ -281,11 +295,20 @@ pub fn parse_npz(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     let tr = required("theta_r")?;
     let ph = required("phi")?;
     let va = required("value")?;
-    let axes = [
-        axis(&read_axis(&ti, path, "theta_i")?, path, "theta_i", 90.0)?,
-        axis(&read_axis(&tr, path, "theta_r")?, path, "theta_r", 90.0)?,
-        axis(&read_axis(&ph, path, "phi")?, path, "phi", 180.0)?,
-    ];
+    let theta_axis = |bytes: &[u8], name: &str| -> Result<Vec<f64>> {
+        axis(&read_axis(bytes, path, name)?, path, name, |v| {
+            check_angle(name, v, 90.0)
+        })
+    };
+    let phi_written = axis(&read_axis(&ph, path, "phi")?, path, "phi", Ok)?;
+    let axes = Axes::new(
+        theta_axis(&ti, "theta_i")?,
+        theta_axis(&tr, "theta_r")?,
+        phi_written,
+        "phi",
+        opts,
+        |k, m| arr_err(path, "phi", format!("element {k}: {m}")),
+    )?;
     let value = read_float(&va, path, "value")?;
     let present = match entry(&mut zip, path, "present")? {
         Some(b) => Some(read_bytes_array(&b, path, "present")?),
@@ -319,6 +342,7 @@ pub fn parse_npz(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
     grid_to_profile(
         path,
         axes,
+        opts,
         value,
         Extras {
             present,
@@ -343,23 +367,26 @@ pub fn parse_npy(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profi
             )
         })
     };
-    let grid = |g: Vec<f64>, opt: &str, limit: f64| -> Result<Vec<f64>> {
+    let theta = |g: Vec<f64>, opt: &str| -> Result<Vec<f64>> {
         g.into_iter()
             .map(|v| {
-                check_angle(opt, v, limit)
-                    .map(|v| if limit == 180.0 { canonical_phi(v) } else { v })
+                check_angle(opt, v, 90.0)
                     .map_err(|m| Error::Invalid(format!("{}: {m}", path.display())))
             })
             .collect()
     };
-    let axes = [
-        grid(need(&opts.theta_i, "--theta-i")?, "--theta-i", 90.0)?,
-        grid(need(&opts.theta_r, "--theta-r")?, "--theta-r", 90.0)?,
-        grid(need(&opts.phi, "--phi")?, "--phi", 180.0)?,
-    ];
+    let axes = Axes::new(
+        theta(need(&opts.theta_i, "--theta-i")?, "--theta-i")?,
+        theta(need(&opts.theta_r, "--theta-r")?, "--theta-r")?,
+        need(&opts.phi, "--phi")?,
+        "--phi",
+        opts,
+        |_, m| Error::Invalid(format!("{}: {m}", path.display())),
+    )?;
     grid_to_profile(
         path,
         axes,
+        opts,
         value,
         Extras {
             present: None,
@@ -370,8 +397,13 @@ pub fn parse_npy(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profi
     )
 }
 
-/// Validate a 1-D axis array.
-fn axis(a: &ArrayD<f64>, path: &Path, name: &str, limit: f64) -> Result<Vec<f64>> {
+/// Validate a 1-D axis array, each element with `check` (a message names the element).
+fn axis(
+    a: &ArrayD<f64>,
+    path: &Path,
+    name: &str,
+    check: impl Fn(f64) -> std::result::Result<f64, String>,
+) -> Result<Vec<f64>> {
     if a.ndim() != 1 {
         return Err(arr_err(
             path,
@@ -384,12 +416,49 @@ fn axis(a: &ArrayD<f64>, path: &Path, name: &str, limit: f64) -> Result<Vec<f64>
     }
     a.iter()
         .enumerate()
-        .map(|(k, &v)| {
-            check_angle(name, v, limit)
-                .map(|v| if name == "phi" { canonical_phi(v) } else { v })
-                .map_err(|m| arr_err(path, name, format!("element {k}: {m}")))
-        })
+        .map(|(k, &v)| check(v).map_err(|m| arr_err(path, name, format!("element {k}: {m}"))))
         .collect()
+}
+
+/// The three axes of a grid as the samples take them (the convention options applied, phi
+/// wrapped), and phi as written (for a wrap's duplicate message).
+struct Axes {
+    theta_i: Vec<f64>,
+    theta_r: Vec<f64>,
+    phi: Vec<f64>,
+    phi_written: Vec<f64>,
+}
+
+impl Axes {
+    /// Axes from checked inclinations and phi as written (checked here by
+    /// [`read_phi`] under the name `phi_name`; `err(element, message)` places its error).
+    fn new(
+        theta_i: Vec<f64>,
+        theta_r: Vec<f64>,
+        phi_written: Vec<f64>,
+        phi_name: &str,
+        opts: &LoadOptions,
+        err: impl Fn(usize, String) -> Error,
+    ) -> Result<Axes> {
+        let phi = phi_written
+            .iter()
+            .enumerate()
+            .map(|(k, &v)| read_phi(phi_name, v, opts).map_err(|m| err(k, m)))
+            .collect::<Result<Vec<f64>>>()?;
+        Ok(Axes {
+            theta_i,
+            theta_r: theta_r
+                .into_iter()
+                .map(|t| convert_theta_r(opts, t))
+                .collect(),
+            phi,
+            phi_written,
+        })
+    }
+
+    fn lens(&self) -> [usize; 3] {
+        [self.theta_i.len(), self.theta_r.len(), self.phi.len()]
+    }
 }
 
 struct Extras {
@@ -400,13 +469,14 @@ struct Extras {
 
 fn grid_to_profile(
     path: &Path,
-    axes: [Vec<f64>; 3],
+    axes: Axes,
+    opts: &LoadOptions,
     value: ArrayD<f64>,
     extras: Extras,
     meta: MetaJson,
 ) -> Result<(Profile, Vec<String>)> {
     let shape = value.shape().to_vec();
-    let lens = [axes[0].len(), axes[1].len(), axes[2].len()];
+    let lens = axes.lens();
     if !(shape.len() == 3 || shape.len() == 4) || shape[..3] != lens {
         return Err(arr_err(
             path,
@@ -478,9 +548,9 @@ fn grid_to_profile(
     let opt = |a: &Option<ArrayD<f64>>, ix: &IxDyn| -> Option<f64> {
         a.as_ref().map(|a| a[ix]).filter(|v| !v.is_nan())
     };
-    for (i, &theta_i) in axes[0].iter().enumerate() {
-        for (r, &theta_r) in axes[1].iter().enumerate() {
-            for (p, &phi) in axes[2].iter().enumerate() {
+    for (i, &theta_i) in axes.theta_i.iter().enumerate() {
+        for (r, &theta_r) in axes.theta_r.iter().enumerate() {
+            for (p, &phi) in axes.phi.iter().enumerate() {
                 for c in 0..nc {
                     let ix = if shape.len() == 4 {
                         IxDyn(&[i, r, p, c])
@@ -528,12 +598,26 @@ fn grid_to_profile(
             "no samples (every cell is NaN or marked absent)",
         ));
     }
-    let collapsed = dedupe(&mut samples, |a, b, what| {
-        arr_err(
-            path,
-            "value",
-            format!("{what}: cells {:?} and {:?}", cells[a], cells[b]),
-        )
+    // As many indices as `value` has axes.
+    let cell = |k: usize| format!("{:?}", &cells[k][..shape.len()]);
+    let collapsed = dedupe(&mut samples, |c| {
+        let (pa, pb) = (cells[c.first][2], cells[c.repeat][2]);
+        let pair = format!(" in cells {} and {}", cell(c.first), cell(c.repeat));
+        let first_at = format!("element {pa}");
+        let (wa, wb) = (axes.phi_written[pa], axes.phi_written[pb]);
+        match wrap_conflict(wa, wb, &first_at, &c, &pair, opts) {
+            Some(m) => arr_err(path, "phi", format!("element {pb}: {m}")),
+            None => arr_err(
+                path,
+                "value",
+                format!(
+                    "{}: cells {} and {}",
+                    c.what(),
+                    cell(c.first),
+                    cell(c.repeat)
+                ),
+            ),
+        }
     })?;
     let mut notes = Vec::new();
     if collapsed > 0 {
@@ -734,6 +818,89 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("'theta_i'") && e.contains("wrong dtype"), "{e}");
+    }
+
+    /// An archive of `value` (shape `shape`, filled by `f(flat index)`) over the axes given.
+    fn archive(
+        ti: &[f64],
+        tr: &[f64],
+        phi: &[f64],
+        shape: &[usize],
+        f: impl Fn(usize) -> f64,
+    ) -> Vec<u8> {
+        let mut w = NpzWriter::new(Cursor::new(Vec::new()));
+        w.add_array("theta_i", &ndarray::arr1(ti)).unwrap();
+        w.add_array("theta_r", &ndarray::arr1(tr)).unwrap();
+        w.add_array("phi", &ndarray::arr1(phi)).unwrap();
+        let n: usize = shape.iter().product();
+        let v = ArrayD::from_shape_vec(IxDyn(shape), (0..n).map(f).collect()).unwrap();
+        w.add_array("value", &v).unwrap();
+        w.finish().unwrap().into_inner()
+    }
+
+    /// `np.arange(0, 360, 5.)` as the phi axis reads (element 37, 185, was "out of
+    /// range"), wrapped to (-180, 180]; the offset applies before the wrap.
+    #[test]
+    fn phi_axis_in_0_360_reads_wrapped() {
+        let phi: Vec<f64> = (0..72).map(|k| 5.0 * k as f64).collect();
+        let bytes = archive(&[0.0], &[10.0], &phi, &[1, 1, 72], |_| 1.0);
+        let (p, notes) = parse_npz(&bytes, Path::new("a.npz")).unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
+        assert_eq!(p.samples.len(), 72);
+        assert_eq!(p.samples[37].phi, -175.0);
+        assert_eq!(p.samples[36].phi, 180.0);
+        let opts = LoadOptions {
+            phi_offset: -180.0,
+            ..Default::default()
+        };
+        let (p, _) = parse_npz_with(&bytes, Path::new("a.npz"), &opts).unwrap();
+        assert_eq!((p.samples[0].phi, p.samples[37].phi), (180.0, 5.0));
+        let bytes = archive(&[0.0], &[10.0], &[0.0, 400.0], &[1, 1, 2], |_| 1.0);
+        let e = parse_npz(&bytes, Path::new("a.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("array 'phi': element 1: phi = 400 deg is out of range [-360, 360]"),
+            "{e}"
+        );
+    }
+
+    /// A phi axis holding 0 and 360 with different data: named on the `phi` array as a
+    /// wrap, with as many cell indices as `value` has axes (a 3-D array got 4).
+    #[test]
+    fn wrap_and_duplicate_cells_are_named_with_value_s_rank() {
+        let bytes = archive(&[0.0], &[10.0], &[0.0, 180.0, 360.0], &[1, 1, 3], |k| {
+            1.0 + k as f64
+        });
+        let e = parse_npz(&bytes, Path::new("w.npz"))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "w.npz: array 'phi': element 2: phi 360 wraps to 0, which element 0 already holds \
+             with a different value (1 vs 3) in cells [0, 0, 0] and [0, 0, 2]; drop one of \
+             the two endpoint measurements"
+        );
+        // A repeated theta_r (not a wrap) keeps the value array's message, 3 indices.
+        let bytes = archive(&[0.0], &[10.0, 10.0], &[0.0], &[1, 2, 1], |k| {
+            1.0 + k as f64
+        });
+        let e = parse_npz(&bytes, Path::new("w.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("array 'value': duplicate sample")
+                && e.ends_with("cells [0, 0, 0] and [0, 1, 0]"),
+            "{e}"
+        );
+        // 4-D: four indices.
+        let bytes = archive(&[0.0], &[10.0, 10.0], &[0.0], &[1, 2, 1, 2], |k| {
+            1.0 + k as f64
+        });
+        let e = parse_npz(&bytes, Path::new("w.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.ends_with("cells [0, 0, 0, 0] and [0, 1, 0, 0]"), "{e}");
     }
 
     #[test]

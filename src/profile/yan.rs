@@ -17,20 +17,26 @@
 //! sign (positive toward the fiber tip) and `phi` as MODEL.md's relative azimuth
 //! `phi_r - phi_i` (0 = backward scattering, +-180 = forward), possibly written in
 //! [0, 360): any finite `phi` in [-360, 360] is accepted and wrapped to (-180, 180]
-//! (`-180` becomes `180`). If a data set uses another origin or handedness, the loader
-//! options fix it without editing the file: [`LoadOptions::flip_phi`] negates phi,
-//! [`LoadOptions::phi_offset`] then adds a constant (e.g. 180 when the file's 0 is forward
-//! scattering) before the wrap, and [`LoadOptions::flip_theta_r`] negates theta
+//! (`-180` becomes `180`), as in every format ([`super::read_phi`]). If a data set uses
+//! another origin or handedness, the loader options fix it without editing the file:
+//! [`LoadOptions::flip_phi`] negates phi, [`LoadOptions::phi_offset`] then adds a constant
+//! (e.g. 180 when the file's 0 is forward scattering) before the wrap, and
+//! [`LoadOptions::flip_theta_r`] negates theta
 //! (`furfit inspect --flip-phi --phi-offset 180 --flip-theta-r`); the same options convert
-//! CSV and npz files too ([`super::convention`]).
+//! CSV and npz files too.
 //!
 //! # Errors
 //! Like the CSV reader: a non-number, a non-finite or out-of-range angle, a row with other
 //! than three fields, two rows for the same direction with different values (identical
-//! repeats are collapsed with a note), a bad `# theta_i:` line; each names the file, the
-//! 1-based line and the column (`column 2 (theta)`). A file without data rows is an error.
+//! repeats are collapsed with a note; rows whose phi differ as written but wrap alike, a
+//! sweep's 0 and 360, are named as such on the phi column), a bad `# theta_i:` line; each
+//! names the file, the 1-based line and the column (`column 2 (theta)`). A file without
+//! data rows is an error.
 
-use super::{check_angle, convention, dedupe_notes, split_lines, LoadOptions, Profile, Sample};
+use super::{
+    check_angle, convert_theta_r, dedupe_notes, read_phi, split_lines, wrap_conflict, LoadOptions,
+    Profile, Sample,
+};
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -48,7 +54,9 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     let mut metadata = Vec::new();
     let mut file_theta_i: Option<(f64, usize)> = None;
     let mut samples = Vec::new();
+    // Per sample: its line and its phi as written (for a wrap's duplicate message).
     let mut lines = Vec::new();
+    let mut raw_phi = Vec::new();
     for (k, raw) in split_lines(bytes).enumerate() {
         let line = k + 1;
         let text = std::str::from_utf8(raw)
@@ -109,7 +117,8 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                 .parse::<f64>()
                 .map_err(|_| perr(line, label(i), format!("'{}' is not a number", fields[i])))
         };
-        let phi = check_angle("phi", num(0)?, 360.0).map_err(|m| perr(line, label(0), m))?;
+        let raw = num(0)?;
+        let phi = read_phi("phi", raw, opts).map_err(|m| perr(line, label(0), m))?;
         let theta = check_angle("theta", num(1)?, 90.0).map_err(|m| perr(line, label(1), m))?;
         let value = if fields[2] == "?" {
             f64::NAN
@@ -124,13 +133,10 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             }
             v
         };
-        let (theta_r, phi) = convention(opts, theta, phi);
-        if !phi.is_finite() {
-            return Err(perr(line, label(0), "phi + offset is not finite".into()));
-        }
         // theta_i is set below, from the file's comment or --theta-i.
-        samples.push(Sample::new(0.0, theta_r, phi, value));
+        samples.push(Sample::new(0.0, convert_theta_r(opts, theta), phi, value));
         lines.push(line);
+        raw_phi.push(raw);
     }
     let opt_theta_i = match &opts.theta_i {
         None => None,
@@ -170,12 +176,17 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     for s in &mut samples {
         s.theta_i = theta_i;
     }
-    let notes = dedupe_notes(&mut samples, |i, j, what| {
-        perr(
-            lines[j],
-            label(2),
-            format!("{what}; first on line {}", lines[i]),
-        )
+    let notes = dedupe_notes(&mut samples, |c| {
+        let (i, j) = (c.first, c.repeat);
+        let first_at = format!("line {}", lines[i]);
+        match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {
+            Some(m) => perr(lines[j], label(0), m),
+            None => perr(
+                lines[j],
+                label(2),
+                format!("{}; first on {first_at}", c.what()),
+            ),
+        }
     })?;
     Ok((
         Profile {
@@ -210,6 +221,36 @@ mod tests {
         assert_eq!(pr.samples[2].phi, -90.0, "270 wraps to -90");
         assert_eq!(pr.samples[3].phi, 180.0, "-180 maps to 180");
         assert_eq!(pr.metadata, vec![("fiber".to_string(), "2".to_string())]);
+    }
+
+    /// A sweep's two endpoints (0 and 360) with different values: the message quotes the
+    /// line's own phi and the wrap, on the phi column (it said "phi 0" on the value column).
+    #[test]
+    fn wrap_endpoint_clash_says_so() {
+        let e = p(
+            "# theta_i: 30\n0 10 1\n360 10 1.1\n",
+            &LoadOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "y.txt:3: column 1 (phi): phi 360 wraps to 0, which line 2 already holds with a \
+             different value (1 vs 1.1); drop one of the two endpoint measurements"
+        );
+        // Under an offset both land elsewhere; the message names the options.
+        let o = LoadOptions {
+            phi_offset: 90.0,
+            ..Default::default()
+        };
+        let e = p("# theta_i: 30\n-180 10 1\n180 10 2\n", &o)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("y.txt:3: column 1 (phi): phi 180 and phi -180 on line 2 are the same direction (both -90 after --flip-phi / --phi-offset")
+                && e.contains("different value (1 vs 2)"),
+            "{e}"
+        );
     }
 
     #[test]
