@@ -816,6 +816,11 @@ fn weighted_without_sigma_fails_first_naming_the_species_once() {
         err.starts_with("error: fitting s1: s1.csv: --weighted"),
         "{err}"
     );
+    // It names the first such sample (in angle order: make_species's lowest angles).
+    assert!(
+        err.contains("the first (in angle order) at theta_i -20, theta_r -60, phi -165 (no sigma)"),
+        "{err}"
+    );
     // A species with sigmas ahead of zebra (without): nothing is fitted.
     let text = std::fs::read_to_string(root.join("s1.csv")).unwrap();
     let with_sigma: Vec<String> = text
@@ -1089,4 +1094,28 @@ fn fit_names_profile_files_by_folder_and_keeps_fits_of_other_data() {
         serde_json::from_str(&std::fs::read_to_string(root.join("fits/mouse.json")).unwrap())
             .unwrap();
     assert_eq!(fit["species"], "vole");
+}
+
+/// Two Yan-2015 files without `# theta_i:` lines, fitted together with one `--theta-i`,
+/// clash at the same direction: the error names both files and the direction, and says
+/// `--theta-i` applies to every Yan file (the likely cause).
+#[test]
+fn clashing_yan_files_under_one_theta_i_get_the_hint() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    std::fs::write(root.join("f0.txt"), "0 10 1\n5 10 1\n").unwrap();
+    std::fs::write(root.join("f20.txt"), "0 10 2\n").unwrap();
+    let o = fit_cmd(root)
+        .args(["f0.txt", "f20.txt", "--theta-i", "30", "--out", "f.json"])
+        .output()
+        .unwrap();
+    fails_with(
+        o,
+        &[
+            "f20.txt: duplicate sample (theta_i 30, theta_r 10, phi 0, channel 0)",
+            "the first copy is in f0.txt",
+            "--theta-i 30 applies to every Yan-2015 file",
+        ],
+    );
+    assert!(!root.join("f.json").exists());
 }

@@ -153,23 +153,23 @@ pub fn load_inputs_full(inputs: &[PathBuf], opts: &LoadOptions) -> Result<Loaded
     let mut notes = Vec::new();
     let mut files = Vec::new();
     for p in inputs {
-        if p.is_dir() {
+        let l = if p.is_dir() {
             // load_dir already names the file in each note.
-            let l = profile::load_dir(p, opts)?;
-            notes.extend(l.notes);
-            files.extend(l.files);
-            parts.push(l.profile);
+            let mut l = profile::load_dir(p, opts)?;
+            notes.append(&mut l.notes);
+            l
         } else {
-            let l = profile::load_full(p, opts)?;
-            notes.extend(l.notes.iter().map(|n| format!("{}: {n}", p.display())));
-            files.extend(l.files);
-            parts.push(l.profile);
-        }
+            let mut l = profile::load_full(p, opts)?;
+            notes.extend(l.notes.drain(..).map(|n| format!("{}: {n}", p.display())));
+            l
+        };
+        files.extend(l.files.iter().cloned());
+        parts.push(l);
     }
     let profile = if parts.len() == 1 {
-        parts.pop().expect("one part")
+        parts.pop().expect("one part").profile
     } else {
-        let (merged, collapsed) = profile::merge(parts)?;
+        let (merged, collapsed) = profile::merge_loaded(parts, opts)?;
         if collapsed > 0 {
             notes.push(format!(
                 "{collapsed} identical duplicate sample(s) across inputs collapsed"

@@ -746,11 +746,18 @@ pub fn channel_data(
     let n_before = samples.len();
     samples.retain(|s| s.value >= floor * peak);
     let n_below_floor = n_before - samples.len();
+    // The first sample (in angle order) that --weighted cannot weight: samples do not
+    // carry their file line, so its coordinates are what an error can name.
+    let mut first_unweighted = None;
     for s in samples {
         let (ti, tr, ph) = s.angles_rad();
         pts.push(ti, tr, ph);
         vals.push(s.value);
-        rel.push(s.sigma.map(|sg| sg / s.value).unwrap_or(f64::NAN));
+        let r = s.sigma.map(|sg| sg / s.value).unwrap_or(f64::NAN);
+        if first_unweighted.is_none() && !(r.is_finite() && r > 0.0) {
+            first_unweighted = Some(s);
+        }
+        rel.push(r);
     }
     let what = profile
         .source
@@ -766,11 +773,18 @@ pub fn channel_data(
     if weighted {
         // Weights 1/(sigma/value)^2 need a positive, finite sigma on every sample used;
         // falling back to an unweighted fit would contradict the fit file's "weighted".
-        let bad = rel.iter().filter(|r| !(r.is_finite() && **r > 0.0)).count();
-        if bad > 0 {
+        if let Some(s) = first_unweighted {
+            let bad = rel.iter().filter(|r| !(r.is_finite() && **r > 0.0)).count();
+            let sigma = s
+                .sigma
+                .map_or("no sigma".to_string(), |sg| format!("sigma {sg}"));
             return Err(Error::Invalid(format!(
-                "{what}: --weighted needs a sigma > 0 on every valid sample; {bad} of {} valid samples of channel {channel} have none (or 0)",
-                rel.len()
+                "{what}: --weighted needs a sigma > 0 on every valid sample; {bad} of {} valid samples of channel {channel} have none (or 0), \
+                 the first (in angle order) at theta_i {}, theta_r {}, phi {} ({sigma})",
+                rel.len(),
+                s.theta_i,
+                s.theta_r,
+                s.phi
             )));
         }
     }

@@ -174,6 +174,32 @@ fn channel_data_is_independent_of_row_order() {
     assert_eq!(da.ln_y, db.ln_y);
 }
 
+/// `--weighted` on samples without a usable sigma names the first of them by its
+/// coordinates (it gave only a count): samples do not carry their file line.
+#[test]
+fn weighted_names_the_first_sample_without_sigma() {
+    use crate::profile::Sample;
+    let mut samples: Vec<Sample> = (0..4)
+        .map(|k| {
+            let mut s = Sample::new(10.0, 20.0, 30.0 * k as f64, 1.0);
+            s.sigma = Some(0.1);
+            s
+        })
+        .collect();
+    samples[3].sigma = None;
+    samples[2].sigma = Some(0.0);
+    let p = Profile {
+        samples,
+        ..Default::default()
+    };
+    let e = channel_data(&p, 0, true, 0.0).unwrap_err().to_string();
+    assert!(
+        e.contains("2 of 4 valid samples of channel 0 have none (or 0), the first (in angle order) at theta_i 10, theta_r 20, phi 60 (sigma 0)"),
+        "{e}"
+    );
+    assert!(channel_data(&p, 0, false, 0.0).is_ok());
+}
+
 /// A flat profile has no log range to normalise the NRMSE by: the fit says so instead of
 /// reporting an NRMSE over a substituted range.
 #[test]

@@ -556,13 +556,13 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let mut format = None;
     let mut read = Vec::new();
     for f in &files {
-        let l = load_file(f, opts)?;
+        let mut l = load_file(f, opts)?;
         format.get_or_insert(l.format);
-        read.extend(l.files);
-        notes.extend(l.notes.into_iter().map(|n| format!("{}: {n}", f.display())));
-        parts.push(l.profile);
+        read.extend(l.files.iter().cloned());
+        notes.extend(l.notes.drain(..).map(|n| format!("{}: {n}", f.display())));
+        parts.push(l);
     }
-    let (mut profile, collapsed) = merge(parts)?;
+    let (mut profile, collapsed) = merge_loaded(parts, opts)?;
     if collapsed > 0 {
         notes.push(format!(
             "{collapsed} identical duplicate sample(s) across files collapsed"
@@ -584,6 +584,14 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
 /// metadata entries are concatenated with exact repeats dropped, samples concatenated. A sample present in two parts with a different value is an error naming
 /// both sources; identical copies are collapsed (their count is returned).
 pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
+    merge_with(parts, |_, _| None)
+}
+
+/// [`merge`], adding `hint(first_part, repeat_part)` (if any) to a conflict's error.
+fn merge_with(
+    parts: Vec<Profile>,
+    hint: impl Fn(usize, usize) -> Option<String>,
+) -> Result<(Profile, usize)> {
     let mut out = Profile::default();
     let mut origin: Vec<usize> = Vec::new();
     let sources: Vec<String> = parts
@@ -639,14 +647,39 @@ pub fn merge(parts: Vec<Profile>) -> Result<(Profile, usize)> {
         }
     }
     let collapsed = dedupe(&mut out.samples, |c| {
+        let (a, b) = (origin[c.first], origin[c.repeat]);
+        let hint = hint(a, b).map(|h| format!("; {h}")).unwrap_or_default();
         Error::Invalid(format!(
-            "{}: {}; the first copy is in {}",
-            sources[origin[c.repeat]],
+            "{}: {}; the first copy is in {}{hint}",
+            sources[b],
             c.what(),
-            sources[origin[c.first]]
+            sources[a]
         ))
     })?;
     Ok((out, collapsed))
+}
+
+/// [`merge`] of parts loaded with `opts` (files, or folders from [`load_dir`]). When a
+/// conflicting sample lies in two parts made only of Yan-2015 files and `opts.theta_i`
+/// gave their incident angle, the error adds that `--theta-i` applies to every Yan file:
+/// the usual cause is a folder of files without `# theta_i:` lines read with one
+/// `--theta-i`, which puts every file at the same incident angle.
+pub fn merge_loaded(parts: Vec<Loaded>, opts: &LoadOptions) -> Result<(Profile, usize)> {
+    let all_yan: Vec<bool> = parts
+        .iter()
+        .map(|l| l.files.iter().all(|f| f.format == Format::Yan))
+        .collect();
+    let hint = |a: usize, b: usize| -> Option<String> {
+        let t = opts.theta_i.as_deref()?;
+        (all_yan[a] && all_yan[b]).then(|| {
+            let t = t.iter().map(f64::to_string).collect::<Vec<_>>().join(",");
+            format!(
+                "--theta-i {t} applies to every Yan-2015 file (each file of a folder too), so \
+                 they all read as theta_i {t}; give each file its own '# theta_i: <deg>' line"
+            )
+        })
+    };
+    merge_with(parts.into_iter().map(|l| l.profile).collect(), hint)
 }
 
 /// Split text into lines at `\n`, `\r\n` or a lone `\r` (old Mac and some instrument
@@ -972,6 +1005,38 @@ mod tests {
             ..Default::default()
         };
         assert_eq!(r(270.0, &flip), Ok(90.0));
+    }
+
+    /// Two files of a folder read with one --theta-i clash: the error names both files and
+    /// the direction, and says --theta-i applied to every Yan file (no hint otherwise).
+    #[test]
+    fn folder_clash_under_theta_i_says_it_applies_to_every_yan_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(d.join("f0.txt"), "0 10 1\n").unwrap();
+        std::fs::write(d.join("f20.txt"), "0 10 2\n").unwrap();
+        let opts = LoadOptions {
+            theta_i: Some(vec![30.0]),
+            ..Default::default()
+        };
+        let e = load_dir(d, &opts).unwrap_err().to_string();
+        assert!(
+            e.contains("f20.txt: duplicate sample (theta_i 30, theta_r 10, phi 0, channel 0)")
+                && e.contains("first copy is in")
+                && e.contains("f0.txt")
+                && e.contains("--theta-i 30 applies to every Yan-2015 file"),
+            "{e}"
+        );
+        // Without --theta-i (each file says its angle) there is no such hint.
+        std::fs::write(d.join("f0.txt"), "# theta_i: 30\n0 10 1\n").unwrap();
+        std::fs::write(d.join("f20.txt"), "# theta_i: 30\n0 10 2\n").unwrap();
+        let e = load_dir(d, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("duplicate sample") && !e.contains("--theta-i"),
+            "{e}"
+        );
     }
 
     #[test]
