@@ -24,7 +24,9 @@
 //! samples, round trip exactly: the writer always writes it, and stores invalid values as
 //! they are (a negative value stays negative, NaN stays NaN). Channel names come from
 //! `meta_json` (`channels` must then have `C` entries for a 4-D `value`, at most one for a
-//! 3-D one; none may be empty, as in CSV); a 4-D `value` without names gets the names `"0"`, `"1"`, .... The writer
+//! 3-D one; none may be empty, as in CSV); a 4-D `value` without names gets the names `"0"`,
+//! `"1"`, ..., except a single channel (`[I, R, P, 1]`, NumPy's trailing singleton axis),
+//! which stays unnamed like the same data shaped `[I, R, P]`, so the two merge. The writer
 //! writes a 3-D `value` for a profile without channel names, 4-D otherwise.
 //!
 //! Axis values are normalised as in the CSV reader (`-0` -> `0`; phi, any finite value in
@@ -517,7 +519,10 @@ fn grid_to_profile(
         }
     }
     let channels = if shape.len() == 4 {
-        if meta.channels.is_empty() {
+        if meta.channels.is_empty() && nc == 1 {
+            // A trailing singleton axis is one unnamed channel, as for a 3-D `value`.
+            Vec::new()
+        } else if meta.channels.is_empty() {
             (0..nc).map(|c| c.to_string()).collect()
         } else if meta.channels.len() == nc {
             meta.channels
@@ -901,6 +906,24 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.ends_with("cells [0, 0, 0, 0] and [0, 1, 0, 0]"), "{e}");
+    }
+
+    /// NumPy's trailing singleton channel axis (`[I, R, P, 1]`) without names is one
+    /// unnamed channel, as the same data shaped `[I, R, P]` (it was named "0", and merging
+    /// the two forms was refused).
+    #[test]
+    fn singleton_channel_axis_is_unnamed() {
+        let four = archive(&[0.0], &[10.0], &[0.0, 5.0], &[1, 1, 2, 1], |_| 1.0);
+        let three = archive(&[0.0], &[10.0], &[10.0, 15.0], &[1, 1, 2], |_| 1.0);
+        let (a, _) = parse_npz(&four, Path::new("a.npz")).unwrap();
+        let (b, _) = parse_npz(&three, Path::new("b.npz")).unwrap();
+        assert!(a.channels.is_empty(), "{:?}", a.channels);
+        let (m, _) = super::super::merge(vec![a, b]).unwrap();
+        assert_eq!((m.samples.len(), m.channels.len()), (4, 0));
+        // Two unnamed channels are still numbered.
+        let two = archive(&[0.0], &[10.0], &[0.0], &[1, 1, 1, 2], |_| 1.0);
+        let (c, _) = parse_npz(&two, Path::new("c.npz")).unwrap();
+        assert_eq!(c.channels, vec!["0".to_string(), "1".to_string()]);
     }
 
     #[test]
