@@ -368,6 +368,12 @@ fn synth_warns_about_ignored_far_field_options() {
         "warning: --segments, --tol only affect the far field, which --model \
          near-quadrature does not use: ignored\n"
     );
+    // One option: "affects" (it read "--tol only affect").
+    assert_eq!(
+        run(&["--model", "near-quadrature", "--tol", "1e-3"]),
+        "warning: --tol only affects the far field, which --model near-quadrature does not \
+         use: ignored\n"
+    );
     let err = run(&["--tol", "none", "--scattered-step", "strict"]);
     assert_eq!(
         err,

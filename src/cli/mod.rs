@@ -167,8 +167,13 @@ impl FarArgs {
         .collect();
         match unused {
             Some(why) if !given.is_empty() => vec![format!(
-                "{} only affect the far field, which {why} does not use: ignored",
-                given.join(", ")
+                "{} only {} the far field, which {why} does not use: ignored",
+                given.join(", "),
+                if given.len() == 1 {
+                    "affects"
+                } else {
+                    "affect"
+                }
             )],
             None if opts.tol.is_none() && self.scattered_step.is_some() => vec![
                 "--scattered-step only acts in the tolerance mode: ignored with --tol none".into(),
