@@ -213,6 +213,21 @@ fn inspect_labels_uneven_steps() {
         out.contains("theta_r  3 distinct, 0 .. 20 deg, step 10 deg\n"),
         "{out}"
     );
+    // Values 4e-15 apart are near-duplicates, not a "step 0 deg".
+    std::fs::write(
+        &p,
+        "theta_i,theta_r,phi,value\n0,0,20,1\n0,0,20.000000000000004,1\n",
+    )
+    .unwrap();
+    let (ok, out, err) = inspect(&[p.as_os_str()]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains(
+            "phi      2 distinct, 20 .. 20.000000000000004 deg, step -; 1 near-duplicate \
+             pair(s) closer than 5e-10 deg, e.g. 20 and 20.000000000000004\n"
+        ),
+        "{out}"
+    );
 }
 
 /// A species folder whose profile carries no label but whose `metadata.json` says the data

@@ -5,7 +5,7 @@
 //! option (`--theta-i`, `--theta-r`, `--phi`) was given that no file read.
 
 use crate::profile;
-use crate::profile::summary::{AxisStats, Summary};
+use crate::profile::summary::{AxisStats, Summary, STEPS_PER_DEG};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
@@ -21,7 +21,7 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
     match a {
         None => format!("  {name:<8} -"),
         Some(a) => format!(
-            "  {name:<8} {} distinct, {} .. {} deg, {}",
+            "  {name:<8} {} distinct, {} .. {} deg, {}{}",
             a.distinct,
             a.min,
             a.max,
@@ -29,6 +29,14 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
                 (None, _) => "step -".into(),
                 (Some(s), true) => format!("step {s} deg"),
                 (Some(s), false) => format!("most common step {s} deg (uneven)"),
+            },
+            match a.near_pair {
+                Some((x, y)) => format!(
+                    "; {} near-duplicate pair(s) closer than {:e} deg, e.g. {x} and {y}",
+                    a.near_duplicates,
+                    0.5 / STEPS_PER_DEG
+                ),
+                None => String::new(),
             }
         ),
     }

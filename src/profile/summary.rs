@@ -3,6 +3,10 @@
 
 use super::{Profile, Sample};
 
+/// Resolution of [`AxisStats::step`], steps per degree: differences are grouped after
+/// rounding to 1e-9 deg.
+pub const STEPS_PER_DEG: f64 = 1e9;
+
 /// The distinct values one angle takes over a profile's samples.
 #[derive(Clone, Debug, PartialEq)]
 pub struct AxisStats {
@@ -11,12 +15,18 @@ pub struct AxisStats {
     pub min: f64,
     pub max: f64,
     /// The most common difference between consecutive distinct values (the smallest one on
-    /// a tie); `None` with fewer than two distinct values. Differences are grouped after
-    /// rounding to 1e-9 deg, so `0.1`-step grids with float noise count as one step.
+    /// a tie); `None` unless two values differ by 5e-10 deg or more. Differences are grouped
+    /// after rounding to 1e-9 deg ([`STEPS_PER_DEG`]), so `0.1`-step grids with float noise
+    /// count as one step; a difference that rounds to 0 is a near-duplicate, not a step (a
+    /// "step 0" says nothing).
     pub step: Option<f64>,
-    /// Whether every difference is `step` (so it is the axis's step, not only the most
-    /// common one); true with fewer than three distinct values.
+    /// Whether every difference but near-duplicates is `step` (so it is the axis's step, not
+    /// only the most common one); true with fewer than three distinct values.
     pub even: bool,
+    /// Pairs of consecutive distinct values closer than 5e-10 deg (e.g. 20 and
+    /// 20.000000000000004, float noise of a computed grid), and the first such pair.
+    pub near_duplicates: usize,
+    pub near_pair: Option<(f64, f64)>,
 }
 
 impl AxisStats {
@@ -28,10 +38,17 @@ impl AxisStats {
         }
         v.sort_by(f64::total_cmp);
         v.dedup();
-        let mut steps: Vec<i64> = v
-            .windows(2)
-            .map(|w| ((w[1] - w[0]) * 1e9).round() as i64)
-            .collect();
+        let mut steps = Vec::with_capacity(v.len());
+        let (mut near_duplicates, mut near_pair) = (0, None);
+        for w in v.windows(2) {
+            match ((w[1] - w[0]) * STEPS_PER_DEG).round() as i64 {
+                0 => {
+                    near_duplicates += 1;
+                    near_pair.get_or_insert((w[0], w[1]));
+                }
+                d => steps.push(d),
+            }
+        }
         steps.sort_unstable();
         let mut best: Option<(i64, usize)> = None;
         let mut k = 0;
@@ -46,9 +63,11 @@ impl AxisStats {
             distinct: v.len(),
             min: v[0],
             max: v[v.len() - 1],
-            step: best.map(|(s, _)| s as f64 / 1e9),
+            step: best.map(|(s, _)| s as f64 / STEPS_PER_DEG),
             // Sorted: all equal when the first equals the last.
             even: steps.first() == steps.last(),
+            near_duplicates,
+            near_pair,
         })
     }
 }
@@ -115,5 +134,21 @@ mod tests {
         assert_eq!(one.step, None);
         assert!(one.even);
         assert!(AxisStats::of(&[], |x| x.phi).is_none());
+    }
+
+    /// Values closer than the step resolution are near-duplicates, not a step (20 and
+    /// 20.000000000000004 gave "step 0 deg").
+    #[test]
+    fn near_duplicates_are_not_a_step() {
+        let near = 20.000000000000004;
+        let a = AxisStats::of(&[s(20.0), s(near)], |x| x.phi).unwrap();
+        assert_eq!((a.distinct, a.step), (2, None));
+        assert_eq!((a.near_duplicates, a.near_pair), (1, Some((20.0, near))));
+        // Beside a real grid the step stays the grid's, and the grid even.
+        let v: Vec<Sample> = [0.0, 10.0, 20.0, near, 30.0].into_iter().map(s).collect();
+        let a = AxisStats::of(&v, |x| x.phi).unwrap();
+        // 10 up to the 1e-9 rounding of the step.
+        assert!((a.step.unwrap() - 10.0).abs() < 1e-12, "{:?}", a.step);
+        assert!(a.even && a.near_duplicates == 1, "{a:?}");
     }
 }
