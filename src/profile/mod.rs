@@ -219,7 +219,7 @@ pub struct LoadOptions {
     /// Azimuth grid (degrees) for a lone `.npy`; read like a file's phi ([`read_phi`]).
     pub phi: Option<Vec<f64>>,
     /// Degrees added to every file's phi (after `flip_phi`) before wrapping to (-180, 180]:
-    /// data written in another azimuth convention, whatever the format ([`convention`]).
+    /// data written in another azimuth convention, whatever the format ([`read_phi`]).
     pub phi_offset: f64,
     /// Negate every file's phi (applied before `phi_offset`).
     pub flip_phi: bool,
