@@ -89,14 +89,10 @@ pub fn check_grid_size(theta_i: usize, theta_r: usize, phi: usize) -> Result<()>
     Ok(())
 }
 
-/// Wrap degrees to (-180, 180].
+/// Wrap degrees to (-180, 180], as the profile loaders wrap a file's phi
+/// ([`crate::profile::wrap_phi`]), so a grid and a file name one direction alike.
 pub fn wrap_deg(v: f64) -> f64 {
-    let w = v - 360.0 * ((v + 180.0) / 360.0).floor();
-    if w <= -180.0 {
-        w + 360.0
-    } else {
-        w
-    }
+    crate::profile::wrap_phi(v)
 }
 
 #[cfg(test)]
