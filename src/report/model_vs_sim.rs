@@ -86,6 +86,8 @@ pub struct Entry {
     pub species: String,
     /// The channel compared, for a profile with named channels.
     pub channel: Option<String>,
+    /// Whether the data are labelled synthetic (the profile or its folder's metadata.json).
+    pub synthetic: bool,
     /// What the data are (metadata.json `what`/`source`, else the data's label).
     pub data: String,
     pub truth: FurParams,
@@ -149,7 +151,7 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
             s,
             "| {} | {} | {} | {:.2}% | {} |",
             e.name(),
-            e.data.replace('|', "/"),
+            if e.synthetic { "SYNTHETIC" } else { "measured" },
             e.n_valid,
             100.0 * e.nrmse_truth,
             match (&e.fit, &e.fit_note) {
@@ -160,7 +162,7 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
         );
     }
     for e in entries {
-        let _ = writeln!(s, "\n## {}\n", e.name());
+        let _ = writeln!(s, "\n## {}\n\nData: {}\n", e.name(), e.data);
         if let Some(n) = &e.fit_note {
             let _ = writeln!(s, "Fit not shown: {n}\n");
         }
@@ -244,7 +246,8 @@ mod tests {
         let e = Entry {
             species: "fur".into(),
             channel: Some("g".into()),
-            data: "synthetic | noisy".into(),
+            synthetic: true,
+            data: "synthetic, noisy".into(),
             truth: FurParams::preset("cat").unwrap(),
             nrmse_truth: 0.01,
             exposure_truth: 1.0,
@@ -254,9 +257,10 @@ mod tests {
         };
         let md = markdown(&[e], &[]);
         assert!(
-            md.contains("| fur [channel g] | synthetic / noisy | 10 | 1.00% | (the data changed since the fit: refit) |"),
+            md.contains("| fur [channel g] | SYNTHETIC | 10 | 1.00% | (the data changed since the fit: refit) |"),
             "{md}"
         );
         assert!(md.contains("Fit not shown: changed"), "{md}");
+        assert!(md.contains("Data: synthetic, noisy"), "{md}");
     }
 }

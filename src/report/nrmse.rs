@@ -614,6 +614,7 @@ fn write_planned(
                 entries.push(model_vs_sim::Entry {
                     species,
                     channel: prof.channels.get(ch).cloned(),
+                    synthetic: prof.is_synthetic(),
                     data: what.unwrap_or_else(|| {
                         if prof.is_synthetic() {
                             "synthetic (labelled so in the data)".into()
