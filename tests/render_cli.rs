@@ -462,6 +462,19 @@ fn renders_carry_their_provenance_in_png_text() {
         "{d}"
     );
     assert!(get(&out, "Comment").contains("\"sigma_c_a\""));
+    // The linear EXR beside it carries the same in its header.
+    let meta = exr::meta::MetaData::read_from_file(out.with_extension("exr"), false).unwrap();
+    let layer = &meta.headers[0].own_attributes;
+    let comments = layer.comments.as_ref().unwrap().to_string();
+    assert!(
+        comments.starts_with("linear image rendered by furfit from fit file ")
+            && comments.contains("SYNTHETIC"),
+        "{comments}"
+    );
+    assert!(layer
+        .software_name
+        .as_ref()
+        .is_some_and(|s| s.to_string().starts_with("furfit ")));
     let aov = dir.path().join("fox_TT.png");
     assert!(get(&aov, "Description").starts_with("TT lobe AOV rendered by furfit"));
 

@@ -444,7 +444,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .map(|(image, p)| {
                 let bytes = match image {
                     Image::Png => output::png_bytes(&r.beauty, a.exposure, &text("image"), &p)?,
-                    Image::Exr => output::exr_bytes(&r.beauty, &p)?,
+                    Image::Exr => output::exr_bytes(&r.beauty, &text("linear image"), &p)?,
                     Image::Aov(l) => output::png_bytes(
                         &r.lobes[l.index()],
                         a.exposure,

@@ -97,21 +97,58 @@ pub fn png_bytes(
     encode(tonemap(img, exposure_ev), img.width, img.height, text, path)
 }
 
-/// The linear image as 32-bit float OpenEXR bytes (`path` names the target in errors).
-pub fn exr_bytes(img: &Image, path: &Path) -> crate::Result<Vec<u8>> {
-    let data: Vec<f32> = img.data.iter().flat_map(|p| p.map(|v| v as f32)).collect();
-    let buf = image::Rgb32FImage::from_raw(img.width as u32, img.height as u32, data)
-        .ok_or_else(|| crate::Error::file(path, "image buffer has the wrong size"))?;
+/// The linear image as 32-bit float OpenEXR bytes, `text` in its header (`Software` and
+/// `Description` as the standard `software` and `comments` attributes, others as
+/// `furfit<Keyword>` text attributes; EXR text is Latin-1, other characters become `?`).
+/// `path` names the target in errors.
+pub fn exr_bytes(img: &Image, text: &PngText, path: &Path) -> crate::Result<Vec<u8>> {
+    use exr::meta::attribute::{AttributeValue, Text};
+    use exr::prelude::*;
+    if img.data.len() != img.width * img.height {
+        return Err(crate::Error::file(path, "image buffer has the wrong size"));
+    }
+    let latin1 = |s: &str| {
+        let s: String = s
+            .chars()
+            .map(|c| if (c as u32) < 256 { c } else { '?' })
+            .collect();
+        Text::new_or_none(s).unwrap_or_default()
+    };
+    let mut attrs = LayerAttributes::default();
+    for (key, value) in text {
+        match *key {
+            "Software" => attrs.software_name = Some(latin1(value)),
+            "Description" => attrs.comments = Some(latin1(value)),
+            _ => {
+                attrs.other.insert(
+                    latin1(&format!("furfit{key}")),
+                    AttributeValue::Text(latin1(value)),
+                );
+            }
+        }
+    }
+    let w = img.width;
+    let pixels = SpecificChannels::rgb(|p: Vec2<usize>| {
+        let v = img.data[p.y() * w + p.x()];
+        (v[0] as f32, v[1] as f32, v[2] as f32)
+    });
+    let layer = Layer::new(
+        (img.width, img.height),
+        attrs,
+        Encoding::FAST_LOSSLESS,
+        pixels,
+    );
     let mut out = Cursor::new(Vec::new());
-    image::DynamicImage::ImageRgb32F(buf)
-        .write_to(&mut out, image::ImageFormat::OpenExr)
+    exr::prelude::Image::from_layer(layer)
+        .write()
+        .to_buffered(&mut out)
         .map_err(|e| crate::Error::file(path, format!("EXR encoding failed: {e}")))?;
     Ok(out.into_inner())
 }
 
 /// Write the linear image as 32-bit float OpenEXR.
 pub fn write_exr(img: &Image, path: &Path) -> crate::Result<()> {
-    write_atomic(path, &exr_bytes(img, path)?)
+    write_atomic(path, &exr_bytes(img, &[], path)?)
 }
 
 /// Read a linear EXR back (tests and comparisons).
@@ -211,5 +248,41 @@ mod tests {
         let back = read_exr(&p).unwrap();
         // f32 storage: relative error ~6e-8.
         assert!(back.rmse(&img) < 1e-6);
+    }
+
+    /// The provenance text lands in the EXR header (standard `software` and `comments`,
+    /// the rest as `furfit*` attributes), Latin-1 only, and the pixels still read back.
+    #[test]
+    fn exr_header_carries_the_text() {
+        use exr::meta::attribute::{AttributeValue, Text};
+        let mut img = Image::new(2, 2);
+        img.data[3] = [1.0, 0.5, 0.25];
+        let text = [
+            ("Software", "furfit test".to_string()),
+            (
+                "Description",
+                "fit file \u{b5}.json (\u{3b2} \u{2192})".to_string(),
+            ),
+            ("Source", "furfit render --params red-fox".to_string()),
+        ];
+        let bytes = exr_bytes(&img, &text, Path::new("x.exr")).unwrap();
+        let meta = exr::meta::MetaData::read_from_buffered(Cursor::new(&bytes), true).unwrap();
+        let layer = &meta.headers[0].own_attributes;
+        assert_eq!(layer.software_name, Some(Text::from("furfit test")));
+        // The micro sign is Latin-1; beta and the arrow are not.
+        assert_eq!(
+            layer.comments,
+            Some(Text::from("fit file \u{b5}.json (? ?)"))
+        );
+        assert_eq!(
+            layer.other.get(&Text::from("furfitSource")),
+            Some(&AttributeValue::Text(Text::from(
+                "furfit render --params red-fox"
+            )))
+        );
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("t.exr");
+        std::fs::write(&p, &bytes).unwrap();
+        assert!(read_exr(&p).unwrap().rmse(&img) < 1e-6);
     }
 }
