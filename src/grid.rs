@@ -75,15 +75,22 @@ pub fn parse_theta_grid(what: &str, text: &str) -> Result<Vec<f64>> {
 /// mid-run.
 pub const MAX_GRID_SAMPLES: usize = 10_000_000;
 
-/// Refuse a grid `theta_i x theta_r x phi` of more than [`MAX_GRID_SAMPLES`] samples.
-pub fn check_grid_size(theta_i: usize, theta_r: usize, phi: usize) -> Result<()> {
+/// Refuse a grid `theta_i x theta_r x phi` of more than [`MAX_GRID_SAMPLES`] samples over
+/// all its `channels` (a multi-channel fit's synthesis holds one profile per channel).
+pub fn check_grid_size(theta_i: usize, theta_r: usize, phi: usize, channels: usize) -> Result<()> {
     let n = (theta_i as u128)
         .saturating_mul(theta_r as u128)
-        .saturating_mul(phi as u128);
+        .saturating_mul(phi as u128)
+        .saturating_mul(channels.max(1) as u128);
     if n > MAX_GRID_SAMPLES as u128 {
+        let ch = if channels > 1 {
+            format!(" x {channels} channels")
+        } else {
+            String::new()
+        };
         return Err(Error::Invalid(format!(
-            "the grid has {theta_i} x {theta_r} x {phi} = {n} samples, more than the limit of \
-             {MAX_GRID_SAMPLES}; use coarser steps or split it into several runs"
+            "the grid has {theta_i} x {theta_r} x {phi}{ch} = {n} samples, more than the limit \
+             of {MAX_GRID_SAMPLES}; use coarser steps or split it into several runs"
         )));
     }
     Ok(())
@@ -115,11 +122,15 @@ mod tests {
 
     #[test]
     fn grid_size_limit() {
-        assert!(check_grid_size(4, 61, 181).is_ok());
-        let e = check_grid_size(91, 1801, 3601).unwrap_err().to_string();
+        assert!(check_grid_size(4, 61, 181, 1).is_ok());
+        let e = check_grid_size(91, 1801, 3601, 1).unwrap_err().to_string();
         assert!(e.contains("590") && e.contains("limit"), "{e}");
         // No overflow on absurd axis lengths.
-        assert!(check_grid_size(usize::MAX, usize::MAX, 2).is_err());
+        assert!(check_grid_size(usize::MAX, usize::MAX, 2, 1).is_err());
+        // 4 M samples pass alone, not over 3 channels.
+        assert!(check_grid_size(100, 100, 400, 1).is_ok());
+        let e = check_grid_size(100, 100, 400, 3).unwrap_err().to_string();
+        assert!(e.contains("x 3 channels = 12000000"), "{e}");
     }
 
     #[test]

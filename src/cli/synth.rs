@@ -110,7 +110,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let ti = parse_theta_grid("--theta-i", &a.theta_i)?;
     let tr = parse_theta_grid("--theta-r", &a.theta_r)?;
     let phi = parse_phi_grid("--phi", &a.phi)?;
-    check_grid_size(ti.len(), tr.len(), phi.len())?;
+    check_grid_size(ti.len(), tr.len(), phi.len(), channels.len())?;
     for (what, g, lim) in [
         ("--theta-i", &ti, 90.0),
         ("--theta-r", &tr, 90.0),

@@ -146,7 +146,7 @@ impl SimSettings {
                 ));
             }
         }
-        crate::grid::check_grid_size(self.theta_i.len(), self.theta_r.len(), self.phi.len())?;
+        crate::grid::check_grid_size(self.theta_i.len(), self.theta_r.len(), self.phi.len(), 1)?;
         if self.theta_i.iter().any(|x| x.abs() >= 90.0) {
             return bad("--theta-i must be inside (-90, 90) degrees".into());
         }
