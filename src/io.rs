@@ -207,8 +207,9 @@ pub fn read_json(path: &Path) -> Result<serde_json::Value> {
 
 /// Parse JSON text read from `path`; a syntax error, or a key repeated in one object
 /// (serde_json would silently keep the last: `"l": 0.68, "l": 0.7`), names the file, line
-/// and column.
+/// and column. A leading UTF-8 byte-order mark (Windows editors save one) is skipped.
 pub fn parse_json(text: &str, path: &Path) -> Result<serde_json::Value> {
+    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
     serde_json::from_str::<UniqueKeys>(text)
         .map(|u| u.0)
         .map_err(|e| Error::Parse {
@@ -489,6 +490,13 @@ mod tests {
         let v = parse_json("{\"a\": {\"l\": 1}, \"b\": [{\"l\": 2.5}, null, true]}", p).unwrap();
         assert_eq!(v["b"][0]["l"], 2.5);
         assert_eq!(v["a"]["l"], 1);
+    }
+
+    /// A byte-order mark (as Windows Notepad saves JSON) is not a syntax error.
+    #[test]
+    fn json_with_a_byte_order_mark_reads() {
+        let v = parse_json("\u{feff}{\"synthetic\": true}", Path::new("m.json")).unwrap();
+        assert_eq!(v["synthetic"], true);
     }
 
     #[test]

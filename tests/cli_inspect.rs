@@ -266,11 +266,14 @@ fn folder_metadata_labels_data_synthetic() {
             "{out}"
         );
     }
-    // A broken metadata file of a species folder is an error naming it and the line.
+    // A broken metadata file is an error naming it and the line, for the folder and for a
+    // file in it alike (it may be what labels the data synthetic).
     std::fs::write(dir.join("metadata.json"), "{\"synthetic\": tru}").unwrap();
-    let (ok, _, err) = inspect(&[dir.as_os_str()]);
-    assert!(!ok);
-    assert!(err.contains("metadata.json:1:"), "{err}");
+    for arg in [dir.as_os_str(), file.as_os_str()] {
+        let (ok, _, err) = inspect(&[arg]);
+        assert!(!ok);
+        assert!(err.contains("metadata.json:1:"), "{err}");
+    }
 }
 
 /// phi written in 0..360 reads in every format (CSV, npz, lone .npy, Yan), wrapped to

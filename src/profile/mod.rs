@@ -130,16 +130,32 @@ impl Profile {
         }
     }
 
-    /// Does the profile say it is synthetic (metadata `synthetic: true` or
-    /// `source: synthetic...`)?
+    /// Does the profile say it is synthetic ([`says_synthetic`] of any metadata entry)?
     pub fn is_synthetic(&self) -> bool {
-        self.meta("synthetic")
-            .map(|v| v.eq_ignore_ascii_case("true") || v.eq_ignore_ascii_case("yes"))
-            .unwrap_or(false)
-            || self
-                .meta("source")
-                .map(|v| v.to_ascii_lowercase().contains("synthetic"))
-                .unwrap_or(false)
+        self.metadata
+            .iter()
+            .any(|(k, v)| says_synthetic(k, v) == Some(true))
+    }
+}
+
+/// What a metadata entry says of the data's origin (shared by profile headers and a
+/// species folder's `metadata.json`): `synthetic` (any case) set to true/yes/1 is
+/// `Some(true)`, to false/no/0 `Some(false)`; a `source` (any case) mentioning "synthetic"
+/// or "simulat" (simulated, simulation: DATA.md's word) is `Some(true)`; else `None`.
+pub fn says_synthetic(key: &str, value: &str) -> Option<bool> {
+    let v = value.trim().to_ascii_lowercase();
+    if key.trim().eq_ignore_ascii_case("synthetic") {
+        match v.as_str() {
+            "true" | "yes" | "1" => Some(true),
+            "false" | "no" | "0" => Some(false),
+            _ => None,
+        }
+    } else if key.trim().eq_ignore_ascii_case("source")
+        && (v.contains("synthetic") || v.contains("simulat"))
+    {
+        Some(true)
+    } else {
+        None
     }
 }
 
@@ -350,7 +366,7 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Profile> {
 
 /// [`load`], also returning the format and the loader's notes. A `metadata.json` beside
 /// the file that labels the data synthetic labels the profile too
-/// ([`provenance::apply_folder_label`]; one that does not read is a note here).
+/// ([`provenance::apply_folder_label`]; one that does not read is an error).
 pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let mut l = load_file(path, opts)?;
     if let Some(dir) = path.parent() {
@@ -359,7 +375,7 @@ pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
         } else {
             dir
         };
-        let notes = provenance::apply_folder_label(&mut l.profile, dir, false)?;
+        let notes = provenance::apply_folder_label(&mut l.profile, dir)?;
         l.notes.extend(notes);
     }
     Ok(l)
@@ -568,7 +584,7 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
             "{collapsed} identical duplicate sample(s) across files collapsed"
         ));
     }
-    notes.extend(provenance::apply_folder_label(&mut profile, dir, true)?);
+    notes.extend(provenance::apply_folder_label(&mut profile, dir)?);
     profile.source = Some(dir.to_path_buf());
     Ok(Loaded {
         profile,

@@ -13,9 +13,10 @@ use std::path::Path;
 /// The metadata file of a species folder.
 pub const FOLDER_METADATA: &str = "metadata.json";
 
-/// What a folder's `metadata.json` says of the data: `Some(true)` for `synthetic: true`
-/// (or "true"/"yes") or a `source` mentioning "synthetic", `Some(false)` for an explicit
-/// `synthetic: false`, `None` when it says neither or does not exist.
+/// What a folder's `metadata.json` says of the data ([`super::says_synthetic`] of its
+/// top-level entries; a JSON `true`/`1` counts like "true"): `Some(true)` when any entry
+/// says synthetic, `Some(false)` for an explicit "not synthetic" and nothing saying
+/// synthetic, `None` when it says neither or does not exist.
 fn folder_says_synthetic(dir: &Path) -> Result<Option<bool>> {
     let path = dir.join(FOLDER_METADATA);
     if !path.is_file() {
@@ -28,40 +29,36 @@ fn folder_says_synthetic(dir: &Path) -> Result<Option<bool>> {
             "a species folder's metadata file must be a JSON object",
         ));
     };
-    let flag = match obj.get("synthetic") {
-        Some(serde_json::Value::Bool(b)) => Some(*b),
-        Some(serde_json::Value::String(s)) => {
-            let s = s.trim().to_ascii_lowercase();
-            Some(s == "true" || s == "yes")
-        }
-        _ => None,
-    };
-    let source = obj
-        .get("source")
-        .and_then(|s| s.as_str())
-        .is_some_and(|s| s.to_ascii_lowercase().contains("synthetic"));
-    Ok(if source { Some(true) } else { flag })
+    let says: Vec<bool> = obj
+        .iter()
+        .filter_map(|(k, v)| {
+            let text = match v {
+                serde_json::Value::String(s) => s.clone(),
+                serde_json::Value::Bool(_) | serde_json::Value::Number(_) => v.to_string(),
+                _ => return None,
+            };
+            super::says_synthetic(k, &text)
+        })
+        .collect();
+    Ok(if says.contains(&true) {
+        Some(true)
+    } else if says.contains(&false) {
+        Some(false)
+    } else {
+        None
+    })
 }
 
 /// Apply the label of `dir`'s `metadata.json` to `profile` (loaded from that folder) and
-/// return the notes it warrants. `strict`: a metadata file that does not read is an error
-/// (a species folder named as such); otherwise it is a note (a lone file whose folder
-/// holds some other `metadata.json`).
-pub(crate) fn apply_folder_label(
-    profile: &mut Profile,
-    dir: &Path,
-    strict: bool,
-) -> Result<Vec<String>> {
-    let says = match folder_says_synthetic(dir) {
-        Ok(s) => s,
-        Err(e) if !strict => {
-            return Ok(vec![format!(
-                "{} not read for the data's synthetic/measured label: {e}",
-                dir.join(FOLDER_METADATA).display()
-            )]);
-        }
-        Err(e) => return Err(e),
-    };
+/// return the notes it warrants. A metadata file that does not read is an error, also for
+/// a file named inside the folder: it may be what labels the data synthetic, and a
+/// synthetic profile must never pass as measured.
+pub(crate) fn apply_folder_label(profile: &mut Profile, dir: &Path) -> Result<Vec<String>> {
+    let says = folder_says_synthetic(dir).map_err(|e| {
+        Error::Invalid(format!(
+            "{e} (it says whether the data beside it are synthetic: fix it, or move it away)"
+        ))
+    })?;
     let file = dir.join(FOLDER_METADATA);
     Ok(match (says, profile.is_synthetic()) {
         (Some(true), false) => {
@@ -102,40 +99,41 @@ mod tests {
 
         // No metadata file: nothing changes.
         let mut p = profile(&[]);
-        assert!(apply_folder_label(&mut p, dir, true).unwrap().is_empty());
+        assert!(apply_folder_label(&mut p, dir).unwrap().is_empty());
         assert!(!p.is_synthetic());
 
         for text in [
             r#"{"synthetic": true}"#,
             r#"{"synthetic": "yes"}"#,
+            r#"{"synthetic": 1}"#,
+            r#"{"Synthetic": "TRUE"}"#,
             r#"{"source": "Synthetic: furfit synth + noise"}"#,
+            r#"{"source": "simulated with our own ray tracer"}"#,
         ] {
             write(text);
             let mut p = profile(&[]);
-            let notes = apply_folder_label(&mut p, dir, true).unwrap();
+            let notes = apply_folder_label(&mut p, dir).unwrap();
             assert!(p.is_synthetic(), "{text}");
             assert_eq!(notes.len(), 1, "{text}: {notes:?}");
             // Already labelled: no note.
-            assert!(apply_folder_label(&mut p, dir, true).unwrap().is_empty());
+            assert!(apply_folder_label(&mut p, dir).unwrap().is_empty());
         }
 
         write(r#"{"synthetic": false, "what": "lab"}"#);
         let mut p = profile(&[]);
-        assert!(apply_folder_label(&mut p, dir, true).unwrap().is_empty());
+        assert!(apply_folder_label(&mut p, dir).unwrap().is_empty());
         assert!(!p.is_synthetic());
         let mut p = profile(&[("synthetic", "true")]);
-        let notes = apply_folder_label(&mut p, dir, true).unwrap();
+        let notes = apply_folder_label(&mut p, dir).unwrap();
         assert!(p.is_synthetic());
         assert!(notes[0].contains("treated as synthetic"), "{notes:?}");
 
-        // Unreadable: an error naming the file for a folder, a note for a lone file.
+        // Unreadable: an error naming the file (and the line).
         write("[1, 2]");
-        let e = apply_folder_label(&mut profile(&[]), dir, true).unwrap_err();
+        let e = apply_folder_label(&mut profile(&[]), dir).unwrap_err();
         assert!(e.to_string().contains(FOLDER_METADATA), "{e}");
         write("{\"synthetic\": tru}");
-        let e = apply_folder_label(&mut profile(&[]), dir, true).unwrap_err();
+        let e = apply_folder_label(&mut profile(&[]), dir).unwrap_err();
         assert!(e.to_string().contains(":1:"), "no line in: {e}");
-        let notes = apply_folder_label(&mut profile(&[]), dir, false).unwrap();
-        assert!(notes[0].contains("not read"), "{notes:?}");
     }
 }
