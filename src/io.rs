@@ -149,7 +149,7 @@ pub fn check_out_file(path: &Path) -> Result<()> {
 }
 
 /// The directory `path` is in (`.` for a bare file name).
-fn parent_dir(path: &Path) -> PathBuf {
+pub(crate) fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
         _ => PathBuf::from("."),
@@ -197,6 +197,45 @@ fn commit(tmp: &Path, path: &Path) -> Result<()> {
         let _ = std::fs::remove_file(tmp);
         Error::io(path, e)
     })
+}
+
+/// `path` made absolute with symbolic links and `..` resolved as far as it exists (the
+/// rest appended as written): a file about to be written has no canonical path yet.
+pub fn resolve_path(path: &Path) -> PathBuf {
+    let abs = std::path::absolute(path).unwrap_or_else(|_| path.to_path_buf());
+    let mut rest = Vec::new();
+    let mut head = abs.as_path();
+    loop {
+        if let Ok(c) = head.canonicalize() {
+            return rest
+                .iter()
+                .rev()
+                .fold(c, |acc: PathBuf, part| acc.join(part));
+        }
+        match (head.parent(), head.file_name()) {
+            (Some(p), Some(name)) => {
+                rest.push(name.to_owned());
+                head = p;
+            }
+            _ => return abs,
+        }
+    }
+}
+
+/// The relative path from the directory `base` to `target`, both absolute (as from
+/// [`resolve_path`]): `..` for each of `base`'s components past their common prefix.
+pub fn relative_path(base: &Path, target: &Path) -> PathBuf {
+    let b: Vec<_> = base.components().collect();
+    let t: Vec<_> = target.components().collect();
+    let common = b.iter().zip(&t).take_while(|(x, y)| x == y).count();
+    let mut out = PathBuf::new();
+    for _ in common..b.len() {
+        out.push("..");
+    }
+    for c in &t[common..] {
+        out.push(c);
+    }
+    out
 }
 
 /// Read and parse a JSON file; a syntax error names the file, line and column.
@@ -490,6 +529,22 @@ mod tests {
         let v = parse_json("{\"a\": {\"l\": 1}, \"b\": [{\"l\": 2.5}, null, true]}", p).unwrap();
         assert_eq!(v["b"][0]["l"], 2.5);
         assert_eq!(v["a"]["l"], 1);
+    }
+
+    #[test]
+    fn relative_paths_between_folders() {
+        let r = |b: &str, t: &str| relative_path(Path::new(b), Path::new(t));
+        assert_eq!(r("/a/fits", "/a/data/x.csv"), Path::new("../data/x.csv"));
+        assert_eq!(r("/a", "/a/x.csv"), Path::new("x.csv"));
+        assert_eq!(r("/a/b/c", "/d/x.csv"), Path::new("../../../d/x.csv"));
+        // A file to be written below a folder that does not exist yet resolves as written.
+        let dir = tempfile::tempdir().unwrap();
+        let real = dir.path().canonicalize().unwrap();
+        assert_eq!(
+            resolve_path(&dir.path().join("new/../new2/f.json")),
+            real.join("new/../new2/f.json")
+        );
+        assert_eq!(resolve_path(&dir.path().join(".")), real);
     }
 
     /// A byte-order mark (as Windows Notepad saves JSON) is not a syntax error.

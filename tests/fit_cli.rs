@@ -1119,3 +1119,44 @@ fn clashing_yan_files_under_one_theta_i_get_the_hint() {
     );
     assert!(!root.join("f.json").exists());
 }
+
+/// Two datasets fitted into one fit file from their own folders with the same relative
+/// input name (`fit profile.csv --out ../../fits/x.json`): the second is other data and is
+/// refused without `--force` (the fit records each file's path relative to itself, so a
+/// path as typed from another folder does not pass for the same file).
+#[test]
+fn fit_tells_same_named_inputs_run_from_other_folders_apart() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    make_species(root, "vole");
+    let mouse = furfit::FurParams::preset("mouse").unwrap().to_file_units();
+    // make_species writes both folders from the mouse preset: give the vole file other
+    // content (one more sample) so it is other data.
+    let vole = root.join("measurements/vole/profile.csv");
+    let mut text = std::fs::read_to_string(&vole).unwrap();
+    text.push_str("20,65,0,0.5\n");
+    std::fs::write(&vole, text).unwrap();
+    let run = |dir: &str, extra: &[&str]| {
+        let mut c = fit_cmd(&root.join(dir));
+        c.args(["profile.csv", "--out", "../../fits/x.json"])
+            .args(extra);
+        fix_all_but(&mut c, &mouse, &[]);
+        c.output().unwrap()
+    };
+    let o = run("measurements/mouse", &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("fits/x.json")).unwrap()).unwrap();
+    assert_eq!(
+        v["data"]["files"][0]["from_fit"],
+        "../measurements/mouse/profile.csv"
+    );
+    // The same file again (from its folder): replaced freely.
+    let o = run("measurements/mouse", &[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = run("measurements/vole", &[]);
+    fails_with(o, &["holds a fit of other data", "--force"]);
+    let o = run("measurements/vole", &["--force"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}

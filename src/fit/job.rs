@@ -68,16 +68,20 @@ pub fn check_replace_fit(out: &Path, files: &[ReadFile], force: bool) -> Result<
     }
     let v = crate::io::read_json(out)?;
     let recorded = v["data"]["files"].as_array().cloned().unwrap_or_default();
-    let same_path = |a: &str, b: &Path| {
-        let a = Path::new(a);
-        a == b || matches!((a.canonicalize(), b.canonicalize()), (Ok(x), Ok(y)) if x == y)
-    };
+    let fit_dir = crate::io::resolve_path(&crate::io::parent_dir(out));
+    let inputs: Vec<PathBuf> = files
+        .iter()
+        .map(|f| crate::io::resolve_path(&f.path))
+        .collect();
     let same = recorded.iter().any(|r| {
-        let path = r["path"].as_str().unwrap_or_default();
         let sha = r["sha256"].as_str().unwrap_or_default();
-        files
-            .iter()
-            .any(|f| f.sha256 == sha || same_path(path, &f.path))
+        // The path relative to the fit file names the file wherever the fit ran from;
+        // fit files without it fall back to the path as given (from the current folder).
+        let path = match r["from_fit"].as_str() {
+            Some(rel) => crate::io::resolve_path(&fit_dir.join(rel)),
+            None => crate::io::resolve_path(Path::new(r["path"].as_str().unwrap_or_default())),
+        };
+        files.iter().any(|f| f.sha256 == sha) || inputs.contains(&path)
     });
     if same {
         return Ok(());
@@ -272,10 +276,18 @@ pub fn fit_loaded(
 ) -> Result<(Value, Vec<ChannelSummary>)> {
     check_out(&job.out)?;
     let prof = &inputs.profile;
-    let file_info: Vec<(String, String)> = inputs
+    let fit_dir = crate::io::resolve_path(&crate::io::parent_dir(&job.out));
+    let file_info: Vec<(String, String, String)> = inputs
         .files
         .iter()
-        .map(|f| (f.path.display().to_string(), f.sha256.clone()))
+        .map(|f| {
+            let rel = crate::io::relative_path(&fit_dir, &crate::io::resolve_path(&f.path));
+            (
+                f.path.display().to_string(),
+                f.sha256.clone(),
+                rel.display().to_string(),
+            )
+        })
         .collect();
     let n_ch = prof.n_channels();
     let name_of = |c: usize| prof.channels.get(c).cloned().unwrap_or_default();

@@ -13,8 +13,10 @@ use serde_json::{json, Map, Value};
 /// Provenance of the data one fit used.
 #[derive(Clone, Debug, Default)]
 pub struct DataInfo {
-    /// `(path as given, sha256 of the content)` per file.
-    pub files: Vec<(String, String)>,
+    /// `(path as given, sha256 of the content, path relative to the fit file's folder)`
+    /// per file; the last tells a refit of these files from a fit of others of the same
+    /// relative name run elsewhere ([`super::job::check_replace_fit`]).
+    pub files: Vec<(String, String, String)>,
     pub n_valid: usize,
     pub n_invalid: usize,
     /// Valid samples left out below the relative floor (`FitOptions::floor`).
@@ -81,7 +83,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
     let files: Vec<Value> = data
         .files
         .iter()
-        .map(|(p, h)| json!({"path": p, "sha256": h}))
+        .map(|(p, h, rel)| json!({"path": p, "sha256": h, "from_fit": rel}))
         .collect();
     json!({
         "params": out.params.to_json_value(),
