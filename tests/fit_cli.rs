@@ -1160,3 +1160,37 @@ fn fit_tells_same_named_inputs_run_from_other_folders_apart() {
     let o = run("measurements/vole", &["--force"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// Data whose synthetic label comes after the fit (a metadata.json added to the folder,
+/// the profile unchanged) are reported as synthetic in nrmse.md too, not as measured.
+#[test]
+fn report_labels_data_synthetic_when_the_label_came_after_the_fit() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    let dir = root.join("measurements/mouse");
+    // No label in the profile (its # lines dropped) nor in the folder.
+    let csv = dir.join("profile.csv");
+    let text: String = std::fs::read_to_string(&csv)
+        .unwrap()
+        .lines()
+        .filter(|l| !l.starts_with('#'))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    std::fs::write(&csv, text).unwrap();
+    std::fs::remove_file(dir.join("metadata.json")).unwrap();
+    fit(root, "mouse", "fits/mouse.json", "1");
+    let report = || {
+        let o = furfit()
+            .current_dir(root)
+            .args(["report", "--force"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap()
+    };
+    assert!(report().contains("measured data"));
+    std::fs::write(dir.join("metadata.json"), r#"{"synthetic": true}"#).unwrap();
+    let md = report();
+    assert!(md.contains("SYNTHETIC data"), "{md}");
+}

@@ -541,6 +541,18 @@ fn write_planned(
     sum: &mut ReportSummary,
 ) -> Result<()> {
     use super::{fig11, fit_time, model_vs_sim};
+    // Each fit's data first: data labelled synthetic (in the file or its folder's
+    // metadata.json, also when the label came after the fit) are reported as synthetic
+    // everywhere, not only where the fit file recorded it.
+    let mut fits = fits.to_vec();
+    let data: Vec<Result<crate::Profile>> =
+        fits.iter().map(|f| f.load_data(measurements)).collect();
+    for (f, d) in fits.iter_mut().zip(&data) {
+        if d.as_ref().is_ok_and(|p| p.is_synthetic()) {
+            f.synthetic = true;
+        }
+    }
+    let fits = fits.as_slice();
     write(fits, out)?;
     sum.written.push(out.join("nrmse.md"));
     sum.written.push(out.join("nrmse.csv"));
@@ -549,11 +561,8 @@ fn write_planned(
         sum.written
             .push(out.join(format!("fit_error_vs_time.{ext}")));
     }
-    for f in fits {
-        match f
-            .load_data(measurements)
-            .and_then(|p| fig11::write(f, &p, out))
-        {
+    for (f, d) in fits.iter().zip(data) {
+        match d.and_then(|p| fig11::write(f, &p, out)) {
             Ok(paths) => sum.written.extend(paths),
             Err(e) => sum.skipped.push((f.label(), format!("fig11: {e}"))),
         }
