@@ -183,7 +183,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let command = format!(
         "furfit render-convergence --params {} --size {pw}x{ph} --frame {fw}x{fh} \
-         --max-spp {} --ref-spp {} --modes {} --seed {} --repeats {} --threads {}{}",
+         --max-spp {} --ref-spp {} --modes {} --seed {} --repeats {} --threads {}{} --out {}",
         super::shell_quote(&a.params),
         a.max_spp,
         a.ref_spp,
@@ -191,7 +191,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         a.seed,
         a.repeats,
         a.threads,
-        if a.env_nee { " --env-nee" } else { "" }
+        if a.env_nee { " --env-nee" } else { "" },
+        super::shell_quote(&a.out.display().to_string())
     );
     // The report's files land together or not at all.
     let [csv, png, svg, md] = [0, 1, 2, 3].map(|i| paths[i].clone());

@@ -559,9 +559,14 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.contains("t.csv:3:") && e.contains("sigma") && e.contains("line 2"),
+            e.contains("t.csv:3:") && e.contains("sigma (0.1 vs 0.2)") && e.contains("line 2"),
             "{e}"
         );
+        // A missing sigma reads "none", not Rust's `None`.
+        let e = p("theta_i,theta_r,phi,value,sigma\n0,0,0,1,0.1\n0,0,0,1,\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sigma (0.1 vs none)"), "{e}");
     }
 
     #[test]

@@ -894,6 +894,11 @@ where
     })
 }
 
+/// An optional sample field as a message shows it: the number, or "none".
+fn opt_text(v: Option<f64>) -> String {
+    v.map_or_else(|| "none".to_string(), |x| x.to_string())
+}
+
 /// Remove identical duplicate samples (same `theta_i, theta_r, phi, channel` and the same
 /// value, sigma and phi_i), keeping the first; returns how many were removed. A repeat
 /// with any different field is an error built by `conflict` from the [`Conflict`] (indices
@@ -920,9 +925,17 @@ where
                 let diff = if !same_f64(a.value, s.value) {
                     Some(format!("value ({} vs {})", a.value, s.value))
                 } else if !same_opt(a.sigma, s.sigma) {
-                    Some(format!("sigma ({:?} vs {:?})", a.sigma, s.sigma))
+                    Some(format!(
+                        "sigma ({} vs {})",
+                        opt_text(a.sigma),
+                        opt_text(s.sigma)
+                    ))
                 } else if !same_opt(a.phi_i, s.phi_i) {
-                    Some(format!("phi_i ({:?} vs {:?})", a.phi_i, s.phi_i))
+                    Some(format!(
+                        "phi_i ({} vs {})",
+                        opt_text(a.phi_i),
+                        opt_text(s.phi_i)
+                    ))
                 } else {
                     None
                 };

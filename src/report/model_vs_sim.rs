@@ -162,7 +162,13 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
         );
     }
     for e in entries {
-        let _ = writeln!(s, "\n## {}\n\nData: {}\n", e.name(), e.data);
+        let _ = writeln!(
+            s,
+            "\n## {}\n\nData: {} ({})\n",
+            e.name(),
+            if e.synthetic { "SYNTHETIC" } else { "measured" },
+            e.data
+        );
         if let Some(n) = &e.fit_note {
             let _ = writeln!(s, "Fit not shown: {n}\n");
         }
@@ -261,6 +267,6 @@ mod tests {
             "{md}"
         );
         assert!(md.contains("Fit not shown: changed"), "{md}");
-        assert!(md.contains("Data: synthetic, noisy"), "{md}");
+        assert!(md.contains("Data: SYNTHETIC (synthetic, noisy)"), "{md}");
     }
 }
