@@ -50,8 +50,8 @@ pub struct LoadArgs {
     /// phi axis grid (deg) of a lone .npy, e.g. `-180:180:2`. An error without a lone .npy.
     #[arg(long, allow_hyphen_values = true)]
     pub phi: Option<String>,
-    /// Degrees added to every file's phi (after --flip-phi) before wrapping to (-180, 180]
-    /// (data in another azimuth convention; any format).
+    /// Degrees (within [-360, 360]) added to every file's phi (after --flip-phi) before
+    /// wrapping to (-180, 180] (data in another azimuth convention; any format).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub phi_offset: f64,
     /// Negate every file's phi (any format; applied before --phi-offset).
@@ -64,8 +64,13 @@ pub struct LoadArgs {
 
 impl LoadArgs {
     pub fn to_options(&self) -> anyhow::Result<crate::profile::LoadOptions> {
-        if !self.phi_offset.is_finite() {
-            anyhow::bail!("--phi-offset must be finite");
+        // One turn either way covers every convention; beyond, a typo (or 1e17, whose
+        // wrap is rounding noise) would silently rotate the data.
+        if !(self.phi_offset.is_finite() && self.phi_offset.abs() <= 360.0) {
+            anyhow::bail!(
+                "--phi-offset {}: must be within [-360, 360] degrees",
+                self.phi_offset
+            );
         }
         let grid = |what: &str, g: &Option<String>| -> anyhow::Result<Option<Vec<f64>>> {
             Ok(match g {

@@ -425,12 +425,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     "Description",
                     format!(
                         "{what} rendered by furfit from {about}; mode {}, {}x{}, {} spp, \
-                         seed {}; ACES tone map, sRGB, exposure {} EV",
+                         seed {}, lobes {}; colour: {}; ACES tone map, sRGB, exposure {} EV",
                         s.mode.name(),
                         s.width,
                         s.height,
                         s.spp,
                         s.seed,
+                        s.lobes
+                            .iter()
+                            .map(|l| l.name())
+                            .collect::<Vec<_>>()
+                            .join(","),
+                        s.tint,
                         a.exposure
                     ),
                 ),

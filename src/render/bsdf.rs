@@ -166,6 +166,27 @@ pub enum Tint {
     },
 }
 
+impl std::fmt::Display for Tint {
+    /// How the colour was made, for the images' provenance text.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Tint::Ratios(r) => write!(
+                f,
+                "absorption tinted by r:g:b ratios {:.3}:{:.3}:{:.3}",
+                r[0], r[1], r[2]
+            ),
+            Tint::Absorption {
+                sigma_c_a,
+                sigma_m_a,
+            } => write!(
+                f,
+                "per-channel absorption sigma_c_a r,g,b {:.4},{:.4},{:.4}, sigma_m_a {:.4},{:.4},{:.4}",
+                sigma_c_a[0], sigma_c_a[1], sigma_c_a[2], sigma_m_a[0], sigma_m_a[1], sigma_m_a[2]
+            ),
+        }
+    }
+}
+
 impl Default for Tint {
     fn default() -> Self {
         Tint::Ratios([0.419 / 0.697, 1.0, 1.37 / 0.697])

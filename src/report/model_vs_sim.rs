@@ -29,15 +29,27 @@ pub fn true_params(species_dir: &Path) -> Result<Option<(FurParams, Option<Strin
     let v = crate::io::read_json(&p)?;
     let truth = match v.get("params") {
         None => return Ok(None),
-        Some(serde_json::Value::String(name)) => FurParams::preset(name).ok_or_else(|| {
-            Error::file(
-                &p,
-                format!(
-                    "key 'params': '{name}' is not a preset name (presets: {})",
-                    crate::params::preset_names().join(", ")
-                ),
-            )
-        })?,
+        // A preset name, or a parameter/fit file (relative to the folder), as --params.
+        Some(serde_json::Value::String(name)) => match FurParams::preset(name) {
+            Some(t) => t,
+            None if species_dir.join(name).is_file() => {
+                let file = species_dir.join(name);
+                FurParams::load(&file.to_string_lossy())
+                    .map_err(|e| Error::file(&p, format!("key 'params': {e}")))?
+                    .0
+            }
+            None => {
+                return Err(Error::file(
+                    &p,
+                    format!(
+                        "key 'params': '{name}' is neither a preset ({}) nor a parameter or \
+                         fit file in {}",
+                        crate::params::preset_names().join(", "),
+                        species_dir.display()
+                    ),
+                ))
+            }
+        },
         Some(obj) => {
             FurParams::from_json_value(obj)
                 .map_err(|e| Error::file(&p, format!("key 'params': {e}")))?
@@ -228,6 +240,13 @@ mod tests {
         let (p, what) = true_params(dir).unwrap().unwrap();
         assert_eq!(p, FurParams::preset("mouse").unwrap());
         assert_eq!(what.as_deref(), Some("lab data"));
+        // A parameter file beside it, named relative to the folder.
+        std::fs::write(dir.join("truth.json"), obj.to_string()).unwrap();
+        write(r#"{"params": "truth.json"}"#);
+        assert_eq!(
+            true_params(dir).unwrap().unwrap().0,
+            FurParams::preset("mouse").unwrap()
+        );
         write(r#"{"params": "unicorn"}"#);
         let e = true_params(dir).unwrap_err().to_string();
         assert!(
