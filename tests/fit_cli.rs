@@ -1194,3 +1194,38 @@ fn report_labels_data_synthetic_when_the_label_came_after_the_fit() {
     let md = report();
     assert!(md.contains("SYNTHETIC data"), "{md}");
 }
+
+/// `fit --all` names every species whose data do not load in one run (not one per run),
+/// and says which folders it passed over for holding no profile file; nothing is fitted.
+#[test]
+fn fit_all_names_every_bad_species_and_the_folders_passed_over() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    for sp in ["mouse", "vole", "zebra"] {
+        make_species(root, sp);
+    }
+    for sp in ["mouse", "zebra"] {
+        std::fs::write(
+            root.join("measurements").join(sp).join("metadata.json"),
+            "{\"synthetic\": tru}",
+        )
+        .unwrap();
+    }
+    std::fs::create_dir_all(root.join("measurements/notes")).unwrap();
+    let o = furfit()
+        .current_dir(root)
+        .args(["fit", "--all", "--starts", "8", "--lm-starts", "1"])
+        .output()
+        .unwrap();
+    fails_with(
+        o.clone(),
+        &["fitting mouse:", "fitting zebra:", "metadata.json:1:"],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!err.contains("fitting vole:"), "{err}");
+    assert!(
+        err.contains("notes: no profile file, not a species folder"),
+        "{err}"
+    );
+    assert!(!root.join("fits/vole.json").exists());
+}

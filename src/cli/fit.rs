@@ -144,7 +144,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let load = a.load.to_options()?;
     let jobs = if a.all {
-        jobs_for_all(&a.measurements, &a.fits)?
+        let (jobs, passed) = jobs_for_all(&a.measurements, &a.fits)?;
+        for d in passed {
+            eprintln!(
+                "note: {}: no profile file, not a species folder",
+                d.display()
+            );
+        }
+        jobs
     } else {
         if a.inputs.is_empty() {
             anyhow::bail!("give profile files or species folders, or --all");
@@ -161,12 +168,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     // Every job's data is read before any fit, so an unreadable file or an axis option no
     // input reads (e.g. --theta-i for CSV files) fails at once, not after earlier fits.
+    // Every failing species is named at once (not one per run).
     let mut loaded = Vec::new();
+    let mut failed = Vec::new();
     for job in &jobs {
-        loaded.push(
-            load_inputs_full(&job.inputs, &load)
-                .with_context(|| format!("fitting {}", job.species))?,
-        );
+        match load_inputs_full(&job.inputs, &load) {
+            Ok(l) => loaded.push(l),
+            Err(e) => failed.push(format!("fitting {}: {e}", job.species)),
+        }
+    }
+    if !failed.is_empty() {
+        anyhow::bail!("{}", failed.join("\n"));
     }
     let formats: Vec<_> = loaded.iter().flat_map(|l| l.formats()).collect();
     load.check_used(&formats)?;

@@ -101,22 +101,23 @@ pub fn check_replace_fit(out: &Path, files: &[ReadFile], force: bool) -> Result<
     ))
 }
 
-/// Every species folder under `measurements` (sorted), one job each.
-pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<Vec<Job>> {
+/// Every species folder under `measurements` (sorted), one job each, and the folders
+/// passed over for holding no profile file (the caller says so).
+pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<(Vec<Job>, Vec<PathBuf>)> {
     let rd = std::fs::read_dir(measurements).map_err(|e| Error::io(measurements, e))?;
-    let mut dirs: Vec<PathBuf> = rd
+    let (mut dirs, mut passed): (Vec<PathBuf>, Vec<PathBuf>) = rd
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_dir())
-        .filter(|p| profile::dir_profile_files(p).is_ok_and(|(f, _)| !f.is_empty()))
-        .collect();
+        .partition(|p| profile::dir_profile_files(p).is_ok_and(|(f, _)| !f.is_empty()));
     dirs.sort();
+    passed.sort();
     if dirs.is_empty() {
         return Err(Error::file(
             measurements,
             "no species folder with profile files",
         ));
     }
-    Ok(dirs
+    let jobs = dirs
         .into_iter()
         .map(|d| {
             let species = species_name(&d);
@@ -126,7 +127,8 @@ pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<Vec<Job>> {
                 inputs: vec![d],
             }
         })
-        .collect())
+        .collect();
+    Ok((jobs, passed))
 }
 
 /// The inputs of a fit, loaded and merged.
