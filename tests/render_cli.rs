@@ -5,6 +5,8 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+mod common;
+
 fn furfit(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_furfit"))
         .args(args)
@@ -491,5 +493,33 @@ fn renders_carry_their_provenance_in_png_text() {
             && d.contains("red-fox: fit file ")
             && d.contains("SYNTHETIC"),
         "{d}"
+    );
+}
+
+/// A fit whose channels are not r, g, b (wavelengths): the default tint is said to apply,
+/// naming the channels the fit has.
+#[test]
+fn render_names_channels_it_cannot_colour_from() {
+    let dir = tempfile::tempdir().unwrap();
+    let rgb = common::rgb_fit(dir.path());
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&rgb).unwrap()).unwrap();
+    for (i, nm) in ["650nm", "550nm", "450nm"].iter().enumerate() {
+        v["channels"][i]["data"]["channel"] = serde_json::json!(nm);
+    }
+    v["data"]["channel"] = serde_json::json!("650nm");
+    let fit = dir.path().join("nm.json");
+    std::fs::write(&fit, v.to_string()).unwrap();
+    let out = dir.path().join("nm.png");
+    let mut args = vec!["render", "--fit", fit.to_str().unwrap(), "--no-aovs"];
+    args.extend_from_slice(&SMALLEST);
+    args.extend_from_slice(&["--out", out.to_str().unwrap()]);
+    let o = furfit(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no r, g, b channels in parameter file")
+            && stderr(&o).contains("(channels 650nm, 550nm, 450nm)"),
+        "{}",
+        stderr(&o)
     );
 }

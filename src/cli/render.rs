@@ -401,9 +401,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 eprintln!("note: {name}: --tint {t} replaces the fit's r, g, b absorption")
             }
             // Said of fits only: a preset or parameter file has no channels to look for.
-            (None, None) if a.fit.is_some() || a.all => {
-                eprintln!("note: {name}: no r, g, b channels: default eumelanin-like tint (--tint)")
-            }
+            (None, None) if a.fit.is_some() || a.all => eprintln!(
+                "note: {name}: no r, g, b channels in {about}: default eumelanin-like tint of \
+                 its primary channel's absorption (--tint)"
+            ),
             (None, _) => {}
         }
         let r = render_scene(&scene, p, &s)?;
@@ -523,6 +524,15 @@ fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, Stri
         return Ok((p, None, format!("preset {spec} (seed Table 4)")));
     };
     let colour = Tint::from_fit_channels(&v).with_context(|| format!("--fit {spec}"))?;
+    let names: Vec<String> = crate::params::fit_channels(&v, spec)?
+        .into_iter()
+        .map(|c| c.name)
+        .collect();
+    let channels = if names.is_empty() {
+        String::new()
+    } else {
+        format!(", channels {}", names.join(", "))
+    };
     let about = if v.get("solver").is_some() {
         let data = match v["data"]["synthetic"].as_bool() {
             Some(true) => "SYNTHETIC data",
@@ -530,11 +540,13 @@ fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, Stri
             None => "data of unrecorded kind",
         };
         match v["species"].as_str() {
-            Some(sp) => format!("fit file {spec} (species {sp}, fitted to {data})"),
-            None => format!("fit file {spec} (fitted to {data})"),
+            Some(sp) => format!("fit file {spec} (species {sp}, fitted to {data}{channels})"),
+            None => format!("fit file {spec} (fitted to {data}{channels})"),
         }
-    } else {
+    } else if names.is_empty() {
         format!("parameter file {spec}")
+    } else {
+        format!("parameter file {spec} ({})", &channels[2..])
     };
     Ok((p, colour, about))
 }
