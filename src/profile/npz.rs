@@ -41,7 +41,8 @@
 //!
 //! Before an array is decoded its header is checked against the bytes actually present, so
 //! a truncated or corrupt array is an error naming it (never a huge allocation or a panic);
-//! an array larger than 512 MiB uncompressed is refused. Archives from `numpy.savez` and
+//! an array larger than 512 MiB uncompressed, or of more than 20 M cells (a profile's
+//! memory: ~190 bytes a sample), is refused from its header. Archives from `numpy.savez` and
 //! `numpy.savez_compressed` (deflate) are both read; the writer stores arrays uncompressed
 //! (NumPy reads them with `numpy.load`). Checked by hand with NumPy 2.4:
 //! `np.savez(f, theta_i=ti, theta_r=tr, phi=ph, value=v)` loads, and `np.load` reads what
@@ -64,6 +65,10 @@ use std::path::Path;
 
 /// Largest array (decompressed bytes) the reader accepts.
 const MAX_ARRAY_BYTES: u64 = 1 << 29;
+/// Largest grid (cells) the reader turns into samples: a loaded sample takes ~190 bytes
+/// (an audit measured 185), so 20 M is ~3.8 GB; a 512 MiB float64 array (67 M cells)
+/// would need ~13 GB.
+const MAX_READ_CELLS: usize = 20_000_000;
 /// Largest grid (cells) the writer produces; a sparser profile should be saved as CSV.
 const MAX_WRITE_CELLS: usize = 50_000_000;
 
@@ -147,6 +152,15 @@ fn npy_header(bytes: &[u8]) -> std::result::Result<NpyHeader, String> {
             h.descr
         ));
     }
+    // Checked on the header, before anything is decoded or allocated.
+    let cells = h.shape.iter().try_fold(1usize, |n, &d| n.checked_mul(d));
+    if cells.is_none_or(|n| n > MAX_READ_CELLS) {
+        return Err(format!(
+            "shape {:?} holds more than the {MAX_READ_CELLS} cells a profile may hold (each \
+             sample takes ~190 bytes once loaded); split the grid into several files",
+            h.shape
+        ));
+    }
     let need = h
         .shape
         .iter()
@@ -173,6 +187,7 @@ fn arr_err(path: &Path, array: &str, msg: impl Into<String>) -> Error {
 /// Decode a float array (float64, or float32 widened).
 fn read_float(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
     let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
+
     let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
     match h.kind() {
         ('f', 8) => ArrayD::<f64>::read_npy(bytes).map_err(npy),
@@ -793,6 +808,25 @@ mod tests {
         assert!(npy_header(b"PK\x03\x04 not npy")
             .unwrap_err()
             .contains("magic"));
+    }
+
+    /// A grid past the cell limit is refused from its header alone (the shape is
+    /// claimed, no data follow: nothing is decoded or allocated).
+    #[test]
+    fn huge_value_array_is_refused_from_its_header() {
+        let mut hdr = b"\x93NUMPY\x01\x00".to_vec();
+        let text = "{'descr': '<f8', 'fortran_order': False, 'shape': (10, 2000, 1001), }";
+        let pad = 64 - (hdr.len() + 2 + text.len() + 1) % 64;
+        let text = format!("{text}{}\n", " ".repeat(pad));
+        hdr.extend((text.len() as u16).to_le_bytes());
+        hdr.extend(text.as_bytes());
+        let e = read_float(&hdr, Path::new("big.npy"), "value")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("value") && e.contains("[10, 2000, 1001]") && e.contains("20000000"),
+            "{e}"
+        );
     }
 
     #[test]
