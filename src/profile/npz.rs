@@ -766,6 +766,17 @@ mod tests {
         Sample::new(ti, tr, phi, value)
     }
 
+    /// A version-1.0 `.npy` header holding the dict `text`, padded as NumPy pads it (no
+    /// data after it).
+    fn npy_header_bytes(text: &str) -> Vec<u8> {
+        let mut hdr = b"\x93NUMPY\x01\x00".to_vec();
+        let pad = 64 - (hdr.len() + 2 + text.len() + 1) % 64;
+        let text = format!("{text}{}\n", " ".repeat(pad));
+        hdr.extend((text.len() as u16).to_le_bytes());
+        hdr.extend(text.as_bytes());
+        hdr
+    }
+
     #[test]
     fn round_trip_keeps_invalid_values_and_sparsity() {
         let mut p = Profile {
@@ -794,12 +805,8 @@ mod tests {
     /// "truncated or corrupt" and "bad magic bytes").
     #[test]
     fn complex_dtype_and_truncated_header_are_named() {
-        let mut hdr = b"\x93NUMPY\x01\x00".to_vec();
-        let text = "{'descr': '<c16', 'fortran_order': False, 'shape': (2,), }";
-        let pad = 64 - (hdr.len() + 2 + text.len() + 1) % 64;
-        let text = format!("{text}{}\n", " ".repeat(pad));
-        hdr.extend((text.len() as u16).to_le_bytes());
-        hdr.extend(text.as_bytes());
+        let mut hdr =
+            npy_header_bytes("{'descr': '<c16', 'fortran_order': False, 'shape': (2,), }");
         hdr.extend([0u8; 32]);
         let e = npy_header(&hdr).unwrap_err();
         assert!(e.contains("unsupported dtype '<c16'"), "{e}");
@@ -814,12 +821,9 @@ mod tests {
     /// claimed, no data follow: nothing is decoded or allocated).
     #[test]
     fn huge_value_array_is_refused_from_its_header() {
-        let mut hdr = b"\x93NUMPY\x01\x00".to_vec();
-        let text = "{'descr': '<f8', 'fortran_order': False, 'shape': (10, 2000, 1001), }";
-        let pad = 64 - (hdr.len() + 2 + text.len() + 1) % 64;
-        let text = format!("{text}{}\n", " ".repeat(pad));
-        hdr.extend((text.len() as u16).to_le_bytes());
-        hdr.extend(text.as_bytes());
+        let hdr = npy_header_bytes(
+            "{'descr': '<f8', 'fortran_order': False, 'shape': (10, 2000, 1001), }",
+        );
         let e = read_float(&hdr, Path::new("big.npy"), "value")
             .unwrap_err()
             .to_string();
