@@ -518,3 +518,26 @@ fn synth_refuses_an_exposure_that_overflows() {
     );
     assert!(!out.exists());
 }
+
+/// An exposure small enough to underflow the values is refused (it wrote all-zero, i.e.
+/// invalid, or few-bit subnormal values); nothing is written.
+#[test]
+fn synth_refuses_an_exposure_that_underflows() {
+    let dir = tempfile::tempdir().unwrap();
+    // 1e-320 is itself subnormal; 1e-307 is not, but the cat's values (~0.06) times it are.
+    for k in ["1e-320", "1e-307"] {
+        let out = dir.path().join(format!("u{k}.csv"));
+        let o = tiny_synth()
+            .args(["--exposure", k, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(!o.status.success(), "{k}");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(
+            err.contains("--exposure") && err.contains("underflow"),
+            "{k}: {err}"
+        );
+        assert!(!out.exists());
+    }
+}

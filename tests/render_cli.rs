@@ -494,6 +494,7 @@ fn renders_carry_their_provenance_in_png_text() {
             && d.contains("SYNTHETIC"),
         "{d}"
     );
+    assert!(get(&sheet, "Comment").starts_with("parameters red-fox: {"));
 }
 
 /// A fit whose channels are not r, g, b (wavelengths): the default tint is said to apply,

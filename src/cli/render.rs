@@ -385,7 +385,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     );
     let mut tiles = Vec::new();
     let command = super::command_line();
-    let mut sheet_about = Vec::new();
+    let (mut sheet_about, mut sheet_params) = (Vec::new(), Vec::new());
     for ((name, p, colour, about), out) in jobs.iter().zip(&outs) {
         for n in crate::model::FurModel::table_notes(p) {
             eprintln!("note: {name}: {n}");
@@ -445,6 +445,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             ]
         };
         sheet_about.push(format!("{name}: {about}"));
+        sheet_params.push(format!("{name}: {}", p.to_json_value()));
         // The PNG, the EXR and the AOVs are written as one: all or none.
         let files = outputs(out, &s, !a.no_aovs)
             .into_iter()
@@ -505,6 +506,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     sheet_about.join("; ")
                 ),
             ),
+            ("Comment", format!("parameters {}", sheet_params.join("; "))),
         ];
         output::write_contact_sheet(&tiles, a.exposure, &text, &a.out)?;
         crate::io::record_outputs(std::slice::from_ref(&a.out))?;

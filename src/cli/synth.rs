@@ -125,6 +125,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(k) = a.exposure.filter(|k| !(k.is_finite() && *k > 0.0)) {
         anyhow::bail!("--exposure must be a finite number > 0, got {k}");
     }
+    // A subnormal exposure scales every value to 0 or to a few bits of precision.
+    if let Some(k) = a.exposure.filter(|k| *k < f64::MIN_POSITIVE) {
+        anyhow::bail!(
+            "--exposure {k} is below {:e}: the values would underflow to 0",
+            f64::MIN_POSITIVE
+        );
+    }
     let opts = a.far.options()?;
     let unused = (kind != ModelKind::Far).then(|| format!("--model {}", kind.name()));
     for w in a.far.ignored(&opts, unused.as_deref()) {
@@ -151,6 +158,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         many => synth::synthesize_channels(many, &ti, &tr, &phi, kind, lobes, a.exposure, &opts),
     };
     let dt = t0.elapsed().as_secs_f64();
+    // A value the exposure pushed below the normal range keeps a few bits at most.
+    if let Some(s) = prof
+        .samples
+        .iter()
+        .find(|s| s.value > 0.0 && s.value < f64::MIN_POSITIVE)
+    {
+        bail!(
+            "--exposure: the value at theta_i {}, theta_r {}, phi {} underflows ({:e}); use a larger exposure",
+            s.theta_i,
+            s.theta_r,
+            s.phi,
+            s.value
+        );
+    }
     // The model is finite (the stability report checks it); only a huge exposure can
     // overflow, and a profile with inf in it would not load back.
     if let Some(s) = prof.samples.iter().find(|s| !s.value.is_finite()) {

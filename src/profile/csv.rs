@@ -267,6 +267,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
                 }
             }
         };
+        super::check_sample_count(samples.len(), super::MAX_READ_CELLS, path, line)?;
         samples.push(Sample {
             theta_i,
             theta_r,

@@ -55,7 +55,7 @@
 
 use super::{
     check_angle, check_channel_name, check_measured, convert_theta_r, dedupe, read_phi,
-    wrap_conflict, LoadOptions, Profile, Sample,
+    wrap_conflict, LoadOptions, Profile, Sample, MAX_READ_CELLS,
 };
 use crate::error::{Error, Result};
 use ndarray::{ArrayD, Dimension, IxDyn};
@@ -65,10 +65,6 @@ use std::path::Path;
 
 /// Largest array (decompressed bytes) the reader accepts.
 const MAX_ARRAY_BYTES: u64 = 1 << 29;
-/// Largest grid (cells) the reader turns into samples: a loaded sample takes ~190 bytes
-/// (an audit measured 185), so 20 M is ~3.8 GB; a 512 MiB float64 array (67 M cells)
-/// would need ~13 GB.
-const MAX_READ_CELLS: usize = 20_000_000;
 /// Largest grid (cells) the writer produces; a sparser profile should be saved as CSV.
 const MAX_WRITE_CELLS: usize = 50_000_000;
 

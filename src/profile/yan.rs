@@ -134,6 +134,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             v
         };
         // theta_i is set below, from the file's comment or --theta-i.
+        super::check_sample_count(samples.len(), super::MAX_READ_CELLS, path, line)?;
         samples.push(Sample::new(0.0, convert_theta_r(opts, theta), phi, value));
         lines.push(line);
         raw_phi.push(raw);
