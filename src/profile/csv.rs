@@ -288,7 +288,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
     }
     let names = header.unwrap_or_default();
     let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
-    let mut notes = dedupe_notes(&mut samples, |c| {
+    let mut notes = dedupe_notes(&mut samples, &raw_phi, |c| {
         let (i, j) = (c.first, c.repeat);
         let first_at = format!("line {}", lines[i]);
         match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {
@@ -552,6 +552,14 @@ mod tests {
         );
         let (pr, notes) = p("theta_i,theta_r,phi,value\n30,10,0,1\n30,10,360,1\n").unwrap();
         assert_eq!((pr.samples.len(), notes.len()), (1, 1));
+        // The collapse note says the two rows wrote one direction as two phi.
+        assert!(
+            notes[0].contains("1 of them the same direction written as two phi, e.g. 0 and 360"),
+            "{notes:?}"
+        );
+        // A plain repeat says nothing of wrapping.
+        let (_, notes) = p("theta_i,theta_r,phi,value\n30,10,5,1\n30,10,5,1\n").unwrap();
+        assert!(!notes[0].contains("wrapped"), "{notes:?}");
     }
 
     #[test]

@@ -900,18 +900,38 @@ impl Conflict {
 }
 
 /// [`dedupe`], returning the loader notes it warrants (one line when rows were collapsed).
-pub(crate) fn dedupe_notes<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<Vec<String>>
+/// `raw_phi` holds each sample's phi as written: a collapse of two rows that wrote one
+/// direction as two phi (0 and 360, -180 and 180: a sweep's endpoint measured twice) is
+/// counted apart, with an example.
+pub(crate) fn dedupe_notes<F>(
+    samples: &mut Vec<Sample>,
+    raw_phi: &[f64],
+    conflict: F,
+) -> Result<Vec<String>>
 where
     F: Fn(Conflict) -> Error,
 {
-    let collapsed = dedupe(samples, conflict)?;
-    Ok(if collapsed > 0 {
-        vec![format!(
-            "{collapsed} identical duplicate row(s) collapsed into their first occurrence"
-        )]
-    } else {
-        Vec::new()
-    })
+    let pairs = dedupe_pairs(samples, conflict)?;
+    if pairs.is_empty() {
+        return Ok(Vec::new());
+    }
+    let wrapped: Vec<&(usize, usize)> = pairs
+        .iter()
+        .filter(|(i, j)| raw_phi.get(*i) != raw_phi.get(*j))
+        .collect();
+    let why = match wrapped.first() {
+        Some((i, j)) => format!(
+            " ({} of them the same direction written as two phi, e.g. {} and {}: wrapped alike)",
+            wrapped.len(),
+            raw_phi[*i],
+            raw_phi[*j]
+        ),
+        None => String::new(),
+    };
+    Ok(vec![format!(
+        "{} identical duplicate row(s) collapsed into their first occurrence{why}",
+        pairs.len()
+    )])
 }
 
 /// An optional sample field as a message shows it: the number, or "none".
@@ -927,8 +947,17 @@ pub(crate) fn dedupe<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<usize>
 where
     F: Fn(Conflict) -> Error,
 {
+    Ok(dedupe_pairs(samples, conflict)?.len())
+}
+
+/// [`dedupe`], returning the `(kept, removed)` index pairs (into the original `samples`).
+fn dedupe_pairs<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<Vec<(usize, usize)>>
+where
+    F: Fn(Conflict) -> Error,
+{
     let mut seen: HashMap<(u64, u64, u64, usize), usize> = HashMap::with_capacity(samples.len());
     let mut drop = vec![false; samples.len()];
+    let mut pairs = Vec::new();
     for (j, s) in samples.iter().enumerate() {
         let key = (
             (s.theta_i + 0.0).to_bits(),
@@ -972,11 +1001,11 @@ where
                     }));
                 }
                 drop[j] = true;
+                pairs.push((i, j));
             }
         }
     }
-    let n = drop.iter().filter(|d| **d).count();
-    if n > 0 {
+    if !pairs.is_empty() {
         let mut k = 0;
         samples.retain(|_| {
             let keep = !drop[k];
@@ -984,7 +1013,7 @@ where
             keep
         });
     }
-    Ok(n)
+    Ok(pairs)
 }
 
 #[cfg(test)]
