@@ -217,7 +217,38 @@ fn cli_render_writes_png_exr_and_aovs() {
     assert!(dir.path().join("fox.exr").exists());
     for l in ["R", "TT", "TRT", "TTs", "TRTs"] {
         assert!(dir.path().join(format!("fox_{l}.png")).exists(), "{l}");
+        assert!(dir.path().join(format!("fox_{l}.exr")).exists(), "{l}");
     }
+    // With a black environment all radiance comes through a fiber vertex: the linear AOV
+    // EXRs add up to the beauty EXR pixel by pixel (f32 storage: relative 1e-6).
+    let dark = dir.path().join("dark.png");
+    let args = ["--params", "red-fox", "--size", "24x16", "--spp", "2"];
+    render_ok(
+        &[
+            &args[..],
+            &["--fibers", "100", "--threads", "1", "--env", "0"],
+        ]
+        .concat(),
+        &dark,
+    );
+    let read = |name: &str| furfit::render::output::read_exr(&dir.path().join(name)).unwrap();
+    let beauty = read("dark.exr");
+    let aovs: Vec<_> = ["R", "TT", "TRT", "TTs", "TRTs"]
+        .iter()
+        .map(|l| read(&format!("dark_{l}.exr")))
+        .collect();
+    let mut lit = 0;
+    for (i, b) in beauty.data.iter().enumerate() {
+        for (c, &bc) in b.iter().enumerate() {
+            let sum: f64 = aovs.iter().map(|a| a.data[i][c]).sum();
+            assert!(
+                (sum - bc).abs() <= 1e-6 * bc.max(1e-3),
+                "pixel {i}: {sum} vs {bc}"
+            );
+        }
+        lit += usize::from(b[1] > 0.0);
+    }
+    assert!(lit > 10, "{lit} lit pixels");
     // Bad input is an error naming the option, not a panic.
     let st = std::process::Command::new(env!("CARGO_BIN_EXE_furfit"))
         .args(["render", "--params", "red-fox", "--size", "0x5", "--out"])

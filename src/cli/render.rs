@@ -263,6 +263,9 @@ enum Image {
     Exr,
     /// A lobe's tone-mapped AOV PNG.
     Aov(Lobe),
+    /// A lobe's linear AOV EXR (for compositing: the lobes' EXRs add up to the fiber
+    /// radiance of the beauty EXR; the background is in no lobe).
+    AovExr(Lobe),
 }
 
 /// The files one render writes: the PNG, the linear EXR beside it and the AOVs.
@@ -276,6 +279,10 @@ fn outputs(out: &Path, s: &RenderSettings, aovs: bool) -> Vec<(Image, PathBuf)> 
             v.push((
                 Image::Aov(l),
                 with_suffix(out, &format!("_{}", l.name()), "png"),
+            ));
+            v.push((
+                Image::AovExr(l),
+                with_suffix(out, &format!("_{}", l.name()), "exr"),
             ));
         }
     }
@@ -459,6 +466,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                         &text(&format!("{} lobe AOV", l.name())),
                         &p,
                     )?,
+                    Image::AovExr(l) => output::exr_bytes(
+                        &r.lobes[l.index()],
+                        &text(&format!("{} lobe linear AOV", l.name())),
+                        &p,
+                    )?,
                 };
                 Ok((p, bytes))
             })
@@ -471,7 +483,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         // are; deleting is not this command's to do).
         let stale: Vec<String> = Lobe::ALL
             .into_iter()
-            .map(|l| with_suffix(out, &format!("_{}", l.name()), "png"))
+            .flat_map(|l| {
+                ["png", "exr"].map(|ext| with_suffix(out, &format!("_{}", l.name()), ext))
+            })
             .filter(|p| p.exists() && !written.contains(p))
             .map(|p| p.display().to_string())
             .collect();
@@ -486,7 +500,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         outln!("wrote {} (+ .exr)", out.display());
         if !a.no_aovs {
             outln!(
-                "wrote per-lobe AOVs {}",
+                "wrote per-lobe AOVs {} (+ linear .exr)",
                 with_suffix(out, "_<lobe>", "png").display()
             );
         }
