@@ -343,3 +343,15 @@ fn inspect_reads_phi_0_to_360_in_every_format() {
     assert!(ok, "{err}");
     assert!(out.contains("phi      1 distinct, 90 .. 90 deg"), "{out}");
 }
+
+/// A folder mixing formats says so (it showed the first file's format only).
+#[test]
+fn inspect_names_every_format_of_a_mixed_folder() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("a.csv"), "theta_i,theta_r,phi,value\n0,10,0,1\n").unwrap();
+    std::fs::write(d.join("b.txt"), "# theta_i: 30\n0 10 1\n").unwrap();
+    let (ok, out, err) = inspect(&[d.as_os_str()]);
+    assert!(ok, "{err}");
+    assert!(out.contains("format   mixed: csv, yan-2015 text"), "{out}");
+}

@@ -46,9 +46,26 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
 fn describe(path: &std::path::Path, l: &profile::Loaded) -> Vec<String> {
     let p = &l.profile;
     let s = Summary::of(p);
+    // A folder may mix formats: name each, in the order first read.
+    let mut formats: Vec<&str> = Vec::new();
+    for f in &l.files {
+        if !formats.contains(&f.format.name()) {
+            formats.push(f.format.name());
+        }
+    }
+    if formats.is_empty() {
+        formats.push(l.format.name());
+    }
     let mut out = vec![
         path.display().to_string(),
-        format!("  format   {}", l.format.name()),
+        format!(
+            "  format   {}",
+            if formats.len() > 1 {
+                format!("mixed: {}", formats.join(", "))
+            } else {
+                formats[0].to_string()
+            }
+        ),
         format!(
             "  samples  {} ({} valid, {} invalid){}",
             s.n_samples,
