@@ -32,6 +32,21 @@ pub struct AxisStats {
 impl AxisStats {
     /// Stats of `get` over the samples; `None` for an empty profile.
     pub fn of(samples: &[Sample], get: impl Fn(&Sample) -> f64) -> Option<AxisStats> {
+        Self::of_axis(samples, get, None)
+    }
+
+    /// [`AxisStats::of`] for an angle of period `360` (phi): the first and last values
+    /// are neighbours across the seam too, so -179.99999999999994 and 180 are one
+    /// near-duplicate direction, not two values a "step" of 360 apart.
+    pub fn of_periodic(samples: &[Sample], get: impl Fn(&Sample) -> f64) -> Option<AxisStats> {
+        Self::of_axis(samples, get, Some(360.0))
+    }
+
+    fn of_axis(
+        samples: &[Sample],
+        get: impl Fn(&Sample) -> f64,
+        period: Option<f64>,
+    ) -> Option<AxisStats> {
         let mut v: Vec<f64> = samples.iter().map(get).filter(|x| x.is_finite()).collect();
         if v.is_empty() {
             return None;
@@ -40,6 +55,13 @@ impl AxisStats {
         v.dedup();
         let mut steps = Vec::with_capacity(v.len());
         let (mut near_duplicates, mut near_pair) = (0, None);
+        if let (Some(p), [first, .., last]) = (period, v.as_slice()) {
+            if ((first + p - last) * STEPS_PER_DEG).round() as i64 == 0 {
+                near_duplicates += 1;
+                near_pair = Some((*last, *first));
+                v.remove(0);
+            }
+        }
         for w in v.windows(2) {
             match ((w[1] - w[0]) * STEPS_PER_DEG).round() as i64 {
                 0 => {
@@ -101,7 +123,7 @@ impl Summary {
             n_invalid: p.n_invalid(),
             theta_i: AxisStats::of(&p.samples, |s| s.theta_i),
             theta_r: AxisStats::of(&p.samples, |s| s.theta_r),
-            phi: AxisStats::of(&p.samples, |s| s.phi),
+            phi: AxisStats::of_periodic(&p.samples, |s| s.phi),
             n_sigma: p.samples.iter().filter(|s| s.sigma.is_some()).count(),
             valid_per_channel: per,
         }
@@ -140,6 +162,11 @@ mod tests {
     /// 20.000000000000004 gave "step 0 deg").
     #[test]
     fn near_duplicates_are_not_a_step() {
+        // Across the phi seam: one direction, no step of 360.
+        let seam = -179.99999999999994;
+        let a = AxisStats::of_periodic(&[s(180.0), s(seam)], |x| x.phi).unwrap();
+        assert_eq!((a.distinct, a.step), (1, None), "{a:?}");
+        assert_eq!((a.near_duplicates, a.near_pair), (1, Some((180.0, seam))));
         let near = 20.000000000000004;
         let a = AxisStats::of(&[s(20.0), s(near)], |x| x.phi).unwrap();
         assert_eq!((a.distinct, a.step), (2, None));
