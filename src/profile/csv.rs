@@ -288,7 +288,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
     }
     let names = header.unwrap_or_default();
     let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
-    let mut notes = dedupe_notes(&mut samples, &raw_phi, |c| {
+    let mut notes = dedupe_notes(&mut samples, &raw_phi, "identical duplicate row(s)", |c| {
         let (i, j) = (c.first, c.repeat);
         let first_at = format!("line {}", lines[i]);
         match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {

@@ -906,6 +906,7 @@ impl Conflict {
 pub(crate) fn dedupe_notes<F>(
     samples: &mut Vec<Sample>,
     raw_phi: &[f64],
+    what: &str,
     conflict: F,
 ) -> Result<Vec<String>>
 where
@@ -929,7 +930,7 @@ where
         None => String::new(),
     };
     Ok(vec![format!(
-        "{} identical duplicate row(s) collapsed into their first occurrence{why}",
+        "{} {what} collapsed into their first occurrence{why}",
         pairs.len()
     )])
 }

@@ -54,7 +54,7 @@
 //! the command line) and their lengths must match the array's shape.
 
 use super::{
-    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe, read_phi,
+    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_notes, read_phi,
     wrap_conflict, LoadOptions, Profile, Sample, MAX_READ_CELLS,
 };
 use crate::error::{Error, Result};
@@ -616,7 +616,9 @@ fn grid_to_profile(
     }
     // As many indices as `value` has axes.
     let cell = |k: usize| format!("{:?}", &cells[k][..shape.len()]);
-    let collapsed = dedupe(&mut samples, |c| {
+    let raw_phi: Vec<f64> = cells.iter().map(|c| axes.phi_written[c[2]]).collect();
+    let what = "grid cell(s) repeating a direction with identical data";
+    let notes = dedupe_notes(&mut samples, &raw_phi, what, |c| {
         let (pa, pb) = (cells[c.first][2], cells[c.repeat][2]);
         let pair = format!(" in cells {} and {}", cell(c.first), cell(c.repeat));
         let first_at = format!("element {pa}");
@@ -635,12 +637,6 @@ fn grid_to_profile(
             ),
         }
     })?;
-    let mut notes = Vec::new();
-    if collapsed > 0 {
-        notes.push(format!(
-            "{collapsed} grid cell(s) repeating the same direction (e.g. phi -180 and 180) with identical data collapsed"
-        ));
-    }
     Ok((
         Profile {
             samples,
@@ -940,6 +936,13 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.ends_with("cells [0, 0, 0, 0] and [0, 1, 0, 0]"), "{e}");
+        // Identical cells collapse; the note gives the axis's own wrapped pair as example.
+        let bytes = archive(&[0.0], &[10.0], &[0.0, 180.0, 360.0], &[1, 1, 3], |k| {
+            [1.0, 2.0, 1.0][k]
+        });
+        let (p, notes) = parse_npz(&bytes, Path::new("w.npz")).unwrap();
+        assert_eq!(p.samples.len(), 2);
+        assert!(notes[0].contains("e.g. 0 and 360"), "{notes:?}");
     }
 
     /// NumPy's trailing singleton channel axis (`[I, R, P, 1]`) without names is one

@@ -177,7 +177,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     for s in &mut samples {
         s.theta_i = theta_i;
     }
-    let notes = dedupe_notes(&mut samples, &raw_phi, |c| {
+    let notes = dedupe_notes(&mut samples, &raw_phi, "identical duplicate row(s)", |c| {
         let (i, j) = (c.first, c.repeat);
         let first_at = format!("line {}", lines[i]);
         match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {
