@@ -158,25 +158,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         many => synth::synthesize_channels(many, &ti, &tr, &phi, kind, lobes, a.exposure, &opts),
     };
     let dt = t0.elapsed().as_secs_f64();
-    // A value the exposure pushed below the normal range keeps a few bits at most.
+    // The model is finite (the stability report checks it): only the exposure can push a
+    // value past the f64 range, to inf (which would not load back) or below the normal
+    // range (a few bits at most).
     if let Some(s) = prof
         .samples
         .iter()
-        .find(|s| s.value > 0.0 && s.value < f64::MIN_POSITIVE)
+        .find(|s| !s.value.is_finite() || (s.value > 0.0 && s.value < f64::MIN_POSITIVE))
     {
+        let (what, fix) = if s.value.is_finite() {
+            ("underflows", "larger")
+        } else {
+            ("overflows", "smaller")
+        };
         bail!(
-            "--exposure: the value at theta_i {}, theta_r {}, phi {} underflows ({:e}); use a larger exposure",
-            s.theta_i,
-            s.theta_r,
-            s.phi,
-            s.value
-        );
-    }
-    // The model is finite (the stability report checks it); only a huge exposure can
-    // overflow, and a profile with inf in it would not load back.
-    if let Some(s) = prof.samples.iter().find(|s| !s.value.is_finite()) {
-        bail!(
-            "--exposure: the value at theta_i {}, theta_r {}, phi {} overflows ({}); use a smaller exposure",
+            "--exposure: the value at theta_i {}, theta_r {}, phi {} {what} ({:e}); use a {fix} exposure",
             s.theta_i,
             s.theta_r,
             s.phi,
