@@ -369,13 +369,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let planned: Vec<PathBuf> = taken.iter().map(|(p, _)| p.clone()).collect();
     crate::io::check_replaceable(&planned, a.force)?;
-    let mut dirs: Vec<PathBuf> = planned
-        .iter()
-        .map(|p| match p.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d.to_path_buf(),
-            _ => PathBuf::from("."),
-        })
-        .collect();
+    let mut dirs: Vec<PathBuf> = planned.iter().map(|p| crate::io::parent_dir(p)).collect();
     dirs.dedup();
     for d in &dirs {
         crate::io::probe_writable(d)?;
@@ -539,11 +533,10 @@ fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, Stri
     let Some(v) = json else {
         return Ok((p, None, format!("preset {spec} (seed Table 4)")));
     };
-    let colour = Tint::from_fit_channels(&v).with_context(|| format!("--fit {spec}"))?;
-    let names: Vec<String> = crate::params::fit_channels(&v, spec)?
-        .into_iter()
-        .map(|c| c.name)
-        .collect();
+    // Read once: the colour and the channel names both come from the channels.
+    let fitted = crate::params::fit_channels(&v, spec).with_context(|| format!("--fit {spec}"))?;
+    let colour = Tint::from_fit_channels(&fitted);
+    let names: Vec<&str> = fitted.iter().map(|c| c.name.as_str()).collect();
     let channels = if names.is_empty() {
         String::new()
     } else {

@@ -232,12 +232,12 @@ impl Tint {
         k
     }
 
-    /// The colour of a fit file with channels named r, g, b (or red, green, blue; any
-    /// case): each channel's fitted absorption. `Ok(None)` for a fit without such
-    /// channels; an error names the channel whose parameters are invalid.
-    pub fn from_fit_channels(v: &serde_json::Value) -> crate::Result<Option<Tint>> {
+    /// The colour of a fit's channels ([`crate::params::fit_channels`]) when they are
+    /// named r, g, b (or red, green, blue; any case): each channel's fitted absorption.
+    /// `None` for a fit without such channels.
+    pub fn from_fit_channels(channels: &[crate::params::FitChannel]) -> Option<Tint> {
         let mut found: [Option<FurParams>; 3] = [None; 3];
-        for ch in crate::params::fit_channels(v, "the fit file")? {
+        for ch in channels {
             let slot = match ch.name.to_ascii_lowercase().as_str() {
                 "r" | "red" => 0,
                 "g" | "green" => 1,
@@ -247,12 +247,12 @@ impl Tint {
             found[slot] = Some(ch.params);
         }
         let [Some(r), Some(g), Some(b)] = found else {
-            return Ok(None);
+            return None;
         };
-        Ok(Some(Tint::Absorption {
+        Some(Tint::Absorption {
             sigma_c_a: [r.sigma_c_a, g.sigma_c_a, b.sigma_c_a],
             sigma_m_a: [r.sigma_m_a, g.sigma_m_a, b.sigma_m_a],
-        }))
+        })
     }
 }
 
