@@ -45,11 +45,7 @@ pub fn species_name(p: &Path) -> String {
         // `measurements/<species>/profile.csv`, the layout's name for a species' profile,
         // is named after its folder (as `fit <folder>` is): two species' `profile.csv`
         // would otherwise both become "profile" and write one fit file.
-        let dir = match p.parent() {
-            Some(d) if !d.as_os_str().is_empty() => d,
-            _ => Path::new("."),
-        };
-        if let Some(n) = folder_name(dir) {
+        if let Some(n) = folder_name(&crate::io::parent_dir(p)) {
             return n;
         }
     }

@@ -50,8 +50,8 @@
 //! line breaks and values may not contain line breaks (an error, not a silent edit).
 
 use super::{
-    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_notes, read_phi,
-    split_lines, wrap_conflict, Field, LoadOptions, Profile, Sample,
+    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_rows, read_phi,
+    split_lines, Field, LoadOptions, Profile, Sample,
 };
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -288,18 +288,15 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
     }
     let names = header.unwrap_or_default();
     let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
-    let mut notes = dedupe_notes(&mut samples, &raw_phi, "identical duplicate row(s)", |c| {
-        let (i, j) = (c.first, c.repeat);
-        let first_at = format!("line {}", lines[i]);
-        match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {
-            Some(m) => perr(lines[j], label(cols.phi), m),
-            None => perr(
-                lines[j],
-                label(cols.value),
-                format!("{}; first on {first_at}", c.what()),
-            ),
-        }
-    })?;
+    let mut notes = dedupe_rows(
+        &mut samples,
+        &raw_phi,
+        &lines,
+        path,
+        opts,
+        &label(cols.phi),
+        &label(cols.value),
+    )?;
     if separator_rows > 0 {
         notes.push(format!(
             "{separator_rows} row(s) holding only separators (e.g. a spreadsheet's ',,,') skipped"

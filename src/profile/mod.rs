@@ -389,15 +389,8 @@ pub fn load(path: &Path, opts: &LoadOptions) -> Result<Profile> {
 /// ([`provenance::apply_folder_label`]; one that does not read is an error).
 pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let mut l = load_file(path, opts)?;
-    if let Some(dir) = path.parent() {
-        let dir = if dir.as_os_str().is_empty() {
-            Path::new(".")
-        } else {
-            dir
-        };
-        let notes = provenance::apply_folder_label(&mut l.profile, dir)?;
-        l.notes.extend(notes);
-    }
+    let notes = provenance::apply_folder_label(&mut l.profile, &crate::io::parent_dir(path))?;
+    l.notes.extend(notes);
     Ok(l)
 }
 
@@ -933,6 +926,34 @@ where
         "{} {what} collapsed into their first occurrence{why}",
         pairs.len()
     )])
+}
+
+/// [`dedupe_notes`] for a text loader (CSV, Yan): sample `k` came from line `lines[k]` of
+/// `path`, its phi written as `raw_phi[k]`. A clash is named on `phi_column` when only the
+/// wrap made the two rows one direction ([`wrap_conflict`]), else on `value_column`.
+pub(crate) fn dedupe_rows(
+    samples: &mut Vec<Sample>,
+    raw_phi: &[f64],
+    lines: &[usize],
+    path: &Path,
+    opts: &LoadOptions,
+    phi_column: &str,
+    value_column: &str,
+) -> Result<Vec<String>> {
+    dedupe_notes(samples, raw_phi, "identical duplicate row(s)", |c| {
+        let (i, j) = (c.first, c.repeat);
+        let first_at = format!("line {}", lines[i]);
+        let (column, msg) = match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {
+            Some(m) => (phi_column, m),
+            None => (value_column, format!("{}; first on {first_at}", c.what())),
+        };
+        Error::Parse {
+            file: path.to_path_buf(),
+            line: lines[j],
+            column: column.to_string(),
+            msg,
+        }
+    })
 }
 
 /// An optional sample field as a message shows it: the number, or "none".

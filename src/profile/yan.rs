@@ -34,8 +34,7 @@
 //! data rows is an error.
 
 use super::{
-    check_angle, convert_theta_r, dedupe_notes, read_phi, split_lines, wrap_conflict, LoadOptions,
-    Profile, Sample,
+    check_angle, convert_theta_r, dedupe_rows, read_phi, split_lines, LoadOptions, Profile, Sample,
 };
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -177,18 +176,15 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     for s in &mut samples {
         s.theta_i = theta_i;
     }
-    let notes = dedupe_notes(&mut samples, &raw_phi, "identical duplicate row(s)", |c| {
-        let (i, j) = (c.first, c.repeat);
-        let first_at = format!("line {}", lines[i]);
-        match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {
-            Some(m) => perr(lines[j], label(0), m),
-            None => perr(
-                lines[j],
-                label(2),
-                format!("{}; first on {first_at}", c.what()),
-            ),
-        }
-    })?;
+    let notes = dedupe_rows(
+        &mut samples,
+        &raw_phi,
+        &lines,
+        path,
+        opts,
+        &label(0),
+        &label(2),
+    )?;
     Ok((
         Profile {
             samples,
