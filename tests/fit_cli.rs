@@ -816,10 +816,18 @@ fn weighted_without_sigma_fails_first_naming_the_species_once() {
         err.starts_with("error: fitting s1: s1.csv: --weighted"),
         "{err}"
     );
-    // It names the first such sample (in angle order: make_species's lowest angles).
+    // It names the first such sample (in angle order: make_species's lowest angles), with
+    // its file and line, and that line is the sample.
     assert!(
-        err.contains("the first (in angle order) at theta_i -20, theta_r -60, phi -165 (no sigma)"),
+        err.contains(
+            "the first (in angle order) at theta_i -20, theta_r -60, phi -165 (no sigma, s1.csv line 14)"
+        ),
         "{err}"
+    );
+    let line14 = std::fs::read_to_string(root.join("s1.csv")).unwrap();
+    assert!(
+        line14.lines().nth(13).unwrap().starts_with("-20,-60,-165,"),
+        "{line14}"
     );
     // A species with sigmas ahead of zebra (without): nothing is fitted.
     let text = std::fs::read_to_string(root.join("s1.csv")).unwrap();
@@ -1097,8 +1105,8 @@ fn fit_names_profile_files_by_folder_and_keeps_fits_of_other_data() {
 }
 
 /// Two Yan-2015 files without `# theta_i:` lines, fitted together with one `--theta-i`,
-/// clash at the same direction: the error names both files and the direction, and says
-/// `--theta-i` applies to every Yan file (the likely cause).
+/// clash at the same direction: the error names both files with their lines and the
+/// direction, and says `--theta-i` applies to every Yan file (the likely cause).
 #[test]
 fn clashing_yan_files_under_one_theta_i_get_the_hint() {
     let tmp = tempfile::tempdir().unwrap();
@@ -1112,8 +1120,8 @@ fn clashing_yan_files_under_one_theta_i_get_the_hint() {
     fails_with(
         o,
         &[
-            "f20.txt: duplicate sample (theta_i 30, theta_r 10, phi 0, channel 0)",
-            "the first copy is in f0.txt",
+            "f20.txt line 1: duplicate sample (theta_i 30, theta_r 10, phi 0, channel 0)",
+            "the first copy is in f0.txt line 1;",
             "--theta-i 30 applies to every Yan-2015 file",
         ],
     );

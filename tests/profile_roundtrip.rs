@@ -100,6 +100,7 @@ fn multichannel_awkward_floats_round_trip() {
                 sigma: (c == 1).then_some(0.1 + k as f64),
                 channel: c,
                 phi_i: (c == 2).then_some(12.5),
+                origin: Default::default(),
             });
         }
     }
@@ -138,6 +139,10 @@ fn yan_example_reads_as_hand_counted() {
     // phi 270 in the file is -90 after the wrap to (-180, 180].
     assert_eq!(p.samples.iter().filter(|s| s.phi == -90.0).count(), 3);
     assert!(p.samples.iter().all(|s| s.phi > -180.0 && s.phi <= 180.0));
+    // Each sample knows its file and line, for errors found after loading.
+    let at = |k: usize| p.origin_of(&p.samples[k]).unwrap();
+    assert!(at(0).ends_with("yan_theta30.txt line 4"), "{}", at(0));
+    assert!(at(4).ends_with("yan_theta30.txt line 8"), "{}", at(4));
 }
 
 #[test]

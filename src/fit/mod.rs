@@ -746,8 +746,8 @@ pub fn channel_data(
     let n_before = samples.len();
     samples.retain(|s| s.value >= floor * peak);
     let n_below_floor = n_before - samples.len();
-    // The first sample (in angle order) that --weighted cannot weight: samples do not
-    // carry their file line, so its coordinates are what an error can name.
+    // The first sample (in angle order) that --weighted cannot weight, named by its
+    // coordinates and, when it was read from a file, its file and line.
     let mut first_unweighted = None;
     for s in samples {
         let (ti, tr, ph) = s.angles_rad();
@@ -778,9 +778,13 @@ pub fn channel_data(
             let sigma = s
                 .sigma
                 .map_or("no sigma".to_string(), |sg| format!("sigma {sg}"));
+            let at = profile
+                .origin_of(s)
+                .map(|o| format!(", {o}"))
+                .unwrap_or_default();
             return Err(Error::Invalid(format!(
                 "{what}: --weighted needs a sigma > 0 on every valid sample; {bad} of {} valid samples of channel {channel} have none (or 0), \
-                 the first (in angle order) at theta_i {}, theta_r {}, phi {} ({sigma})",
+                 the first (in angle order) at theta_i {}, theta_r {}, phi {} ({sigma}{at})",
                 rel.len(),
                 s.theta_i,
                 s.theta_r,

@@ -175,7 +175,7 @@ fn channel_data_is_independent_of_row_order() {
 }
 
 /// `--weighted` on samples without a usable sigma names the first of them by its
-/// coordinates (it gave only a count): samples do not carry their file line.
+/// coordinates (it gave only a count), and by file and line when it was read from one.
 #[test]
 fn weighted_names_the_first_sample_without_sigma() {
     use crate::profile::Sample;
@@ -198,6 +198,12 @@ fn weighted_names_the_first_sample_without_sigma() {
         "{e}"
     );
     assert!(channel_data(&p, 0, false, 0.0).is_ok());
+    // Read from a file: its line too (the sample with sigma 0 sits on line 7 of b.csv).
+    let mut p = p;
+    p.files = vec!["a.csv".into(), "b.csv".into()];
+    p.samples[2].origin = crate::profile::Origin { file: 1, line: 7 };
+    let e = channel_data(&p, 0, true, 0.0).unwrap_err().to_string();
+    assert!(e.contains("phi 60 (sigma 0, b.csv line 7)"), "{e}");
 }
 
 /// A flat profile has no log range to normalise the NRMSE by: the fit says so instead of

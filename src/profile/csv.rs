@@ -51,7 +51,7 @@
 
 use super::{
     check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_rows, read_phi,
-    split_lines, Field, LoadOptions, Profile, Sample,
+    split_lines, Field, LoadOptions, Origin, Profile, Sample,
 };
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -158,7 +158,6 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
     let mut header: Option<Vec<String>> = None;
     let mut cols = Columns::default();
     let mut samples: Vec<Sample> = Vec::new();
-    let mut lines: Vec<usize> = Vec::new();
     // Each sample's phi as written (for a wrap's duplicate message).
     let mut raw_phi: Vec<f64> = Vec::new();
     let mut channels: Vec<String> = Vec::new();
@@ -276,8 +275,8 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
             sigma,
             channel,
             phi_i,
+            origin: Origin::at_line(line),
         });
-        lines.push(line);
         raw_phi.push(phi_as_written);
     }
     if samples.is_empty() {
@@ -291,7 +290,6 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
     let mut notes = dedupe_rows(
         &mut samples,
         &raw_phi,
-        &lines,
         path,
         opts,
         &label(cols.phi),
@@ -308,6 +306,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
             channels,
             metadata,
             source: Some(path.to_path_buf()),
+            files: vec![path.to_path_buf()],
         },
         notes,
     ))

@@ -57,7 +57,7 @@ pub mod summary;
 pub mod yan;
 
 /// One goniometer sample: light from `theta_i`, camera at `(theta_r, phi)`.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug)]
 pub struct Sample {
     /// Incident inclination, degrees.
     pub theta_i: f64,
@@ -73,6 +73,54 @@ pub struct Sample {
     pub channel: usize,
     /// Optional absolute incident azimuth, degrees (kept for round trips, unused by the model).
     pub phi_i: Option<f64>,
+    /// Where it was read, for messages; not part of the measurement (equality ignores it).
+    pub origin: Origin,
+}
+
+impl PartialEq for Sample {
+    fn eq(&self, o: &Sample) -> bool {
+        (
+            self.theta_i,
+            self.theta_r,
+            self.phi,
+            self.value,
+            self.sigma,
+            self.channel,
+            self.phi_i,
+        ) == (
+            o.theta_i, o.theta_r, o.phi, o.value, o.sigma, o.channel, o.phi_i,
+        )
+    }
+}
+
+/// Where a sample was read: an index into [`Profile::files`] and the line of a text file
+/// (0 for a cell of a `.npy`/`.npz` grid or a sample made in memory), so an error found
+/// after loading (a conflict between two files of a folder, `--weighted` without a sigma)
+/// can still name the file and line.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Origin {
+    pub file: u32,
+    pub line: u32,
+}
+
+impl Origin {
+    /// Line `line` (1-based) of the profile's first file; a line beyond `u32::MAX` (a file
+    /// of over four billion lines, far past [`MAX_READ_CELLS`] samples) is not named.
+    pub fn at_line(line: usize) -> Origin {
+        Origin {
+            file: 0,
+            line: u32::try_from(line).unwrap_or(0),
+        }
+    }
+}
+
+/// [`Profile::origin_of`] given the profile's files.
+fn origin_text(files: &[PathBuf], o: Origin) -> Option<String> {
+    let file = files.get(o.file as usize)?.display();
+    Some(match o.line {
+        0 => file.to_string(),
+        n => format!("{file} line {n}"),
+    })
 }
 
 impl Sample {
@@ -87,6 +135,7 @@ impl Sample {
             sigma: None,
             channel: 0,
             phi_i: None,
+            origin: Origin::default(),
         }
     }
 
@@ -115,6 +164,9 @@ pub struct Profile {
     pub metadata: Vec<(String, String)>,
     /// Where the profile was read from, if anywhere.
     pub source: Option<PathBuf>,
+    /// The files its samples were read from ([`Sample::origin`] indexes them); empty for
+    /// a profile made in memory.
+    pub files: Vec<PathBuf>,
 }
 
 impl Profile {
@@ -126,6 +178,12 @@ impl Profile {
     /// Number of invalid samples (kept, never used in a logarithm).
     pub fn n_invalid(&self) -> usize {
         self.samples.len() - self.n_valid()
+    }
+
+    /// Where `s` was read, as messages name it: `FILE line N` for a text row, `FILE` for a
+    /// grid cell, `None` for a sample made in memory.
+    pub fn origin_of(&self, s: &Sample) -> Option<String> {
+        origin_text(&self.files, s.origin)
     }
 
     /// Number of channels (at least 1).
@@ -644,6 +702,8 @@ fn merge_with(
         )));
     }
     for (k, part) in parts.into_iter().enumerate() {
+        let file_base = out.files.len() as u32;
+        out.files.extend(part.files);
         let mut map = Vec::new();
         if part.channels.is_empty() {
             // One unnamed channel, merged with the other unnamed parts.
@@ -671,18 +731,25 @@ fn merge_with(
                     sources[k], s.channel
                 ))
             })?;
+            s.origin.file += file_base;
             out.samples.push(s);
             origin.push(k);
         }
     }
+    // The dedupe holds the samples; a conflict names its two rows from a copy of the origins.
+    let origins: Vec<Origin> = out.samples.iter().map(|s| s.origin).collect();
+    let files = out.files.clone();
     let collapsed = dedupe(&mut out.samples, |c| {
         let (a, b) = (origin[c.first], origin[c.repeat]);
         let hint = hint(a, b).map(|h| format!("; {h}")).unwrap_or_default();
+        let name = |i: usize, part: usize| {
+            origin_text(&files, origins[i]).unwrap_or_else(|| sources[part].clone())
+        };
         Error::Invalid(format!(
             "{}: {}; the first copy is in {}{hint}",
-            sources[b],
+            name(c.repeat, b),
             c.what(),
-            sources[a]
+            name(c.first, a)
         ))
     })?;
     Ok((out, collapsed))
@@ -928,18 +995,19 @@ where
     )])
 }
 
-/// [`dedupe_notes`] for a text loader (CSV, Yan): sample `k` came from line `lines[k]` of
-/// `path`, its phi written as `raw_phi[k]`. A clash is named on `phi_column` when only the
-/// wrap made the two rows one direction ([`wrap_conflict`]), else on `value_column`.
+/// [`dedupe_notes`] for a text loader (CSV, Yan): sample `k` came from line
+/// `samples[k].origin.line` of `path`, its phi written as `raw_phi[k]`. A clash is named on
+/// `phi_column` when only the wrap made the two rows one direction ([`wrap_conflict`]),
+/// else on `value_column`.
 pub(crate) fn dedupe_rows(
     samples: &mut Vec<Sample>,
     raw_phi: &[f64],
-    lines: &[usize],
     path: &Path,
     opts: &LoadOptions,
     phi_column: &str,
     value_column: &str,
 ) -> Result<Vec<String>> {
+    let lines: Vec<usize> = samples.iter().map(|s| s.origin.line as usize).collect();
     dedupe_notes(samples, raw_phi, "identical duplicate row(s)", |c| {
         let (i, j) = (c.first, c.repeat);
         let first_at = format!("line {}", lines[i]);
@@ -1082,6 +1150,52 @@ mod tests {
         assert_eq!((m.samples.len(), m.channels.len()), (2, 0));
     }
 
+    /// A clash between two files of a merge names both rows by file and line (the files
+    /// of each part are renumbered into the merged profile's list), and a sample made in
+    /// memory by its part's source.
+    #[test]
+    fn merge_conflict_names_file_and_line_of_both_rows() {
+        let part = |file: &str, lines: &[u32], value: f64| Profile {
+            samples: lines
+                .iter()
+                .enumerate()
+                .map(|(k, &line)| {
+                    let mut s = Sample::new(0.0, 10.0, 5.0 * k as f64, value);
+                    s.origin = Origin { file: 0, line };
+                    s
+                })
+                .collect(),
+            source: Some(file.into()),
+            files: vec![file.into()],
+            ..Default::default()
+        };
+        let e = merge(vec![
+            part("a.csv", &[3], 1.0),
+            part("b.csv", &[4, 9], 1.0),
+            part("c.csv", &[6, 8], 2.0),
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("c.csv line 6: duplicate sample (theta_i 0, theta_r 10, phi 0")
+                && e.ends_with("the first copy is in a.csv line 3"),
+            "{e}"
+        );
+        let (m, collapsed) =
+            merge(vec![part("a.csv", &[3], 1.0), part("b.csv", &[4, 9], 1.0)]).unwrap();
+        assert_eq!(collapsed, 1);
+        assert_eq!(m.origin_of(&m.samples[1]).as_deref(), Some("b.csv line 9"));
+        let mut memory = part("x", &[0], 2.0);
+        memory.files.clear();
+        let e = merge(vec![part("a.csv", &[3], 1.0), memory])
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("x: duplicate") && e.ends_with("in a.csv line 3"),
+            "{e}"
+        );
+    }
+
     /// Any finite phi in [-360, 360] reads in every format (a CSV's 270 was "out of range
     /// [-180, 180]"), wrapped to (-180, 180] after the convention options; values already
     /// there keep their bits, so files still round-trip exactly.
@@ -1133,9 +1247,10 @@ mod tests {
         };
         let e = load_dir(d, &opts).unwrap_err().to_string();
         assert!(
-            e.contains("f20.txt: duplicate sample (theta_i 30, theta_r 10, phi 0, channel 0)")
-                && e.contains("first copy is in")
-                && e.contains("f0.txt")
+            e.contains(
+                "f20.txt line 1: duplicate sample (theta_i 30, theta_r 10, phi 0, channel 0)"
+            ) && e.contains("first copy is in")
+                && e.contains("f0.txt line 1;")
                 && e.contains("--theta-i 30 applies to every Yan-2015 file"),
             "{e}"
         );

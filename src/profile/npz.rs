@@ -601,6 +601,7 @@ fn grid_to_profile(
                         sigma,
                         channel: c,
                         phi_i,
+                        origin: Default::default(),
                     });
                     cells.push([i, r, p, c]);
                 }
@@ -643,6 +644,7 @@ fn grid_to_profile(
             channels,
             metadata: meta.metadata,
             source: Some(path.to_path_buf()),
+            files: vec![path.to_path_buf()],
         },
         notes,
     ))

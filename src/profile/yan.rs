@@ -34,7 +34,8 @@
 //! data rows is an error.
 
 use super::{
-    check_angle, convert_theta_r, dedupe_rows, read_phi, split_lines, LoadOptions, Profile, Sample,
+    check_angle, convert_theta_r, dedupe_rows, read_phi, split_lines, LoadOptions, Origin, Profile,
+    Sample,
 };
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -54,7 +55,6 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     let mut file_theta_i: Option<(f64, usize)> = None;
     let mut samples = Vec::new();
     // Per sample: its line and its phi as written (for a wrap's duplicate message).
-    let mut lines = Vec::new();
     let mut raw_phi = Vec::new();
     for (k, raw) in split_lines(bytes).enumerate() {
         let line = k + 1;
@@ -134,8 +134,9 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
         };
         // theta_i is set below, from the file's comment or --theta-i.
         super::check_sample_count(samples.len(), super::MAX_READ_CELLS, path, line)?;
-        samples.push(Sample::new(0.0, convert_theta_r(opts, theta), phi, value));
-        lines.push(line);
+        let mut s = Sample::new(0.0, convert_theta_r(opts, theta), phi, value);
+        s.origin = Origin::at_line(line);
+        samples.push(s);
         raw_phi.push(raw);
     }
     let opt_theta_i = match &opts.theta_i {
@@ -176,21 +177,14 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     for s in &mut samples {
         s.theta_i = theta_i;
     }
-    let notes = dedupe_rows(
-        &mut samples,
-        &raw_phi,
-        &lines,
-        path,
-        opts,
-        &label(0),
-        &label(2),
-    )?;
+    let notes = dedupe_rows(&mut samples, &raw_phi, path, opts, &label(0), &label(2))?;
     Ok((
         Profile {
             samples,
             channels: Vec::new(),
             metadata,
             source: Some(path.to_path_buf()),
+            files: vec![path.to_path_buf()],
         },
         notes,
     ))

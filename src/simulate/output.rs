@@ -50,6 +50,7 @@ pub fn to_profile(sim: &SimResult, m: &Measured, meta: &[(String, String)]) -> P
                     sigma,
                     channel: 0,
                     phi_i: None,
+                    origin: Default::default(),
                 });
             }
         }
