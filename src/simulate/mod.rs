@@ -79,7 +79,7 @@ use crate::FurParams;
 use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
-use std::f64::consts::PI;
+use std::f64::consts::{FRAC_PI_2, PI};
 use trace::{trace_path, Fiber, Outcome};
 
 /// Paths per deterministic chunk (one RNG stream each).
@@ -205,9 +205,16 @@ pub struct Detector {
 }
 
 impl Detector {
+    /// `theta_r` edges are clipped to `[-90, 90]` degrees: an end bin centred at +-90 would
+    /// otherwise reach past the pole, where no exit direction lies, and its value (energy
+    /// over the bin's width) would read about half the density.
     pub fn new(theta_r_deg: &[f64], phi_deg: &[f64]) -> Self {
+        let theta_edges = bin_edges(theta_r_deg)
+            .into_iter()
+            .map(|e| e.clamp(-FRAC_PI_2, FRAC_PI_2))
+            .collect();
         Detector {
-            theta_edges: bin_edges(theta_r_deg),
+            theta_edges,
             phi_edges: bin_edges(phi_deg),
         }
     }

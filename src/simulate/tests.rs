@@ -433,3 +433,24 @@ fn chunks_in_flight_bounded_by_memory() {
     }
     assert_eq!(chunks_in_flight(64, 10_000_000), 3);
 }
+
+/// An end bin centred at theta_r = +-90 covers only the side below the pole: its area is
+/// half an inner bin's (it was a full bin, half of it past the pole, so its density read
+/// about half), and an exit just below the pole still lands in it.
+#[test]
+fn theta_r_end_bins_at_the_pole_stop_there() {
+    let theta: Vec<f64> = (-45..=45).map(|k| 2.0 * k as f64).collect();
+    let d = Detector::new(&theta, &[-90.0, 0.0, 90.0]);
+    let inner = d.area(1, 1);
+    let last = d.n_theta() - 1;
+    // Exact halves up to the rounding of degree-to-radian conversion (~1e-16 relative).
+    assert!((d.area(0, 1) / inner - 0.5).abs() < 1e-12);
+    assert!((d.area(last, 1) / inner - 0.5).abs() < 1e-12);
+    assert_eq!(d.theta_edges[last + 1], std::f64::consts::FRAC_PI_2);
+    let mut hit = None;
+    d.deposit(89.9f64.to_radians(), 0.0, |b| hit = Some(b));
+    assert_eq!(hit.map(|b| b / d.n_phi()), Some(last));
+    // Centres short of the pole keep their symmetric end bins.
+    let d = Detector::new(&[-80.0, -78.0, 78.0, 80.0], &[0.0, 10.0]);
+    assert!((d.theta_edges[4] - 81f64.to_radians()).abs() < 1e-15);
+}
