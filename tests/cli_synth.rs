@@ -519,6 +519,48 @@ fn synth_refuses_an_exposure_that_overflows() {
     assert!(!out.exists());
 }
 
+/// A value the model itself gives below the normal range (TRT's far tail under heavy
+/// absorption: ~4e-320 at theta_i -80, theta_r -85) is written as it is at exposure 1; it
+/// was refused as an exposure underflow. It loads back as a valid sample.
+#[test]
+fn synth_writes_the_models_own_subnormal_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let params = dir.path().join("p.json");
+    std::fs::write(
+        &params,
+        r#"{"eta":1.05,"kappa":0.999,"alpha":2,"beta_m":3,"beta_n":0.3,"sigma_c_a":30,"sigma_m_s":0.5,"sigma_m_a":20,"g":0.9,"l":5}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("t.csv");
+    let o = Command::new(env!("CARGO_BIN_EXE_furfit"))
+        .arg("synth")
+        .arg("--params")
+        .arg(&params)
+        .args([
+            "--theta-i",
+            "-80",
+            "--theta-r",
+            "-85",
+            "--phi",
+            "-180:180:3",
+        ])
+        .args(["--lobes", "TRT", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let p = furfit::profile::load(&out, &Default::default()).unwrap();
+    let tiny = p
+        .samples
+        .iter()
+        .filter(|s| s.value > 0.0 && s.value < f64::MIN_POSITIVE)
+        .count();
+    assert!(
+        tiny > 0,
+        "no subnormal value written; the test no longer reaches the case"
+    );
+}
+
 /// An exposure small enough to underflow the values is refused (it wrote all-zero, i.e.
 /// invalid, or few-bit subnormal values); nothing is written.
 #[test]

@@ -159,13 +159,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     };
     let dt = t0.elapsed().as_secs_f64();
     // The model is finite (the stability report checks it): only the exposure can push a
-    // value past the f64 range, to inf (which would not load back) or below the normal
-    // range (a few bits at most).
-    if let Some(s) = prof
-        .samples
-        .iter()
-        .find(|s| !s.value.is_finite() || (s.value > 0.0 && s.value < f64::MIN_POSITIVE))
-    {
+    // value past the f64 range, to inf (which would not load back), or from the normal
+    // range below it (a few bits at most). A value the model itself gives below the normal
+    // range (a far tail under heavy absorption, 1e-310) is written as it is.
+    let exposure = |c: usize| a.exposure.unwrap_or(channels[c.min(channels.len() - 1)].2);
+    if let Some(s) = prof.samples.iter().find(|s| {
+        !s.value.is_finite()
+            || (s.value > 0.0
+                && s.value < f64::MIN_POSITIVE
+                && s.value / exposure(s.channel) >= f64::MIN_POSITIVE)
+    }) {
         let (what, fix) = if s.value.is_finite() {
             ("underflows", "larger")
         } else {
