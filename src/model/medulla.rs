@@ -802,11 +802,6 @@ impl MedullaSlice {
     pub fn sample_cn(&self, x: f64, u: f64) -> (f64, f64) {
         self.sampler().sample_cn(x, u)
     }
-
-    /// Sample `theta_r`: see [`MedullaSampler::sample_cm`].
-    pub fn sample_cm(&self, theta_i: f64, phi: f64, u: f64) -> (f64, f64) {
-        self.sampler().sample_cm(theta_i, phi, u)
-    }
 }
 
 /// The slice's `C^N` shape at its nodes, row by row: one row per table offset `x_i`, each
@@ -1208,7 +1203,7 @@ impl PlDensity {
 /// Domains of the sampled `psi` (of `C^N`) and `theta_r` (of `C^M`): where an empty
 /// mixture falls back to uniform sampling.
 const PSI_RANGE: (f64, f64) = (-PI, PI);
-const THETA_R_RANGE: (f64, f64) = (-FRAC_PI_2, FRAC_PI_2);
+const INCLINATION_RANGE: (f64, f64) = (-FRAC_PI_2, FRAC_PI_2);
 
 /// Per-slice tabulated CDFs for importance sampling.
 ///
@@ -1223,10 +1218,13 @@ pub struct MedullaSampler {
     x_axis: Vec<f64>,
     psi_knots: Vec<f64>,
     cn: Vec<PlDensity>,
-    ti_axis: Vec<f64>,
-    tr_knots: Vec<f64>,
-    /// `cm[side][theta_i node]`.
-    cm: [Vec<PlDensity>; 2],
+    /// The `C^M` columns: `cm_cols[side][theta_r node]`, a density in `theta_i >= 0` over
+    /// `ti_knots` (the table's `theta_i` nodes, extended flat to 0 and 90 degrees as
+    /// [`MedullaSlice::cm`] reads beyond them).
+    ti_knots: Vec<f64>,
+    cm_cols: [Vec<PlDensity>; 2],
+    /// The `theta_r` node centres `(c0, step, count)`.
+    tr_nodes: (f64, f64, usize),
 }
 
 impl MedullaSampler {
@@ -1250,18 +1248,28 @@ impl MedullaSampler {
             .collect();
         let tm = &*s.cm[0];
         let (c0, d, n) = tm.last_axis();
-        let mut tr_knots = vec![c0 - 0.5 * d];
-        tr_knots.extend((0..n).map(|k| c0 + k as f64 * d));
-        tr_knots.push(c0 + (n as f64 - 0.5) * d);
-        let cm = [0usize, 1].map(|side| {
-            let tab = &*s.cm[side];
-            (0..tab.axes[2].len())
-                .map(|i| {
-                    let v = &nodes.cm[side][i * n..(i + 1) * n];
-                    let mut vals = vec![v[0]];
-                    vals.extend_from_slice(v);
-                    vals.push(v[n - 1]);
-                    PlDensity::new(&tr_knots, vals)
+        let ti_axis = &tm.axes[2];
+        let lead = usize::from(ti_axis[0] > 0.0);
+        let mut ti_knots = Vec::with_capacity(ti_axis.len() + 2);
+        if lead == 1 {
+            ti_knots.push(0.0);
+        }
+        ti_knots.extend_from_slice(ti_axis);
+        let tail = ti_axis[ti_axis.len() - 1] < FRAC_PI_2;
+        if tail {
+            ti_knots.push(FRAC_PI_2);
+        }
+        let cm_cols = [0usize, 1].map(|side| {
+            let v = &nodes.cm[side];
+            (0..n)
+                .map(|k| {
+                    let col = |i: usize| v[i * n + k];
+                    let mut vals: Vec<f64> = (0..lead).map(|_| col(0)).collect();
+                    vals.extend((0..ti_axis.len()).map(col));
+                    if tail {
+                        vals.push(col(ti_axis.len() - 1));
+                    }
+                    PlDensity::new(&ti_knots, vals)
                 })
                 .collect()
         });
@@ -1269,9 +1277,9 @@ impl MedullaSampler {
             x_axis: t.axes[2].clone(),
             psi_knots,
             cn,
-            ti_axis: tm.axes[2].clone(),
-            tr_knots,
-            cm,
+            ti_knots,
+            cm_cols,
+            tr_nodes: (c0, d, n),
         }
     }
 
@@ -1350,36 +1358,80 @@ impl MedullaSampler {
         Self::mixture_pdf(&comps, &self.psi_knots, psi, PSI_RANGE)
     }
 
-    fn cm_comps(&self, theta_i: f64, phi: f64) -> [(f64, &PlDensity); 4] {
-        let (i, f) = locate(&self.ti_axis, theta_i.abs());
+    /// The column components of `M_s(., theta_r, phi)` as a density in `|theta_i|`: for
+    /// `theta_i >= 0` ([`MedullaSlice::cm`] at `(theta_i, theta_r)`) and for `theta_i < 0`
+    /// (the table read at `(-theta_i, -theta_r)`), each the bilinear table's lerp of two
+    /// `theta_r` columns per side.
+    fn cm_col_comps(&self, theta_r: f64, phi: f64) -> [[(f64, &PlDensity); 4]; 2] {
+        let (c0, d, n) = self.tr_nodes;
         let t = if phi.is_nan() {
             0.5
         } else {
             wrap_pi(phi).abs() / PI
         };
-        [
-            ((1.0 - f) * (1.0 - t), &self.cm[0][i]),
-            (f * (1.0 - t), &self.cm[0][i + 1]),
-            ((1.0 - f) * t, &self.cm[1][i]),
-            (f * t, &self.cm[1][i + 1]),
-        ]
+        [theta_r, -theta_r].map(|tr| {
+            let (k, f) = locate_uniform(c0, d, n, tr);
+            [
+                ((1.0 - f) * (1.0 - t), &self.cm_cols[0][k]),
+                (f * (1.0 - t), &self.cm_cols[0][k + 1]),
+                ((1.0 - f) * t, &self.cm_cols[1][k]),
+                (f * t, &self.cm_cols[1][k + 1]),
+            ]
+        })
     }
 
-    /// Sample the exit inclination `theta_r` of `M_s = lerp(C^M_front, C^M_back, |phi|/pi)`
-    /// (seed Eq. 19) for incidence `theta_i`; returns `(theta_r, pdf)` per radian.
-    pub fn sample_cm(&self, theta_i: f64, phi: f64, u: f64) -> (f64, f64) {
-        let ti = if theta_i.is_nan() { 0.0 } else { theta_i };
-        let comps = self.cm_comps(ti, phi);
-        let (tr, pdf) = Self::sample_mixture(&comps, &self.tr_knots, u, THETA_R_RANGE);
-        (if ti < 0.0 { -tr } else { tr }, pdf)
+    /// Sample the incident inclination `theta_i` of `M_s(theta_i, theta_r, phi)` (seed
+    /// Eq. 19) for a given exit `theta_r`: the table's column, for a renderer that knows
+    /// the camera side and draws the light side. Returns `(theta_i, pdf)` per radian.
+    pub fn sample_cm_incident(&self, theta_r: f64, phi: f64, u: f64) -> (f64, f64) {
+        let tr = if theta_r.is_nan() { 0.0 } else { theta_r };
+        let halves = self.cm_col_comps(tr, phi);
+        let mass = halves.map(|c| c.iter().map(|(w, p)| w * p.mass()).sum::<f64>());
+        let total = mass[0] + mass[1];
+        let u = if u.is_finite() {
+            u.clamp(0.0, 1.0)
+        } else {
+            0.5
+        };
+        if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            let (lo, hi) = INCLINATION_RANGE;
+            return (lo + u * (hi - lo), 1.0 / (hi - lo));
+        }
+        // The sign first (by the halves' masses), then |theta_i| within its half.
+        let target = u * total;
+        let (half, local) = if (target < mass[0] && mass[0] > 0.0) || mass[1] <= 0.0 {
+            (0, (target / mass[0]).min(1.0))
+        } else {
+            (1, ((target - mass[0]) / mass[1]).clamp(0.0, 1.0))
+        };
+        let range = (0.0, FRAC_PI_2);
+        let (v, _) = Self::sample_mixture(&halves[half], &self.ti_knots, local, range);
+        let pdf = Self::mixture_density(&halves[half], &self.ti_knots, v, total);
+        (if half == 1 { -v } else { v }, pdf)
     }
 
-    /// The pdf [`Self::sample_cm`] samples, at `theta_r`.
-    pub fn pdf_cm(&self, theta_i: f64, theta_r: f64, phi: f64) -> f64 {
-        let ti = if theta_i.is_nan() { 0.0 } else { theta_i };
-        let tr = if ti < 0.0 { -theta_r } else { theta_r };
-        let comps = self.cm_comps(ti, phi);
-        Self::mixture_pdf(&comps, &self.tr_knots, tr, THETA_R_RANGE)
+    /// The pdf [`Self::sample_cm_incident`] samples, at `theta_i`.
+    pub fn pdf_cm_incident(&self, theta_r: f64, theta_i: f64, phi: f64) -> f64 {
+        let tr = if theta_r.is_nan() { 0.0 } else { theta_r };
+        let halves = self.cm_col_comps(tr, phi);
+        let total: f64 = halves
+            .iter()
+            .flat_map(|c| c.iter())
+            .map(|(w, p)| w * p.mass())
+            .sum();
+        if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
+            return 1.0 / (INCLINATION_RANGE.1 - INCLINATION_RANGE.0);
+        }
+        // As MedullaSlice::cm reads it: theta_i < 0 (not -0.0) is the mirrored half.
+        let (half, v) = if theta_i < 0.0 {
+            (1, -theta_i)
+        } else {
+            (0, theta_i)
+        };
+        if v.is_nan() || v > FRAC_PI_2 {
+            return 0.0;
+        }
+        Self::mixture_density(&halves[half], &self.ti_knots, v, total)
     }
 }
 
@@ -1886,53 +1938,65 @@ mod tests {
         assert!(chi2 < 70.0, "chi2 {chi2}");
     }
 
+    /// The column sampler (incident `theta_i` for a given exit `theta_r`, the renderer's
+    /// light side) draws what its pdf says (chi-square over 18 bins), and its pdf is the
+    /// normalised column of `cm_lerp`, both signs of `theta_i` (the mirrored half reads the
+    /// table at `(-theta_i, -theta_r)`) and at the ends beyond the table's nodes.
     #[test]
-    fn sampled_theta_r_follows_returned_pdf() {
+    fn sampled_theta_i_follows_returned_pdf_and_the_column() {
         let s = MedullaTables::builtin().slice(0.8, 0.3);
         let sm = s.sampler();
-        let (ti, phi) = (-0.6, 2.0);
-        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(10);
-        let n = 40_000;
-        let bins = 18;
-        let mut hist = vec![0.0; bins];
-        for _ in 0..n {
-            let (tr, pdf) = sm.sample_cm(ti, phi, rng.random());
-            assert!((pdf - sm.pdf_cm(ti, tr, phi)).abs() <= 1e-9 * pdf.max(1.0));
-            let k = (((tr + FRAC_PI_2) / PI * bins as f64) as usize).min(bins - 1);
-            hist[k] += 1.0;
-        }
-        let w = PI / bins as f64;
-        let mut chi2 = 0.0;
-        for (k, &h) in hist.iter().enumerate() {
-            let m = 64;
-            let e: f64 = (0..m)
-                .map(|j| {
-                    sm.pdf_cm(
-                        ti,
-                        -FRAC_PI_2 + k as f64 * w + (j as f64 + 0.5) * w / m as f64,
-                        phi,
-                    )
-                })
-                .sum::<f64>()
-                * w
-                / m as f64
-                * n as f64;
-            if e > 5.0 {
-                chi2 += (h - e) * (h - e) / e;
+        for (case, &(tr, phi)) in [(-0.6, 2.0), (0.9, 0.3), (0.0, PI)].iter().enumerate() {
+            let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(20 + case as u64);
+            let n = 40_000;
+            let bins = 18;
+            let mut hist = vec![0.0; bins];
+            for _ in 0..n {
+                let (ti, pdf) = sm.sample_cm_incident(tr, phi, rng.random());
+                assert!((-FRAC_PI_2..=FRAC_PI_2).contains(&ti));
+                let again = sm.pdf_cm_incident(tr, ti, phi);
+                assert!(
+                    (pdf - again).abs() <= 1e-9 * pdf.max(1.0),
+                    "{pdf} vs {again}"
+                );
+                let k = (((ti + FRAC_PI_2) / PI * bins as f64) as usize).min(bins - 1);
+                hist[k] += 1.0;
             }
-        }
-        // 17 dof: mean 17, sd 5.8; 60 is ~7 sd.
-        assert!(chi2 < 60.0, "chi2 {chi2}");
-        // The pdf is proportional to cm_lerp (normalised) where nothing clamps.
-        let norm: f64 = (0..720)
-            .map(|k| s.cm_lerp(ti, -FRAC_PI_2 + (k as f64 + 0.5) * PI / 720.0, phi))
-            .sum::<f64>()
-            * PI
-            / 720.0;
-        for &tr in &[-1.0, 0.0, 0.6] {
-            let p = sm.pdf_cm(ti, tr, phi);
-            let c = s.cm_lerp(ti, tr, phi) / norm;
-            assert!((p - c).abs() < 0.02 * c.max(0.05), "{tr}: {p} vs {c}");
+            let w = PI / bins as f64;
+            let mut chi2 = 0.0;
+            for (k, &h) in hist.iter().enumerate() {
+                let m = 64;
+                let e: f64 = (0..m)
+                    .map(|j| {
+                        let ti = -FRAC_PI_2 + k as f64 * w + (j as f64 + 0.5) * w / m as f64;
+                        sm.pdf_cm_incident(tr, ti, phi)
+                    })
+                    .sum::<f64>()
+                    * w
+                    / m as f64
+                    * n as f64;
+                if e > 5.0 {
+                    chi2 += (h - e) * (h - e) / e;
+                }
+            }
+            // 17 dof: mean 17, sd 5.8; 60 is ~7 sd.
+            assert!(chi2 < 60.0, "case {case}: chi2 {chi2}");
+            // The pdf is the column of cm_lerp, normalised: the same piecewise-linear
+            // function, so equal up to the midpoint rule's error on 2880 cells (< 1e-3).
+            let cells = 2880;
+            let norm: f64 = (0..cells)
+                .map(|k| s.cm_lerp(-FRAC_PI_2 + (k as f64 + 0.5) * PI / cells as f64, tr, phi))
+                .sum::<f64>()
+                * PI
+                / cells as f64;
+            for &ti in &[-1.5, -0.7, -0.01, 0.01, 0.5, 1.2, 1.56] {
+                let p = sm.pdf_cm_incident(tr, ti, phi);
+                let c = s.cm_lerp(ti, tr, phi) / norm;
+                assert!(
+                    (p - c).abs() < 1e-3 * c,
+                    "case {case}, theta_i {ti}: {p} vs {c}"
+                );
+            }
         }
     }
 }

@@ -11,9 +11,14 @@
 //! The model describes light entering the fiber at offset `h` from direction `theta_i`.
 //! A camera ray that hits the fiber at offset `h_o` (see [`super::bvh`]) follows the same
 //! internal path as light entering there from the camera side (reciprocity of the ray
-//! paths), so the renderer queries the model with the **camera side as the model's
-//! incident side**: model `theta_i := theta_o`, model `theta_r := theta_light`,
-//! `phi := phi_light - phi_o`, `h := h_o`.
+//! paths), so the renderer queries the azimuthal part with the **camera side as the
+//! model's incident side**: `phi := phi_light - phi_o`, `h := h_o`, and `theta_d` (even in
+//! the swap). The longitudinal part takes the light as incident, as a goniometer sample
+//! does (MODEL.md): `M(theta_i := theta_light, theta_r := theta_o)`. For R, TT, TRT the
+//! order does not matter (`M_p` depends on `theta_i + theta_r`), but the scattered lobes'
+//! `M_s` (the `C^M` tables) is not reciprocal: read the other way round it differed from
+//! the fitted lobe by 2-7x at oblique angles (red fox, light at 60 degrees, camera at 0:
+//! 0.458 against 0.201), so a render would not show the scattered lobes that were fitted.
 //!
 //! # Units: the renderer's BCSDF
 //! Seed Eq. 1 gives `L_o = ∫ L_i S cos(theta_i) dw_i` with `cos(theta_i)` the fiber's
@@ -48,9 +53,10 @@
 //!    Scattered lobes sample the medulla tables: `psi` from `C^N(x, .)` and
 //!    `phi = Phi^s_p + psi`, with `x` and `Phi^s_p` taken at the camera side's specular
 //!    `theta_d` (they depend on `theta_d` through `eta'`, which is not known before `theta`
-//!    is drawn), then `theta` from `M_s(theta_o, ., phi)` = the front/back blend of `C^M`
-//!    (seed Eq. 19) — `MedullaSampler::sample_cn` / `sample_cm`, whose pdfs are exact for
-//!    the piecewise-linear table densities. Using the specular `theta_d` for the frame only
+//!    is drawn), then `theta` from `M_s(., theta_o, phi)` = the front/back blend of `C^M`
+//!    (seed Eq. 19) read down a column (light side unknown, camera side given) —
+//!    `MedullaSampler::sample_cn` / `sample_cm_incident`, whose pdfs are exact for the
+//!    piecewise-linear table densities. Using the specular `theta_d` for the frame only
 //!    costs efficiency away from it; the pdf is exact for what is drawn.
 //! 4. pdf: the full mixture `sum_l P_l pdf_l(theta, phi | h)` in the `(theta, phi)` measure.
 //!
@@ -427,7 +433,7 @@ impl FiberBsdf {
     /// [`Self::eval_near`] at a prepared [`NearPoint`].
     fn eval_near_at(&self, at: &NearPoint, theta_o: f64, theta: f64, phi: f64) -> LobeRgb {
         let m0 = &self.models[0];
-        let m = m0.longitudinal(theta_o, theta, phi, self.lobes);
+        let m = m0.longitudinal(theta, theta_o, phi, self.lobes);
         let s0 = m0.azimuthal(at.td);
         let geo = &at.geo;
         let mut out = [[0.0; 3]; 5];
@@ -455,7 +461,7 @@ impl FiberBsdf {
     /// (seed Eqs. 22, 26; [`crate::model::AzimuthalSlice::far`] for `[-1, 1]`,
     /// [`crate::model::AzimuthalSlice::multiscale`] otherwise), per channel.
     pub fn eval_span(&self, theta_o: f64, theta: f64, phi: f64, h1: f64, h2: f64) -> LobeRgb {
-        let m = self.models[0].longitudinal(theta_o, theta, phi, self.lobes);
+        let m = self.models[0].longitudinal(theta, theta_o, phi, self.lobes);
         let td = geometry::theta_d(theta_o, theta);
         let full = h1 <= -1.0 && h2 >= 1.0;
         let mut out = [[0.0; 3]; 5];
@@ -681,7 +687,7 @@ impl FiberBsdf {
             let sm = self.models[0].medulla()?.sampler();
             let (psi, _) = sm.sample_cn(sel.x_med, u[3]);
             let phi = wrap_angle(sel.phi_s[lobe.p() - 1] + psi);
-            let (theta, _) = sm.sample_cm(theta_o, phi, u[2]);
+            let (theta, _) = sm.sample_cm_incident(theta_o, phi, u[2]);
             (theta, phi, None)
         } else {
             let (i, m) = (lobe.index(), &side.m);
@@ -782,7 +788,7 @@ impl<'a> PdfQuery<'a> {
                         let (theta_o, theta, phi) = (self.theta_o, self.theta, self.phi);
                         let cm = *self
                             .cm
-                            .get_or_insert_with(|| sm.pdf_cm(theta_o, theta, phi));
+                            .get_or_insert_with(|| sm.pdf_cm_incident(theta_o, theta, phi));
                         sm.pdf_cn(sel.x_med, wrap_angle(phi - sel.phi_s[l.p() - 1])) * cm
                     }
                     None => 0.0,

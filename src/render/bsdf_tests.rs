@@ -330,3 +330,35 @@ fn frame_round_trips_directions() {
     // Right-handed (v, w, u): azimuth increases counter-clockwise about u.
     assert!((f.v.cross(f.w).dot(u) - 1.0).abs() < 1e-12);
 }
+
+/// The scattered lobes' `M_s` takes the light as the model's incident side, as the fit
+/// does (`C^M` is not reciprocal): swapping camera and light (same `theta_d`, `h`, `phi`,
+/// hence the same azimuthal part) scales TTs by `M_s(b, a) / M_s(a, b)`, for every mode.
+/// The renderer read `M_s(theta_o, theta_light)` before, the inverse ratio.
+#[test]
+fn scattered_lobes_read_c_m_with_the_light_incident() {
+    let p = params([1.49, 0.86, 2.64, 9.45, 17.63, 0.39, 3.15, 0.21, 0.79, 0.68]);
+    let b = FiberBsdf::new(&p, Tint::default(), LobeSet::only(Lobe::TTs));
+    let m = b.model(0);
+    let (cam, light, phi, h) = (0.0, 60f64.to_radians(), 0.4, 0.2);
+    let ms = |ti: f64, tr: f64| m.longitudinal(ti, tr, phi, LobeSet::ALL).get(Lobe::TTs);
+    let want = ms(cam, light) / ms(light, cam);
+    // The tables make the ratio far from 1 here (0.2 / 0.46 for the red fox).
+    assert!((want - 1.0).abs() > 0.3, "{want}");
+    let i = Lobe::TTs.index();
+    for hr in [
+        HRange::At(h),
+        HRange::Span(-1.0, 1.0),
+        HRange::Span(0.1, 0.3),
+    ] {
+        let a = b.eval(cam, light, phi, hr)[i][0];
+        let s = b.eval(light, cam, phi, hr)[i][0];
+        assert!(a > 0.0 && s > 0.0, "{hr:?}");
+        // Same azimuthal factor both ways up to rounding: 1e-9 relative.
+        assert!(
+            (s / a / want - 1.0).abs() < 1e-9,
+            "{hr:?}: {} vs {want}",
+            s / a
+        );
+    }
+}
