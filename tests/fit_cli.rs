@@ -1237,3 +1237,35 @@ fn fit_all_names_every_bad_species_and_the_folders_passed_over() {
     );
     assert!(!root.join("fits/vole.json").exists());
 }
+
+/// A fit whose result leaves the medulla tables' range (here `--fix g=0.99`, beyond their
+/// 0.95) says so as synth and render do, on the console and in the fit file: the scattered
+/// lobes were evaluated with the shape at the table edge. Inside the range: no note.
+#[test]
+fn fit_notes_parameters_beyond_the_medulla_tables() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "vole");
+    let mouse = furfit::FurParams::preset("mouse").unwrap().to_file_units();
+    for (g, noted) in [("0.99", true), ("0.5", false)] {
+        let mut c = fit_cmd(root);
+        c.args(["measurements/vole", "--out", "f.json", "--force"]);
+        let mut v = mouse;
+        v[furfit::ParamId::G.index()] = g.parse().unwrap();
+        fix_all_but(&mut c, &v, &[furfit::ParamId::Eta]);
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let out = String::from_utf8_lossy(&o.stdout);
+        let fit: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(root.join("f.json")).unwrap()).unwrap();
+        let notes = fit["solver"]["table_notes"].as_array().unwrap();
+        let said = out.contains("note: g = 0.99 is outside the medulla tables' g range");
+        assert_eq!((said, notes.len() == 1), (noted, noted), "g {g}: {out}");
+        if noted {
+            assert!(notes[0]
+                .as_str()
+                .unwrap()
+                .contains("use the shape at g = 0.95"));
+        }
+    }
+}
