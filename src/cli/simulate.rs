@@ -60,7 +60,7 @@ pub struct Args {
     /// Multiplicative log-normal noise std (0 = off).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub mult_noise: f64,
-    /// Elliptical cross-section: axis ratio minor/major in (0, 1] (Marschner 2003's a).
+    /// Elliptical cross-section: axis ratio minor/major in [0.01, 1] (Marschner 2003's a).
     #[arg(long, allow_negative_numbers = true)]
     pub ellipse: Option<f64>,
     /// Medulla IOR (default: equal to eta, index matched).
