@@ -557,3 +557,64 @@ fn npz_repeated_channel_name() {
         "{msg}"
     );
 }
+
+/// A `synthetic` label with a value furfit does not read is an error in every format and
+/// in a folder's metadata.json: read as "no label" it turned synthetic data into measured.
+/// A comment that mentions synthetic without being an entry gets a loader note.
+#[test]
+fn unreadable_synthetic_label_is_an_error() {
+    let e = csv_err(&format!("# synthetic: true # simulated\n{HEAD}0,0,0,1\n"));
+    assert_at(&e, "bad.csv", 1, "metadata");
+    assert!(
+        e.contains("'true # simulated' is not a value of 'synthetic'"),
+        "{e}"
+    );
+    let e = err_of(
+        "bad.txt",
+        b"# theta_i: 30\n# Synthetic: maybe\n0 10 1\n",
+        &LoadOptions::default(),
+    );
+    assert_at(&e, "bad.txt", 2, "metadata");
+    let mut entries = axes();
+    entries.push(("value.npy", value(&[2, 3, 4])));
+    let meta = br#"{"metadata": [["species", "x"], ["synthetic", "simulated"]]}"#;
+    entries.push(("meta_json.npy", npy_bytes(&Array1::from(meta.to_vec()))));
+    let e = npz_err(&entries);
+    assert!(e.contains("meta_json") && e.contains("metadata[1]"), "{e}");
+    // A folder's metadata.json, also for a file named inside the folder.
+    let t = Tmp::new();
+    let dir = t.dir.path().join("fox");
+    std::fs::create_dir(&dir).unwrap();
+    std::fs::write(dir.join("p.csv"), format!("{HEAD}0,0,0,1\n")).unwrap();
+    std::fs::write(dir.join("metadata.json"), r#"{"synthetic": "synthetic"}"#).unwrap();
+    let opts = LoadOptions::default();
+    for e in [
+        profile::load_dir(&dir, &opts).map(|_| ()),
+        profile::load_full(&dir.join("p.csv"), &opts).map(|_| ()),
+    ] {
+        let e = e.unwrap_err().to_string();
+        assert!(
+            e.contains("metadata.json: key \"synthetic\": 'synthetic' is not a value"),
+            "{e}"
+        );
+    }
+    // Understood values still load, and a comment that only mentions it is noted.
+    std::fs::write(dir.join("metadata.json"), r#"{"synthetic": true}"#).unwrap();
+    assert!(profile::load_dir(&dir, &opts)
+        .unwrap()
+        .profile
+        .is_synthetic());
+    let p = t.write(
+        "c.csv",
+        format!("# synthetic=true\n{HEAD}0,0,0,1\n").as_bytes(),
+    );
+    let l = profile::load_full(&p, &LoadOptions::default()).unwrap();
+    assert!(!l.profile.is_synthetic());
+    assert!(
+        l.notes
+            .iter()
+            .any(|n| n.contains("line 1: the comment '# synthetic=true'")),
+        "{:?}",
+        l.notes
+    );
+}

@@ -81,6 +81,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
     let mut orig_line: Vec<usize> = Vec::new();
     let mut separator_rows = 0usize;
     let mut seen_line = false;
+    let mut label_notes = Vec::new();
     for (k, raw) in split_lines(bytes).enumerate() {
         let raw = if k == 0 {
             raw.strip_prefix("\u{feff}".as_bytes()).unwrap_or(raw)
@@ -122,11 +123,14 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
         if let Some(c) = t.strip_prefix(b"#") {
             if header_line.is_none() {
                 let c = String::from_utf8_lossy(c);
-                if let Some((key, val)) = c.split_once(':') {
-                    let key = key.trim();
-                    if !key.is_empty() {
+                match c.split_once(':') {
+                    Some((key, val)) if !key.trim().is_empty() => {
+                        let key = key.trim();
+                        super::check_synthetic_label(key, val)
+                            .map_err(|m| perr(k + 1, "metadata".into(), m))?;
                         metadata.push((key.to_string(), val.trim().to_string()));
                     }
+                    _ => label_notes.extend(super::unlabelled_synthetic_note(k + 1, &c)),
                 }
             }
             continue;
@@ -295,6 +299,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
         &label(cols.phi),
         &label(cols.value),
     )?;
+    notes.extend(label_notes);
     if separator_rows > 0 {
         notes.push(format!(
             "{separator_rows} row(s) holding only separators (e.g. a spreadsheet's ',,,') skipped"

@@ -237,6 +237,33 @@ pub fn says_synthetic(key: &str, value: &str) -> Option<bool> {
     }
 }
 
+/// A `synthetic` entry (any case) whose value [`says_synthetic`] does not understand is
+/// an error: the label is what keeps synthetic data from being reported as measured, so
+/// "true # simulated" or "maybe" must not read as no label at all.
+pub(crate) fn check_synthetic_label(key: &str, value: &str) -> std::result::Result<(), String> {
+    if key.trim().eq_ignore_ascii_case("synthetic") && says_synthetic(key, value).is_none() {
+        return Err(format!(
+            "'{}' is not a value of 'synthetic' that furfit reads (true, yes, 1 or false, \
+             no, 0, in any case, and nothing else after it)",
+            value.trim()
+        ));
+    }
+    Ok(())
+}
+
+/// The loader note for a `#` comment on `line` that is not a `key: value` entry but
+/// mentions "synthetic" (e.g. `# synthetic=true`): it labels nothing, and the reader
+/// should know why the data then read as measured.
+pub(crate) fn unlabelled_synthetic_note(line: usize, comment: &str) -> Option<String> {
+    comment.to_ascii_lowercase().contains("synthetic").then(|| {
+        format!(
+            "line {line}: the comment '#{}' mentions synthetic but is no '# synthetic: true' \
+             entry, so it labels nothing",
+            comment.trim_end()
+        )
+    })
+}
+
 impl Profile {
     /// Sort the samples into grid order: `theta_i`, `theta_r`, `phi`, `channel` ascending
     /// (the order an `.npz` load yields), so two profiles holding the same sample set write

@@ -352,6 +352,10 @@ pub fn parse_npz_with(
         }
         None => MetaJson::default(),
     };
+    for (k, (key, value)) in meta.metadata.iter().enumerate() {
+        super::check_synthetic_label(key, value)
+            .map_err(|m| arr_err(path, "meta_json", format!("metadata[{k}]: {m}")))?;
+    }
     grid_to_profile(
         path,
         axes,

@@ -29,17 +29,19 @@ fn folder_says_synthetic(dir: &Path) -> Result<Option<bool>> {
             "a species folder's metadata file must be a JSON object",
         ));
     };
-    let says: Vec<bool> = obj
-        .iter()
-        .filter_map(|(k, v)| {
-            let text = match v {
-                serde_json::Value::String(s) => s.clone(),
-                serde_json::Value::Bool(_) | serde_json::Value::Number(_) => v.to_string(),
-                _ => return None,
-            };
-            super::says_synthetic(k, &text)
-        })
-        .collect();
+    let mut says = Vec::new();
+    for (k, v) in obj {
+        let text = match v {
+            serde_json::Value::String(s) => s.clone(),
+            serde_json::Value::Bool(_) | serde_json::Value::Number(_) => v.to_string(),
+            // A `synthetic` entry of another type (null, a list) is no label either.
+            _ if k.trim().eq_ignore_ascii_case("synthetic") => v.to_string(),
+            _ => continue,
+        };
+        super::check_synthetic_label(k, &text)
+            .map_err(|m| Error::file(&path, format!("key \"{k}\": {m}")))?;
+        says.extend(super::says_synthetic(k, &text));
+    }
     Ok(if says.contains(&true) {
         Some(true)
     } else if says.contains(&false) {

@@ -52,6 +52,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     };
     let label = |i: usize| format!("column {} ({})", i + 1, NAMES[i]);
     let mut metadata = Vec::new();
+    let mut label_notes = Vec::new();
     let mut file_theta_i: Option<(f64, usize)> = None;
     let mut samples = Vec::new();
     // Per sample: its line and its phi as written (for a wrap's duplicate message).
@@ -86,8 +87,14 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                     }
                     file_theta_i = Some((v, line));
                 } else if !key.is_empty() {
+                    super::check_synthetic_label(key, val)
+                        .map_err(|m| perr(line, "metadata".into(), m))?;
                     metadata.push((key.to_string(), val.to_string()));
+                } else {
+                    label_notes.extend(super::unlabelled_synthetic_note(line, c));
                 }
+            } else {
+                label_notes.extend(super::unlabelled_synthetic_note(line, c));
             }
             continue;
         }
@@ -177,7 +184,8 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     for s in &mut samples {
         s.theta_i = theta_i;
     }
-    let notes = dedupe_rows(&mut samples, &raw_phi, path, opts, &label(0), &label(2))?;
+    let mut notes = dedupe_rows(&mut samples, &raw_phi, path, opts, &label(0), &label(2))?;
+    notes.extend(label_notes);
     Ok((
         Profile {
             samples,
