@@ -418,9 +418,41 @@ pub fn check_replaceable(paths: &[PathBuf], force: bool) -> Result<()> {
     Ok(())
 }
 
+/// Remove the temporaries ([`sibling`] files `.<name>.<what>-<pid>`) that a furfit
+/// process killed while writing `path` left beside it: those of processes no longer
+/// running. Needs `/proc` to tell (Linux); elsewhere it leaves them.
+fn remove_stale_siblings(path: &Path) {
+    let (Some(name), true) = (path.file_name(), Path::new("/proc/self").exists()) else {
+        return;
+    };
+    let prefix = format!(".{}.", name.to_string_lossy());
+    let Ok(rd) = std::fs::read_dir(parent_dir(path)) else {
+        return;
+    };
+    for e in rd.flatten() {
+        let file = e.file_name().to_string_lossy().into_owned();
+        let Some(rest) = file.strip_prefix(&prefix) else {
+            continue;
+        };
+        let pid = ["tmp-", "bak-"]
+            .iter()
+            .find_map(|w| rest.strip_prefix(w))
+            .and_then(|p| p.parse::<u32>().ok());
+        if let Some(pid) = pid {
+            if pid != std::process::id() && !Path::new(&format!("/proc/{pid}")).exists() {
+                let _ = std::fs::remove_file(e.path());
+            }
+        }
+    }
+}
+
 /// Record `paths` (just written by furfit) with their content in their directories'
-/// [`LEDGER`]s (each written atomically).
+/// [`LEDGER`]s (each written atomically), and remove what an interrupted earlier run left
+/// of them ([`remove_stale_siblings`]).
 pub fn record_outputs(paths: &[PathBuf]) -> Result<()> {
+    for p in paths {
+        remove_stale_siblings(p);
+    }
     let mut by_dir: std::collections::BTreeMap<PathBuf, Vec<&PathBuf>> = Default::default();
     for p in paths {
         by_dir.entry(parent_dir(p)).or_default().push(p);
@@ -460,6 +492,31 @@ pub fn record_outputs(paths: &[PathBuf]) -> Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Recording an output removes the temporaries a killed run left of it (their process
+    /// is gone), not those of a running process (this one), nor other files.
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn record_removes_temporaries_of_dead_runs() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let out = d.join("nrmse.md");
+        std::fs::write(&out, "x").unwrap();
+        // Above Linux's largest pid (2^22), so no process has it.
+        let dead = [".nrmse.md.tmp-4194305", ".nrmse.md.bak-4194305"];
+        let alive = format!(".nrmse.md.tmp-{}", std::process::id());
+        let other = [".other.md.tmp-4194305", ".nrmse.md.tmp-x"];
+        for n in dead.iter().chain(&other).chain([&alive.as_str()]) {
+            std::fs::write(d.join(n), "t").unwrap();
+        }
+        record_outputs(std::slice::from_ref(&out)).unwrap();
+        for n in dead {
+            assert!(!d.join(n).exists(), "{n}");
+        }
+        for n in other.iter().chain([&alive.as_str()]) {
+            assert!(d.join(n).exists(), "{n}");
+        }
+    }
 
     /// Concurrent ledger updates into one folder keep every entry (each holds the lock
     /// for its read-modify-write; without it, runs lost each other's entries).

@@ -970,6 +970,41 @@ fn report_never_replaces_a_file_furfit_did_not_write() {
     assert_ne!(std::fs::read_to_string(&table).unwrap(), "my table\n");
 }
 
+/// A report killed part-way (Ctrl-C, a crash) has recorded every file it wrote in the
+/// ledger as it went, so the next run replaces them without --force (the ledger was
+/// written only at the end, and the rerun refused the killed run's own files).
+#[test]
+fn report_killed_part_way_reruns_without_force() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    fit_lab_mouse(root);
+    let mut child = furfit()
+        .current_dir(root)
+        .arg("report")
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let table = root.join("reports/nrmse.md");
+    let last = root.join("reports/model_vs_simulation.md");
+    let t0 = std::time::Instant::now();
+    while !table.exists() && t0.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let cut_short = !last.exists();
+    let ledger =
+        std::fs::read_to_string(root.join("reports/.furfit-outputs.json")).unwrap_or_default();
+    if cut_short {
+        assert!(ledger.contains("nrmse.md"), "{ledger}");
+    } else {
+        eprintln!("the report finished before it was killed: only the rerun is checked");
+    }
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+}
+
 /// A fit of r, g, b channels gets a column and a Fig. 11 per channel in the report, and
 /// parameters held by `--fix` are marked as such (not shown like fitted values).
 #[test]

@@ -526,11 +526,21 @@ pub fn write_fit_reports(
     planned.extend(fits.iter().flat_map(|f| fig11::outputs(f, out)));
     crate::io::check_replaceable(&planned, force)?;
     let mut sum = ReportSummary::default();
-    let result = write_planned(&fits, measurements, out, &mut sum);
-    // Recorded even when a part failed: what this run wrote is furfit's (and only that: an
-    // existing file a failed run did not reach stays as the ledger had it).
-    crate::io::record_outputs(&sum.written)?;
-    result.map(|()| sum)
+    write_planned(&fits, measurements, out, &mut sum)?;
+    Ok(sum)
+}
+
+impl ReportSummary {
+    /// List files just written, in the summary and at once in their folder's ledger: a run
+    /// stopped part-way (an error, Ctrl-C) leaves every file it wrote recorded as furfit's,
+    /// so the next run replaces them without --force (an existing file it did not reach
+    /// stays as the ledger had it).
+    fn landed(&mut self, paths: impl IntoIterator<Item = PathBuf>) -> Result<()> {
+        let paths: Vec<PathBuf> = paths.into_iter().collect();
+        crate::io::record_outputs(&paths)?;
+        self.written.extend(paths);
+        Ok(())
+    }
 }
 
 /// Write the planned reports, listing each file in `sum.written` once it is written.
@@ -554,16 +564,12 @@ fn write_planned(
     }
     let fits = fits.as_slice();
     write(fits, out)?;
-    sum.written.push(out.join("nrmse.md"));
-    sum.written.push(out.join("nrmse.csv"));
+    sum.landed(["nrmse.md", "nrmse.csv"].map(|n| out.join(n)))?;
     fit_time::write(fits, out)?;
-    for ext in ["csv", "png", "svg"] {
-        sum.written
-            .push(out.join(format!("fit_error_vs_time.{ext}")));
-    }
+    sum.landed(["csv", "png", "svg"].map(|e| out.join(format!("fit_error_vs_time.{e}"))))?;
     for (f, d) in fits.iter().zip(data) {
         match d.and_then(|p| fig11::write(f, &p, out)) {
-            Ok(paths) => sum.written.extend(paths),
+            Ok(paths) => sum.landed(paths)?,
             Err(e) => sum.skipped.push((f.label(), format!("fig11: {e}"))),
         }
     }
@@ -643,8 +649,7 @@ fn write_planned(
     }
     let p = out.join("model_vs_simulation.md");
     crate::io::write_atomic(&p, model_vs_sim::markdown(&entries, &unusable).as_bytes())?;
-    sum.written.push(p);
-    Ok(())
+    sum.landed([p])
 }
 
 #[cfg(test)]
