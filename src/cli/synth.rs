@@ -169,6 +169,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 && s.value < f64::MIN_POSITIVE
                 && s.value / exposure(s.channel) >= f64::MIN_POSITIVE)
     }) {
+        // NaN is no exposure's doing: the model failed there (the stability report
+        // checks for this; say where, so it can be reported).
+        if s.value.is_nan() {
+            bail!(
+                "the model gave NaN at theta_i {}, theta_r {}, phi {}: a furfit bug for these \
+                 parameters; nothing was written",
+                s.theta_i,
+                s.theta_r,
+                s.phi
+            );
+        }
         let (what, fix) = if s.value.is_finite() {
             ("underflows", "larger")
         } else {

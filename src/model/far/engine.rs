@@ -65,6 +65,11 @@ use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::sync::Arc;
 
+/// Floor of a node's log-attenuation: `exp` of it is 0 in f64 as `exp(-inf)` is, but a
+/// finite value keeps the linear fits of `ln A` (differences of node values) from
+/// `inf - inf` = NaN when an absorption near the f64 limit (1e300) overflows the exponent.
+const LAM_MIN: f64 = -1e4;
+
 /// Culling window half-width in lobe standard deviations (see module doc).
 pub const CULL_SIGMAS: f64 = 8.5;
 /// Maximum bisection depth of a segment.
@@ -731,7 +736,9 @@ impl<'a> FarSlice<'a> {
         n.pre[2] = (1.0 - f) * (1.0 - f) * f * cu;
         for p in 1..3 {
             let pf = p as f64;
-            n.lam[p] = -2.0 * pf * (geo.s_c * ab.sigma_c_a + geo.s_m * ab.sigma_m_t) * ab.inv_cos_d;
+            n.lam[p] =
+                (-2.0 * pf * (geo.s_c * ab.sigma_c_a + geo.s_m * ab.sigma_m_t) * ab.inv_cos_d)
+                    .max(LAM_MIN);
         }
         if scattered && self.lobes.intersect(LobeSet::SCATTERED) != LobeSet::NONE {
             let meets = geo.meets_medulla();
@@ -746,7 +753,7 @@ impl<'a> FarSlice<'a> {
                 } else {
                     0.0
                 };
-                n.lam[l] = -(ta + tb) * ab.inv_cos_d;
+                n.lam[l] = (-(ta + tb) * ab.inv_cos_d).max(LAM_MIN);
                 n.phis[p - 1] = azimuthal::phi_s_p(p, &geo);
                 // Phi^s_p = (gamma_t - u) + (p - 1)(pi + 2 gamma_t), dgamma_t/du as above.
                 n.dphis[p - 1] = (2.0 * pf - 1.0) * cu / (az.eta_prime * ct) - 1.0;
