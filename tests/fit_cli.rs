@@ -536,6 +536,35 @@ fn model_vs_simulation_drops_a_fit_of_changed_data() {
     );
 }
 
+/// The same samples written otherwise (another build's number formatting and tool line,
+/// e.g. the recorded simulate command re-run) are still the fit's data: the report plots
+/// them (the fit records each file's samples' SHA-256 beside its bytes').
+#[test]
+fn report_accepts_the_same_samples_written_otherwise() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    fit(root, "mouse", "fits/mouse.json", "1");
+    let prof = root.join("measurements/mouse/profile.csv");
+    let text = std::fs::read_to_string(&prof).unwrap();
+    // Values as 1.5e-1 instead of 0.15, and a tool line of another build.
+    let rewritten: String = text
+        .lines()
+        .map(|l| match l.rsplit_once(',') {
+            Some((head, v)) if !l.starts_with('#') && v.parse::<f64>().is_ok() => {
+                format!("{head},{:e}\n", v.parse::<f64>().unwrap())
+            }
+            _ => format!("{l}\n"),
+        })
+        .collect::<String>()
+        .replacen("# ", "# tool: furfit 9.9 (git other)\n# ", 1);
+    assert_ne!(rewritten, text);
+    std::fs::write(&prof, rewritten).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(root.join("reports/fig11_mouse.png").exists());
+}
+
 /// Two fits of one species (`mouse.json`, `mouse-v2.json`) get their own figures and
 /// table columns, named by their files.
 #[test]

@@ -71,13 +71,17 @@ pub fn check_replace_fit(out: &Path, files: &[ReadFile], force: bool) -> Result<
         .collect();
     let same = recorded.iter().any(|r| {
         let sha = r["sha256"].as_str().unwrap_or_default();
+        let samples = r["samples_sha256"].as_str().unwrap_or_default();
         // The path relative to the fit file names the file wherever the fit ran from;
         // fit files without it fall back to the path as given (from the current folder).
         let path = match r["from_fit"].as_str() {
             Some(rel) => crate::io::resolve_path(&fit_dir.join(rel)),
             None => crate::io::resolve_path(Path::new(r["path"].as_str().unwrap_or_default())),
         };
-        files.iter().any(|f| f.sha256 == sha) || inputs.contains(&path)
+        files
+            .iter()
+            .any(|f| f.sha256 == sha || f.samples_sha256 == samples)
+            || inputs.contains(&path)
     });
     if same {
         return Ok(());
@@ -275,7 +279,7 @@ pub fn fit_loaded(
     check_out(&job.out)?;
     let prof = &inputs.profile;
     let fit_dir = crate::io::resolve_path(&crate::io::parent_dir(&job.out));
-    let file_info: Vec<(String, String, String)> = inputs
+    let file_info: Vec<(String, String, String, String)> = inputs
         .files
         .iter()
         .map(|f| {
@@ -284,6 +288,7 @@ pub fn fit_loaded(
                 f.path.display().to_string(),
                 f.sha256.clone(),
                 rel.display().to_string(),
+                f.samples_sha256.clone(),
             )
         })
         .collect();

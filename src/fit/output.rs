@@ -13,10 +13,11 @@ use serde_json::{json, Map, Value};
 /// Provenance of the data one fit used.
 #[derive(Clone, Debug, Default)]
 pub struct DataInfo {
-    /// `(path as given, sha256 of the content, path relative to the fit file's folder)`
-    /// per file; the last tells a refit of these files from a fit of others of the same
-    /// relative name run elsewhere ([`super::job::check_replace_fit`]).
-    pub files: Vec<(String, String, String)>,
+    /// Per file: the path as given, the SHA-256 of its bytes, the path relative to the fit
+    /// file's folder (tells a refit of these files from a fit of others of the same
+    /// relative name run elsewhere, [`super::job::check_replace_fit`]) and the SHA-256 of
+    /// its samples ([`crate::profile::samples_sha256`]).
+    pub files: Vec<(String, String, String, String)>,
     pub n_valid: usize,
     pub n_invalid: usize,
     /// Valid samples left out below the relative floor (`FitOptions::floor`).
@@ -83,7 +84,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
     let files: Vec<Value> = data
         .files
         .iter()
-        .map(|(p, h, rel)| json!({"path": p, "sha256": h, "from_fit": rel}))
+        .map(|(p, h, rel, s)| json!({"path": p, "sha256": h, "from_fit": rel, "samples_sha256": s}))
         .collect();
     json!({
         "params": out.params.to_json_value(),

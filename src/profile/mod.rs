@@ -445,7 +445,37 @@ pub(crate) fn wrap_conflict(
 pub struct ReadFile {
     pub path: PathBuf,
     pub format: Format,
+    /// SHA-256 of the file's bytes.
     pub sha256: String,
+    /// SHA-256 of the samples it holds as read ([`samples_sha256`]): the same for a file
+    /// rewritten with other number formatting or comments, e.g. the recorded `simulate`
+    /// command re-run by another build.
+    pub samples_sha256: String,
+}
+
+/// SHA-256 of a profile's samples in order: each sample's angles, value, sigma, channel
+/// name and `phi_i` (little-endian f64 bits; a missing optional as a marker byte), so two
+/// files holding the same samples have one digest whatever their format or layout.
+pub fn samples_sha256(p: &Profile) -> String {
+    let mut bytes = Vec::with_capacity(p.samples.len() * 64);
+    let opt = |b: &mut Vec<u8>, v: Option<f64>| match v {
+        Some(x) => {
+            b.push(1);
+            b.extend_from_slice(&x.to_bits().to_le_bytes());
+        }
+        None => b.push(0),
+    };
+    for s in &p.samples {
+        for x in [s.theta_i, s.theta_r, s.phi, s.value] {
+            bytes.extend_from_slice(&x.to_bits().to_le_bytes());
+        }
+        opt(&mut bytes, s.sigma);
+        opt(&mut bytes, s.phi_i);
+        let name = p.channels.get(s.channel).map_or("", String::as_str);
+        bytes.extend_from_slice(&(name.len() as u64).to_le_bytes());
+        bytes.extend_from_slice(name.as_bytes());
+    }
+    crate::io::sha256_hex(&bytes)
 }
 
 /// A loaded profile with what the loader noticed on the way.
@@ -496,6 +526,7 @@ fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     profile.source = Some(path.to_path_buf());
     let mut notes = notes;
     notes.extend(radians_warning(&profile));
+    let content = samples_sha256(&profile);
     Ok(Loaded {
         profile,
         format,
@@ -503,6 +534,7 @@ fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
             path: path.to_path_buf(),
             format,
             sha256: crate::io::sha256_hex(&bytes),
+            samples_sha256: content,
         }],
         notes,
     })

@@ -52,6 +52,8 @@ pub struct FitFile {
     pub files: Vec<PathBuf>,
     /// Their SHA-256 digests as recorded (empty in fit files that did not record them).
     pub sha256: Vec<String>,
+    /// The SHA-256 of each recorded file's samples (empty for fit files from before it).
+    pub samples_sha256: Vec<String>,
     /// Loader options the fit read them with (`data.load`).
     pub load: crate::profile::LoadOptions,
     /// Channel name fitted at the top level ("" for a single channel).
@@ -167,6 +169,7 @@ impl FitFile {
             .collect();
         let load = legacy_load(v, &files);
         let sha256 = recorded("sha256");
+        let samples_sha256 = recorded("samples_sha256");
         let trace = v["trace"]
             .as_array()
             .map(|a| {
@@ -214,6 +217,7 @@ impl FitFile {
             synthetic: v["data"]["synthetic"].as_bool().unwrap_or(false),
             files,
             sha256,
+            samples_sha256,
             load,
             channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
             trace,
@@ -264,11 +268,24 @@ impl FitFile {
         if self.sha256.len() != self.files.len() || self.sha256.is_empty() {
             return Ok(());
         }
-        let mut have: Vec<&str> = read.iter().map(|f| f.sha256.as_str()).collect();
-        let mut want: Vec<&str> = self.sha256.iter().map(String::as_str).collect();
-        have.sort_unstable();
-        want.sort_unstable();
-        if have == want {
+        // The same bytes, or the same samples written otherwise (the recorded simulate
+        // command re-run by another build formats numbers and its tool line its own way).
+        let same = |have: Vec<&str>, want: &[String]| {
+            let mut have = have;
+            let mut want: Vec<&str> = want.iter().map(String::as_str).collect();
+            have.sort_unstable();
+            want.sort_unstable();
+            have == want
+        };
+        if same(
+            read.iter().map(|f| f.sha256.as_str()).collect(),
+            &self.sha256,
+        ) || (self.samples_sha256.len() == self.files.len()
+            && same(
+                read.iter().map(|f| f.samples_sha256.as_str()).collect(),
+                &self.samples_sha256,
+            ))
+        {
             return Ok(());
         }
         let what = inputs
