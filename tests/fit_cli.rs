@@ -1332,4 +1332,35 @@ fn fit_notes_parameters_beyond_the_medulla_tables() {
                 .contains("use the shape at g = 0.95"));
         }
     }
+
+/// A species that cannot be fitted (here every value `?`: no valid sample) does not stop
+/// `fit --all`: the species after it are fitted, and the run ends listing every species
+/// not fitted with its reason and a non-zero exit status.
+#[test]
+fn fit_all_fits_the_other_species_when_one_cannot_be_fitted() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    for sp in ["aaa", "ccc"] {
+        let dir = root.join("measurements").join(sp);
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(dir.join("yan.txt"), "# theta_i: 30\n0 10 ?\n5 10 ?\n").unwrap();
+    }
+    make_species(root, "bbb");
+    let o = furfit()
+        .current_dir(root)
+        .args(["fit", "--all", "--starts", "8", "--lm-starts", "1"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    fails_with(
+        o,
+        &[
+            "error: 2 of 3 species not fitted (the others' fit files are written):\n  fitting aaa: ",
+            "\n  fitting ccc: ",
+            "no valid sample",
+        ],
+    );
+    assert!(root.join("fits/bbb.json").exists(), "{err}");
+    assert!(!root.join("fits/aaa.json").exists());
+    assert!(!root.join("fits/ccc.json").exists());
 }

@@ -31,7 +31,11 @@ pub struct Args {
     #[arg(long, value_parser = super::threads_parser())]
     pub threads: Option<usize>,
     /// Fit every species folder under --measurements (one species after another, each
-    /// using all --threads, so the total thread count stays --threads).
+    /// using all --threads, so the total thread count stays --threads). Unreadable data,
+    /// options the data cannot serve (e.g. --weighted without sigmas) and outputs in the
+    /// way stop the run before any fit; a species that cannot be fitted (no valid sample,
+    /// a solver error) is listed at the end, after the others are fitted, and the exit
+    /// status is non-zero.
     #[arg(long)]
     pub all: bool,
     /// Replace an existing fit file that was made from other data (a refit of the same
@@ -184,12 +188,31 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     load.check_used(&formats)?;
     // And every channel's fit data (e.g. --weighted without sigmas), so a bad species fails
     // before any fit; fit_loaded would also prefix the species the context below names.
+    // A channel without a valid sample only keeps its own species from being fitted
+    // (`unfit`): no option can fit it, and the other species still can be.
     let mut floor_notes = Vec::new();
+    let mut unfit: Vec<Option<anyhow::Error>> = Vec::new();
     for (job, inputs) in jobs.iter().zip(&loaded) {
         let mut notes = Vec::new();
+        let mut why = None;
         for c in 0..inputs.profile.n_channels() {
-            let d = crate::fit::channel_data(&inputs.profile, c, opts.weighted, opts.floor)
-                .with_context(|| format!("fitting {}", job.species))?;
+            let d = match crate::fit::channel_data(&inputs.profile, c, opts.weighted, opts.floor) {
+                Ok(d) => d,
+                Err(e) => {
+                    let any_valid = inputs
+                        .profile
+                        .samples
+                        .iter()
+                        .any(|s| s.channel == c && s.is_valid());
+                    if any_valid {
+                        return Err(
+                            anyhow::Error::new(e).context(format!("fitting {}", job.species))
+                        );
+                    }
+                    why.get_or_insert(anyhow::Error::new(e));
+                    continue;
+                }
+            };
             if d.n_below_floor > 0 {
                 let ch = inputs
                     .profile
@@ -203,13 +226,35 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
         }
         floor_notes.push(notes);
+        unfit.push(why);
     }
     // Every output too, so `--all` cannot stop at the n-th species after n - 1 fits.
     for (job, inputs) in jobs.iter().zip(&loaded) {
         crate::fit::job::check_out(&job.out)?;
         crate::fit::job::check_replace_fit(&job.out, &inputs.files, a.force)?;
     }
-    for ((job, inputs), floor_notes) in jobs.iter().zip(&loaded).zip(&floor_notes) {
+    // Species that could not be fitted, with the reason; the others go on. With several
+    // species (`--all`) a failure is said when it happens and listed again at the end.
+    let batch = jobs.len() > 1;
+    let mut not_fitted: Vec<(usize, anyhow::Error)> = Vec::new();
+    let mut give_up = |j: usize, e: anyhow::Error| {
+        if batch {
+            eprintln!("{}: not fitted: {e:#}", jobs[j].species);
+        }
+        not_fitted.push((j, e));
+    };
+    let mut skip = Vec::new();
+    for (j, why) in unfit.into_iter().enumerate() {
+        skip.push(why.is_some());
+        if let Some(e) = why {
+            give_up(j, e);
+        }
+    }
+    for (j, ((job, inputs), floor_notes)) in jobs.iter().zip(&loaded).zip(&floor_notes).enumerate()
+    {
+        if skip[j] {
+            continue;
+        }
         // What inspect would say about the data (duplicates, a radians warning) is said
         // before the fit, which may take long or fail because of it.
         for n in inputs.notes.iter().chain(floor_notes) {
@@ -241,7 +286,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         };
         let res = fit_loaded(job, inputs, &opts, &load, Some(&say));
         bar.finish_and_clear();
-        let (_, sums) = res.with_context(|| format!("fitting {}", job.species))?;
+        let sums = match res {
+            Ok((_, sums)) => sums,
+            Err(e) => {
+                give_up(j, e.into());
+                continue;
+            }
+        };
         for s in &sums {
             let o = &s.outcome;
             let ch = if s.channel.is_empty() {
@@ -328,7 +379,29 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         outln!("  wrote {}", job.out.display());
     }
-    Ok(())
+    let mut not_fitted = not_fitted
+        .into_iter()
+        .map(|(j, e)| e.context(format!("fitting {}", jobs[j].species)));
+    match not_fitted.len() {
+        0 => Ok(()),
+        // One job (no --all, or --all over one species): its error as it is.
+        _ if !batch => Err(not_fitted.next().expect("one failure")),
+        n => {
+            // Every failure once more at the end, where a long batch's log is read; the
+            // exit status must not pass the missing fits as success.
+            let list: Vec<String> = not_fitted.map(|e| format!("  {e:#}")).collect();
+            anyhow::bail!(
+                "{n} of {} species not fitted{}:\n{}",
+                jobs.len(),
+                if n < jobs.len() {
+                    " (the others' fit files are written)"
+                } else {
+                    ""
+                },
+                list.join("\n")
+            )
+        }
+    }
 }
 
 /// The parameters of `--profile NAMES` (`all`: every free one), each free and named once.
