@@ -59,3 +59,50 @@ impl Error {
         }
     }
 }
+
+/// A number as messages show it: `{}` at moderate magnitudes, `{:e}` when `|x| >= 1e6` or
+/// `0 < |x| < 1e-4`, where `{}` would spell out every digit (`1e-300` as 300 zeros). Both
+/// are the shortest text that reads back as `x`. Data files keep their own formats.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Num(pub f64);
+
+impl std::fmt::Display for Num {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let a = self.0.abs();
+        if a.is_finite() && (a >= 1e6 || (a > 0.0 && a < 1e-4)) {
+            write!(f, "{:e}", self.0)
+        } else {
+            write!(f, "{}", self.0)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Num;
+
+    #[test]
+    fn num_is_compact_at_extreme_magnitudes_and_reads_back() {
+        for (x, want) in [
+            (0.0, "0"),
+            (-0.0, "-0"),
+            (0.39, "0.39"),
+            (1e-4, "0.0001"),
+            (-123456.5, "-123456.5"),
+            (1e6, "1e6"),
+            (8.600000000000001e11, "8.600000000000001e11"),
+            (-1e-300, "-1e-300"),
+            (5e-324, "5e-324"),
+            (f64::MAX, "1.7976931348623157e308"),
+            (f64::INFINITY, "inf"),
+            (f64::NAN, "NaN"),
+        ] {
+            let s = Num(x).to_string();
+            assert_eq!(s, want);
+            // Exactly the number: no digit is lost to make it short.
+            if !x.is_nan() {
+                assert_eq!(s.parse::<f64>().unwrap().to_bits(), x.to_bits(), "{s}");
+            }
+        }
+    }
+}

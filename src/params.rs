@@ -4,7 +4,7 @@
 //! Inside the library every angle is in radians; files and the command line use degrees.
 //! Lengths (absorption and scattering coefficients) are per unit fiber radius.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Num, Result};
 use serde_json::{Map, Value};
 use std::path::Path;
 
@@ -105,12 +105,12 @@ impl ParamSpec {
         let up = if self.upper.is_infinite() {
             "inf".to_string()
         } else {
-            fmt_num(self.upper)
+            Num(self.upper).to_string()
         };
         format!(
             "{}{}, {}{}",
             if self.lower_open { '(' } else { '[' },
-            fmt_num(self.lower),
+            Num(self.lower),
             up,
             if self.upper_open || self.upper.is_infinite() {
                 ')'
@@ -136,14 +136,6 @@ impl ParamSpec {
         } else {
             v
         }
-    }
-}
-
-fn fmt_num(v: f64) -> String {
-    if v.fract() == 0.0 {
-        format!("{}", v as i64)
-    } else {
-        format!("{v}")
     }
 }
 
@@ -560,7 +552,8 @@ fn check_bound(id: ParamId, v: f64) -> Result<()> {
         Err(Error::Param {
             key: s.name.into(),
             msg: format!(
-                "value {v} is outside its hard bound {}",
+                "value {} is outside its hard bound {}",
+                Num(v),
                 s.bound_with_unit()
             ),
         })
@@ -718,6 +711,14 @@ mod tests {
         v[ParamId::SigmaCA.index()] = f64::NAN;
         let e = FurParams::from_file_units(v).unwrap_err().to_string();
         assert!(e.contains("sigma_c_a") && e.contains("[0, inf)"), "{e}");
+        // Values far from 1 in scientific notation ({} wrote -1e-300 as 300 zeros).
+        let mut v = PRESETS[0].values;
+        v[ParamId::SigmaCA.index()] = -1e-300;
+        let e = FurParams::from_file_units(v).unwrap_err().to_string();
+        assert!(
+            e.contains("value -1e-300 is outside its hard bound [0, inf)"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -165,11 +165,7 @@ fn inspect_applies_conventions_to_csv_and_refuses_unused_axes() {
         ),
         ("--phi", "0", "--phi was given but no input is a lone .npy"),
         // More than a turn is a typo, not a convention (1e17 wrapped to rounding noise).
-        (
-            "--phi-offset",
-            "1e17",
-            "--phi-offset 100000000000000000: must be within",
-        ),
+        ("--phi-offset", "1e17", "--phi-offset 1e17: must be within"),
     ] {
         let (ok, out, err) = run(args(&[opt, val]));
         assert!(!ok && err.contains(needle), "{opt}: {err}");

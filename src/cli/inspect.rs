@@ -4,6 +4,7 @@
 //! printed to stderr and the command exits non-zero if any file failed, or if an axis
 //! option (`--theta-i`, `--theta-r`, `--phi`) was given that no file read.
 
+use crate::error::Num;
 use crate::profile;
 use crate::profile::summary::{AxisStats, Summary, STEPS_PER_DEG};
 use std::path::PathBuf;
@@ -23,18 +24,20 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
         Some(a) => format!(
             "  {name:<8} {} distinct, {} .. {} deg, {}{}",
             a.distinct,
-            a.min,
-            a.max,
+            Num(a.min),
+            Num(a.max),
             match (a.step, a.even) {
                 (None, _) => "step -".into(),
-                (Some(s), true) => format!("step {s} deg"),
-                (Some(s), false) => format!("most common step {s} deg (uneven)"),
+                (Some(s), true) => format!("step {} deg", Num(s)),
+                (Some(s), false) => format!("most common step {} deg (uneven)", Num(s)),
             },
             match a.near_pair {
                 Some((x, y)) => format!(
-                    "; {} near-duplicate pair(s) closer than {:e} deg, e.g. {x} and {y}",
+                    "; {} near-duplicate pair(s) closer than {:e} deg, e.g. {} and {}",
                     a.near_duplicates,
-                    0.5 / STEPS_PER_DEG
+                    0.5 / STEPS_PER_DEG,
+                    Num(x),
+                    Num(y)
                 ),
                 None => String::new(),
             }

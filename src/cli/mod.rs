@@ -69,7 +69,7 @@ impl LoadArgs {
         if !(self.phi_offset.is_finite() && self.phi_offset.abs() <= 360.0) {
             anyhow::bail!(
                 "--phi-offset {}: must be within [-360, 360] degrees",
-                self.phi_offset
+                crate::error::Num(self.phi_offset)
             );
         }
         let grid = |what: &str, g: &Option<String>| -> anyhow::Result<Option<Vec<f64>>> {
@@ -129,7 +129,7 @@ pub fn unit_fraction(s: &str) -> Result<f64, String> {
     if (0.0..1.0).contains(&v) {
         Ok(v)
     } else {
-        Err(format!("{v} is outside [0, 1)"))
+        Err(format!("{} is outside [0, 1)", crate::error::Num(v)))
     }
 }
 
@@ -223,7 +223,10 @@ impl FarArgs {
                     .parse()
                     .with_context(|| format!("--tol '{t}' is not a number"))?;
                 if !(v > 0.0 && v < 1.0) {
-                    anyhow::bail!("--tol must be in (0, 1) or 'none', got {v}");
+                    anyhow::bail!(
+                        "--tol must be in (0, 1) or 'none', got {}",
+                        crate::error::Num(v)
+                    );
                 }
                 Some(v)
             };
@@ -238,7 +241,8 @@ impl FarArgs {
                     .with_context(|| format!("--scattered-step '{t}' is not a number"))?;
                 if !(v > 0.0 && v <= 1.0) {
                     anyhow::bail!(
-                        "--scattered-step must be in (0, 1] radians or 'strict', got {v}"
+                        "--scattered-step must be in (0, 1] radians or 'strict', got {}",
+                        crate::error::Num(v)
                     );
                 }
                 v

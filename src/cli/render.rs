@@ -157,21 +157,27 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
     if !radiance(&a.light_intensity) {
         bail!(
             "--light-intensity must be in 0..={MAX_RADIANCE:e}, got {}",
-            a.light_intensity
+            crate::error::Num(a.light_intensity)
         );
     }
     let ev = output::MAX_EXPOSURE_EV;
     if !(-ev..=ev).contains(&a.exposure) {
         bail!(
             "--exposure must be in -{ev}..={ev} stops, got {}",
-            a.exposure
+            crate::error::Num(a.exposure)
         );
     }
     if !(a.cam_dist > 0.0 && a.cam_dist.is_finite()) {
-        bail!("--cam-dist must be a finite number > 0, got {}", a.cam_dist);
+        bail!(
+            "--cam-dist must be a finite number > 0, got {}",
+            crate::error::Num(a.cam_dist)
+        );
     }
     if !(a.fov > 0.0 && a.fov < 170.0) {
-        bail!("--fov must be in (0, 170) degrees, got {}", a.fov);
+        bail!(
+            "--fov must be in (0, 170) degrees, got {}",
+            crate::error::Num(a.fov)
+        );
     }
     if !(a.cam_elev.is_finite() && a.cam_azim.is_finite()) {
         bail!("--cam-elev and --cam-azim must be finite");
@@ -191,7 +197,10 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
     }
     let footprint_scale = a.footprint_scale.unwrap_or(1.0);
     if !(footprint_scale >= 0.0 && footprint_scale.is_finite()) {
-        bail!("--footprint-scale must be a finite number >= 0, got {footprint_scale}");
+        bail!(
+            "--footprint-scale must be a finite number >= 0, got {}",
+            crate::error::Num(footprint_scale)
+        );
     }
     let mut s = RenderSettings {
         width,

@@ -153,11 +153,14 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         ("--noise-above", a.noise_above),
     ] {
         if !(0.0..1.0).contains(&v) {
-            bail!("{name} {v}: must be in [0, 1)");
+            bail!("{name} {}: must be in [0, 1)", crate::error::Num(v));
         }
     }
     if !(a.wedge >= 0.0 && a.wedge < 90.0) {
-        bail!("--wedge {}: must be in [0, 90) degrees", a.wedge);
+        bail!(
+            "--wedge {}: must be in [0, 90) degrees",
+            crate::error::Num(a.wedge)
+        );
     }
     if !(a.mult_noise >= 0.0 && a.mult_noise.is_finite()) {
         bail!("--mult-noise must be >= 0");
@@ -186,7 +189,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     let mut pilot_info = serde_json::Value::Null;
     if let Some(x) = a.rel_noise {
         if !(x > 0.0 && x < 1.0) {
-            bail!("--rel-noise {x}: must be in (0, 1)");
+            bail!("--rel-noise {}: must be in (0, 1)", crate::error::Num(x));
         }
         let max_paths = a.max_paths.unwrap_or(200_000_000);
         if max_paths == 0 {

@@ -117,18 +117,25 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ("--phi", &phi, 180.0),
     ] {
         if let Some(v) = g.iter().find(|v| v.abs() > lim) {
-            anyhow::bail!("{what}: angle {v} is outside [-{lim}, {lim}] degrees");
+            anyhow::bail!(
+                "{what}: angle {} is outside [-{lim}, {lim}] degrees",
+                crate::error::Num(*v)
+            );
         }
     }
     let kind = ModelKind::parse(&a.model)?;
     let lobes = LobeSet::parse(&a.lobes)?;
     if let Some(k) = a.exposure.filter(|k| !(k.is_finite() && *k > 0.0)) {
-        anyhow::bail!("--exposure must be a finite number > 0, got {k}");
+        anyhow::bail!(
+            "--exposure must be a finite number > 0, got {}",
+            crate::error::Num(k)
+        );
     }
     // A subnormal exposure scales every value to 0 or to a few bits of precision.
     if let Some(k) = a.exposure.filter(|k| *k < f64::MIN_POSITIVE) {
         anyhow::bail!(
-            "--exposure {k} is below {:e}: the values would underflow to 0",
+            "--exposure {} is below {:e}: the values would underflow to 0",
+            crate::error::Num(k),
             f64::MIN_POSITIVE
         );
     }

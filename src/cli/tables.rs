@@ -109,7 +109,10 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
     }
     // A relative L2 error: NaN would never stop the rank search at a good rank.
     if !(a.target_error > 0.0 && a.target_error < 1.0) {
-        anyhow::bail!("--target-error must be in (0, 1), got {}", a.target_error);
+        anyhow::bail!(
+            "--target-error must be in (0, 1), got {}",
+            crate::error::Num(a.target_error)
+        );
     }
     check_out(&a.out)?;
     let mut opts = BuildOptions::standard(a.seed, a.paths);

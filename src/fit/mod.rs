@@ -37,7 +37,7 @@ pub mod reparam;
 pub mod starts;
 pub mod uncertainty;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Num, Result};
 use crate::model::far::FarOptions;
 use crate::params::{FurParams, ParamId, N_PARAMS};
 use crate::profile::Profile;
@@ -129,7 +129,8 @@ impl FitOptions {
             return Err(Error::Param {
                 key: key.into(),
                 msg: format!(
-                    "--fix value {value} is outside its hard bound {}",
+                    "--fix value {} is outside its hard bound {}",
+                    Num(value),
                     id.spec().bound_with_unit()
                 ),
             });
@@ -137,7 +138,11 @@ impl FitOptions {
         if let Some(old) = self.layout.fixed[id.index()] {
             return Err(Error::Param {
                 key: key.into(),
-                msg: format!("fixed twice (--fix {key}={old} and {key}={value})"),
+                msg: format!(
+                    "fixed twice (--fix {key}={} and {key}={})",
+                    Num(old),
+                    Num(value)
+                ),
             });
         }
         self.layout.fixed[id.index()] = Some(value);
@@ -777,7 +782,7 @@ pub fn channel_data(
             let bad = rel.iter().filter(|r| !(r.is_finite() && **r > 0.0)).count();
             let sigma = s
                 .sigma
-                .map_or("no sigma".to_string(), |sg| format!("sigma {sg}"));
+                .map_or("no sigma".to_string(), |sg| format!("sigma {}", Num(sg)));
             let at = profile
                 .origin_of(s)
                 .map(|o| format!(", {o}"))

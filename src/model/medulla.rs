@@ -96,7 +96,7 @@
 //! 0.044 / 0.061: interpolation in `tau` and `g` was then as large as the compression
 //! error, hence the midpoints of the current grid.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Num, Result};
 use std::f64::consts::{FRAC_PI_2, PI};
 use std::path::Path;
 use std::sync::{Arc, OnceLock};
@@ -475,16 +475,18 @@ impl MedullaTables {
         let mut notes = Vec::new();
         if g < g0 || g > g1 {
             notes.push(format!(
-                "g = {g} is outside the medulla tables' g range [{g0}, {g1}]: the scattered \
+                "g = {} is outside the medulla tables' g range [{g0}, {g1}]: the scattered \
                  lobes (TTs, TRTs) use the shape at g = {}",
+                Num(g),
                 g.clamp(g0, g1)
             ));
         }
         if tau > t1 {
             notes.push(format!(
-                "tau = sigma_m_s * kappa = {tau} is above the medulla tables' range [{t0}, {t1}]: \
+                "tau = sigma_m_s * kappa = {} is above the medulla tables' range [{t0}, {t1}]: \
                  the scattered lobes' shape is the one at tau = {t1} (their strength still \
-                 follows tau)"
+                 follows tau)",
+                Num(tau)
             ));
         }
         notes
@@ -1866,6 +1868,14 @@ mod tests {
         assert_eq!(t.domain_notes(1.0, g0 - 0.05).len(), 1);
         let n = t.domain_notes(t1 * 2.0, -0.99);
         assert_eq!(n.len(), 2, "{n:?}");
+        // A huge tau (sigma_m_s = 1e12) in scientific notation, not 12 digits and more.
+        let n = t.domain_notes(1e12 * 0.86, 0.3);
+        assert!(
+            n[0].contains("tau = sigma_m_s * kappa = 8.6e11 is above"),
+            "{n:?}"
+        );
+        let n = t.domain_notes(1.0, -1e300);
+        assert!(n[0].contains("g = -1e300 is outside"), "{n:?}");
     }
 
     #[test]

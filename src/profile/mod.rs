@@ -26,7 +26,7 @@
 //! - a file whose every angle lies within +-3.2 (not all 0) gets a warning note: the values
 //!   look like radians, but files hold degrees ([`radians_warning`]).
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Num, Result};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 
@@ -387,8 +387,9 @@ pub(crate) fn read_phi(name: &str, v: f64, opts: &LoadOptions) -> std::result::R
     let p = if opts.flip_phi { -v } else { v } + opts.phi_offset;
     if !p.is_finite() {
         return Err(format!(
-            "{name} {v} plus the phi offset {} is not finite",
-            opts.phi_offset
+            "{name} {} plus the phi offset {} is not finite",
+            Num(v),
+            Num(opts.phi_offset)
         ));
     }
     Ok(wrap_phi(p))
@@ -887,14 +888,9 @@ pub(crate) fn check_angle(name: &str, v: f64, limit: f64) -> std::result::Result
         return Err(format!("{name} must be a finite angle, found {v}"));
     }
     if v < -limit || v > limit {
-        // 1e300 in scientific notation, not as 301 digits.
-        let shown = if v.abs() < 1e6 {
-            format!("{v}")
-        } else {
-            format!("{v:e}")
-        };
         return Err(format!(
-            "{name} = {shown} deg is out of range [-{limit}, {limit}]"
+            "{name} = {} deg is out of range [-{limit}, {limit}]",
+            Num(v)
         ));
     }
     Ok(v + 0.0)
@@ -944,7 +940,7 @@ pub(crate) fn check_measured(
         if !(s.is_finite() && s >= 0.0) {
             return Err((
                 Field::Sigma,
-                format!("sigma must be finite and >= 0, found {s}"),
+                format!("sigma must be finite and >= 0, found {}", Num(s)),
             ));
         }
     }
@@ -1085,7 +1081,7 @@ pub(crate) fn dedupe_rows(
 
 /// An optional sample field as a message shows it: the number, or "none".
 fn opt_text(v: Option<f64>) -> String {
-    v.map_or_else(|| "none".to_string(), |x| x.to_string())
+    v.map_or_else(|| "none".to_string(), |x| Num(x).to_string())
 }
 
 /// Remove identical duplicate samples (same `theta_i, theta_r, phi, channel` and the same
@@ -1121,7 +1117,7 @@ where
             Some(&i) => {
                 let a = &samples[i];
                 let diff = if !same_f64(a.value, s.value) {
-                    Some(format!("value ({} vs {})", a.value, s.value))
+                    Some(format!("value ({} vs {})", Num(a.value), Num(s.value)))
                 } else if !same_opt(a.sigma, s.sigma) {
                     Some(format!(
                         "sigma ({} vs {})",

@@ -37,7 +37,7 @@ use super::{
     check_angle, convert_theta_r, dedupe_rows, read_phi, split_lines, LoadOptions, Origin, Profile,
     Sample,
 };
-use crate::error::{Error, Result};
+use crate::error::{Error, Num, Result};
 use std::path::Path;
 
 const NAMES: [&str; 3] = ["phi", "theta", "value"];
@@ -81,7 +81,11 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                             return Err(perr(
                                 line,
                                 col,
-                                format!("theta_i {v} contradicts theta_i {old} on line {l0}"),
+                                format!(
+                                    "theta_i {} contradicts theta_i {} on line {l0}",
+                                    Num(v),
+                                    Num(old)
+                                ),
                             ));
                         }
                     }
@@ -169,7 +173,11 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             return Err(perr(
                 l,
                 "theta_i comment".into(),
-                format!("the file says theta_i {f} but --theta-i is {o}"),
+                format!(
+                    "the file says theta_i {} but --theta-i is {}",
+                    Num(f),
+                    Num(o)
+                ),
             ))
         }
         (Some((f, _)), _) => f,

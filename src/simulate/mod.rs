@@ -74,7 +74,7 @@ pub mod optics;
 pub mod output;
 pub mod trace;
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Num, Result};
 use crate::FurParams;
 use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -120,7 +120,10 @@ impl SimSettings {
             ("--phi", &self.phi, 180.0),
         ] {
             if let Some(x) = v.iter().find(|x| x.abs() > lim) {
-                return bad(format!("{what}: {x} is outside [-{lim}, {lim}] degrees"));
+                return bad(format!(
+                    "{what}: {} is outside [-{lim}, {lim}] degrees",
+                    Num(*x)
+                ));
             }
             // Detector bins need sorted centres; incidence angles only need to be distinct.
             if what != "--theta-i" && v.windows(2).any(|w| w[1] <= w[0]) {
@@ -133,16 +136,17 @@ impl SimSettings {
             .iter()
             .find(|x| !seen.insert((*x + 0.0).to_bits()))
         {
-            return bad(format!("--theta-i: {x} is given twice"));
+            return bad(format!("--theta-i: {} is given twice", Num(*x)));
         }
         // A detector bin is as wide as the spacing of its axis's centres (bin_edges), so
         // one centre has no width of its own; refuse it rather than invent one.
         for (what, v) in [("--theta-r", &self.theta_r), ("--phi", &self.phi)] {
             if let [x] = v[..] {
                 return bad(format!(
-                    "{what} has a single value ({x}): detector bins are centred on the grid \
+                    "{what} has a single value ({}): detector bins are centred on the grid \
                      values and as wide as their spacing, so {what} needs at least two values \
-                     (e.g. {what} -1,0,1 gives 0 a 1-degree bin)"
+                     (e.g. {what} -1,0,1 gives 0 a 1-degree bin)",
+                    Num(x)
                 ));
             }
         }
@@ -156,13 +160,14 @@ impl SimSettings {
         if let Some(e) = self.ellipse {
             if !(e.is_finite() && (ELLIPSE_MIN..=1.0).contains(&e)) {
                 return bad(format!(
-                    "--ellipse {e}: the axis ratio (minor/major) must be in [{ELLIPSE_MIN}, 1]"
+                    "--ellipse {}: the axis ratio (minor/major) must be in [{ELLIPSE_MIN}, 1]",
+                    Num(e)
                 ));
             }
         }
         if let Some(m) = self.medulla_eta {
             if !(m.is_finite() && m > 1.0 && m <= 3.0) {
-                return bad(format!("--medulla-eta {m}: must be in (1, 3]"));
+                return bad(format!("--medulla-eta {}: must be in (1, 3]", Num(m)));
             }
         }
         Ok(())
