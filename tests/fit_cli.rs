@@ -1184,7 +1184,7 @@ fn clashing_yan_files_under_one_theta_i_get_the_hint() {
     fails_with(
         o,
         &[
-            "f20.txt line 1: duplicate sample (theta_i 30, theta_r 10, phi 0, channel 0)",
+            "f20.txt line 1: duplicate sample (theta_i 30, theta_r 10, phi 0) with",
             "the first copy is in f0.txt line 1;",
             "--theta-i 30 applies to every Yan-2015 file",
         ],

@@ -293,6 +293,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
     let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
     let mut notes = dedupe_rows(
         &mut samples,
+        &channels,
         &raw_phi,
         path,
         opts,
@@ -547,8 +548,9 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.starts_with("t.csv:3: column 4 (value): duplicate sample (theta_i 30, theta_r 10, phi 5, channel 0)")
-                && e.ends_with("first on line 2"),
+            e.starts_with(
+                "t.csv:3: column 4 (value): duplicate sample (theta_i 30, theta_r 10, phi 5) with"
+            ) && e.ends_with("first on line 2"),
             "{e}"
         );
         let (pr, notes) = p("theta_i,theta_r,phi,value\n30,10,0,1\n30,10,360,1\n").unwrap();
@@ -561,6 +563,26 @@ mod tests {
         // A plain repeat says nothing of wrapping.
         let (_, notes) = p("theta_i,theta_r,phi,value\n30,10,5,1\n30,10,5,1\n").unwrap();
         assert!(!notes[0].contains("wrapped"), "{notes:?}");
+    }
+
+    /// A clash names the channel as the file does (`channel r`, not its index 0); a file
+    /// without a `channel` column names none.
+    #[test]
+    fn duplicate_names_the_channel_by_its_name() {
+        let e =
+            p("theta_i,theta_r,phi,value,channel\n0,-60,-30,1,r\n0,-60,-30,1,g\n0,-60,-30,2,r\n")
+                .unwrap_err()
+                .to_string();
+        assert!(
+            e.contains("duplicate sample (theta_i 0, theta_r -60, phi -30, channel r) with a different value (1 vs 2)"),
+            "{e}"
+        );
+        // g is index 1: its name, not the index.
+        let e =
+            p("theta_i,theta_r,phi,value,channel\n0,-60,-30,1,r\n0,-60,-30,1,g\n0,-60,-30,2,g\n")
+                .unwrap_err()
+                .to_string();
+        assert!(e.contains("phi -30, channel g) with"), "{e}");
     }
 
     #[test]

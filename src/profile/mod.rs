@@ -799,7 +799,7 @@ fn merge_with(
     // The dedupe holds the samples; a conflict names its two rows from a copy of the origins.
     let origins: Vec<Origin> = out.samples.iter().map(|s| s.origin).collect();
     let files = out.files.clone();
-    let collapsed = dedupe(&mut out.samples, |c| {
+    let collapsed = dedupe(&mut out.samples, &out.channels, |c| {
         let (a, b) = (origin[c.first], origin[c.repeat]);
         let hint = hint(a, b).map(|h| format!("; {h}")).unwrap_or_default();
         let name = |i: usize, part: usize| {
@@ -998,7 +998,8 @@ pub(crate) struct Conflict {
     pub repeat: usize,
     /// What differs, e.g. `value (1 vs 1.1)`.
     pub diff: String,
-    /// The direction, e.g. `theta_i 30, theta_r 10, phi 0, channel 0`.
+    /// The direction, e.g. `theta_i 30, theta_r 10, phi 0, channel r` (the channel by its
+    /// name; none for the one channel of a profile without names).
     pub at: String,
     /// The direction's phi as stored (both samples' phi, once wrapped).
     pub phi: f64,
@@ -1020,6 +1021,7 @@ impl Conflict {
 /// counted apart, with an example.
 pub(crate) fn dedupe_notes<F>(
     samples: &mut Vec<Sample>,
+    channels: &[String],
     raw_phi: &[f64],
     what: &str,
     conflict: F,
@@ -1027,7 +1029,7 @@ pub(crate) fn dedupe_notes<F>(
 where
     F: Fn(Conflict) -> Error,
 {
-    let pairs = dedupe_pairs(samples, conflict)?;
+    let pairs = dedupe_pairs(samples, channels, conflict)?;
     if pairs.is_empty() {
         return Ok(Vec::new());
     }
@@ -1056,6 +1058,7 @@ where
 /// else on `value_column`.
 pub(crate) fn dedupe_rows(
     samples: &mut Vec<Sample>,
+    channels: &[String],
     raw_phi: &[f64],
     path: &Path,
     opts: &LoadOptions,
@@ -1063,20 +1066,27 @@ pub(crate) fn dedupe_rows(
     value_column: &str,
 ) -> Result<Vec<String>> {
     let lines: Vec<usize> = samples.iter().map(|s| s.origin.line as usize).collect();
-    dedupe_notes(samples, raw_phi, "identical duplicate row(s)", |c| {
-        let (i, j) = (c.first, c.repeat);
-        let first_at = format!("line {}", lines[i]);
-        let (column, msg) = match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts) {
-            Some(m) => (phi_column, m),
-            None => (value_column, format!("{}; first on {first_at}", c.what())),
-        };
-        Error::Parse {
-            file: path.to_path_buf(),
-            line: lines[j],
-            column: column.to_string(),
-            msg,
-        }
-    })
+    dedupe_notes(
+        samples,
+        channels,
+        raw_phi,
+        "identical duplicate row(s)",
+        |c| {
+            let (i, j) = (c.first, c.repeat);
+            let first_at = format!("line {}", lines[i]);
+            let (column, msg) = match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts)
+            {
+                Some(m) => (phi_column, m),
+                None => (value_column, format!("{}; first on {first_at}", c.what())),
+            };
+            Error::Parse {
+                file: path.to_path_buf(),
+                line: lines[j],
+                column: column.to_string(),
+                msg,
+            }
+        },
+    )
 }
 
 /// An optional sample field as a message shows it: the number, or "none".
@@ -1087,16 +1097,24 @@ fn opt_text(v: Option<f64>) -> String {
 /// Remove identical duplicate samples (same `theta_i, theta_r, phi, channel` and the same
 /// value, sigma and phi_i), keeping the first; returns how many were removed. A repeat
 /// with any different field is an error built by `conflict` from the [`Conflict`] (indices
-/// into the original `samples`).
-pub(crate) fn dedupe<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<usize>
+/// into the original `samples`); `channels` are the names of the samples' channel indices.
+pub(crate) fn dedupe<F>(
+    samples: &mut Vec<Sample>,
+    channels: &[String],
+    conflict: F,
+) -> Result<usize>
 where
     F: Fn(Conflict) -> Error,
 {
-    Ok(dedupe_pairs(samples, conflict)?.len())
+    Ok(dedupe_pairs(samples, channels, conflict)?.len())
 }
 
 /// [`dedupe`], returning the `(kept, removed)` index pairs (into the original `samples`).
-fn dedupe_pairs<F>(samples: &mut Vec<Sample>, conflict: F) -> Result<Vec<(usize, usize)>>
+fn dedupe_pairs<F>(
+    samples: &mut Vec<Sample>,
+    channels: &[String],
+    conflict: F,
+) -> Result<Vec<(usize, usize)>>
 where
     F: Fn(Conflict) -> Error,
 {
@@ -1139,8 +1157,16 @@ where
                         repeat: j,
                         diff,
                         at: format!(
-                            "theta_i {}, theta_r {}, phi {}, channel {}",
-                            s.theta_i, s.theta_r, s.phi, s.channel
+                            "theta_i {}, theta_r {}, phi {}{}",
+                            Num(s.theta_i),
+                            Num(s.theta_r),
+                            Num(s.phi),
+                            // The name the file gives; an index would mean nothing to
+                            // the reader (and a merge renumbers them).
+                            channels
+                                .get(s.channel)
+                                .map(|n| format!(", channel {n}"))
+                                .unwrap_or_default()
                         ),
                         phi: s.phi,
                     }));
@@ -1203,6 +1229,33 @@ mod tests {
         );
         let (m, _) = merge(vec![part("a.csv", &[], 0.0), part("b.csv", &[], 5.0)]).unwrap();
         assert_eq!((m.samples.len(), m.channels.len()), (2, 0));
+    }
+
+    /// A clash across a merge names the channel by name: `g` is channel 0 of its own files
+    /// and channel 1 of the merged profile, neither of which the reader can see.
+    #[test]
+    fn merge_conflict_names_the_channel() {
+        let part = |src: &str, channels: &[&str], value: f64| {
+            let mut s = at(0.0, 10.0, 5.0);
+            s.value = value;
+            Profile {
+                samples: vec![s],
+                channels: channels.iter().map(|c| c.to_string()).collect(),
+                source: Some(src.into()),
+                ..Default::default()
+            }
+        };
+        let e = merge(vec![
+            part("r.csv", &["r"], 1.0),
+            part("g1.csv", &["g"], 1.0),
+            part("g2.csv", &["g"], 2.0),
+        ])
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("duplicate sample (theta_i 0, theta_r 10, phi 5, channel g) with"),
+            "{e}"
+        );
     }
 
     /// A clash between two files of a merge names both rows by file and line (the files
@@ -1302,9 +1355,8 @@ mod tests {
         };
         let e = load_dir(d, &opts).unwrap_err().to_string();
         assert!(
-            e.contains(
-                "f20.txt line 1: duplicate sample (theta_i 30, theta_r 10, phi 0, channel 0)"
-            ) && e.contains("first copy is in")
+            e.contains("f20.txt line 1: duplicate sample (theta_i 30, theta_r 10, phi 0) with")
+                && e.contains("first copy is in")
                 && e.contains("f0.txt line 1;")
                 && e.contains("--theta-i 30 applies to every Yan-2015 file"),
             "{e}"

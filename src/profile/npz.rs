@@ -623,7 +623,7 @@ fn grid_to_profile(
     let cell = |k: usize| format!("{:?}", &cells[k][..shape.len()]);
     let raw_phi: Vec<f64> = cells.iter().map(|c| axes.phi_written[c[2]]).collect();
     let what = "grid cell(s) repeating a direction with identical data";
-    let notes = dedupe_notes(&mut samples, &raw_phi, what, |c| {
+    let notes = dedupe_notes(&mut samples, &channels, &raw_phi, what, |c| {
         let (pa, pb) = (cells[c.first][2], cells[c.repeat][2]);
         let pair = format!(" in cells {} and {}", cell(c.first), cell(c.repeat));
         let first_at = format!("element {pa}");
@@ -718,8 +718,16 @@ pub fn to_bytes(profile: &Profile) -> Result<Vec<u8>> {
         let ix = IxDyn(&ix);
         if present[&ix] != 0 {
             return Err(Error::Invalid(format!(
-                "cannot write npz: two samples share the grid cell theta_i {}, theta_r {}, phi {}, channel {}",
-                s.theta_i, s.theta_r, s.phi, s.channel
+                "cannot write npz: two samples share the grid cell theta_i {}, theta_r {}, phi {}{}",
+                s.theta_i,
+                s.theta_r,
+                s.phi,
+                // By name, as a loader's duplicate error names it.
+                profile
+                    .channels
+                    .get(s.channel)
+                    .map(|n| format!(", channel {n}"))
+                    .unwrap_or_default()
             )));
         }
         present[&ix] = 1;
@@ -773,6 +781,25 @@ mod tests {
         hdr.extend((text.len() as u16).to_le_bytes());
         hdr.extend(text.as_bytes());
         hdr
+    }
+
+    /// Two samples in one cell name the channel as the profile does (`g`, not index 1).
+    #[test]
+    fn writing_a_shared_cell_names_the_channel() {
+        let mut g = [sample(0.0, 10.0, 5.0, 1.0), sample(0.0, 10.0, 5.0, 2.0)];
+        for s in &mut g {
+            s.channel = 1;
+        }
+        let p = Profile {
+            samples: [vec![sample(0.0, 10.0, 5.0, 1.0)], g.to_vec()].concat(),
+            channels: vec!["r".into(), "g".into()],
+            ..Default::default()
+        };
+        let e = to_bytes(&p).unwrap_err().to_string();
+        assert!(
+            e.ends_with("share the grid cell theta_i 0, theta_r 10, phi 5, channel g"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -192,7 +192,15 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     for s in &mut samples {
         s.theta_i = theta_i;
     }
-    let mut notes = dedupe_rows(&mut samples, &raw_phi, path, opts, &label(0), &label(2))?;
+    let mut notes = dedupe_rows(
+        &mut samples,
+        &[],
+        &raw_phi,
+        path,
+        opts,
+        &label(0),
+        &label(2),
+    )?;
     notes.extend(label_notes);
     Ok((
         Profile {
