@@ -1,5 +1,5 @@
-//! `reports/model_vs_simulation.md`: how well the far-field model describes the virtual
-//! goniometer's output. Per species folder with a `metadata.json` holding the TRUE
+//! `reports/model_vs_simulation.md`: how well the far-field model describes the data (for
+//! the shipped species, the virtual goniometer's output). Per species folder with a `metadata.json` holding the TRUE
 //! parameters (`params`), the NRMSE of the far-field model at those parameters against the
 //! simulated profile (with its optimal exposure), the NRMSE of our fit, and fitted vs true
 //! parameters side by side. The simulator is an independent 3-D Monte Carlo, so a large
@@ -121,6 +121,23 @@ impl Entry {
     }
 }
 
+/// What the compared data are, from the rows' own labels (a folder of lab data read by
+/// `report` is not simulated); empty when nothing was compared.
+fn data_clause(entries: &[Entry]) -> &'static str {
+    let n_syn = entries.iter().filter(|e| e.synthetic).count();
+    if entries.is_empty() {
+        ""
+    } else if n_syn == entries.len() {
+        "; the data compared here are SYNTHETIC (simulated profiles, labelled synthetic in \
+         their files or their folder's `metadata.json`), not measurements"
+    } else if n_syn == 0 {
+        "; the data compared here are measured (none is labelled synthetic)"
+    } else {
+        "; the data compared here are a MIX of SYNTHETIC (simulated) and measured profiles \
+         (the `data` column says which)"
+    }
+}
+
 /// The Markdown report; `unusable` lists the species folders whose true parameters or data
 /// could not be read, with why.
 pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
@@ -128,8 +145,7 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
     let _ = writeln!(
         s,
         "Data: each species folder whose `metadata.json` records the true parameters \
-         (`params`); the shipped `measurements/` are SYNTHETIC profiles from the independent \
-         Monte Carlo virtual goniometer, and each row says what its data are. \
+         (`params`){}, and each row says what its data are. \
          \"NRMSE at truth\" evaluates the far-field model (tolerance mode, 1e-4 of each \
          lobe's peak, as `furfit fit` uses by default) at the TRUE \
          parameters with the optimal exposure: it is the model's own error against these \
@@ -139,7 +155,8 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
          folder's current data. SE is the fit's linearised standard error, s^2 (J^T J)^-1: it assumes \
          independent residuals, but here they are mostly model error, correlated between \
          neighbouring samples, so it understates the real spread, most on shallow \
-         directions (equally good fits can differ by more than one SE there).\n"
+         directions (equally good fits can differ by more than one SE there).\n",
+        data_clause(entries)
     );
     for (species, why) in unusable {
         let _ = writeln!(s, "- {species}: not compared: {why}");
@@ -287,5 +304,48 @@ mod tests {
         );
         assert!(md.contains("Fit not shown: changed"), "{md}");
         assert!(md.contains("Data: SYNTHETIC (synthetic, noisy)"), "{md}");
+    }
+
+    /// The introduction says what the rows' data are: lab data are not called the
+    /// virtual goniometer's synthetic profiles (the wording was fixed).
+    #[test]
+    fn markdown_describes_the_data_it_read() {
+        let entry = |species: &str, synthetic: bool| Entry {
+            species: species.into(),
+            channel: None,
+            synthetic,
+            data: "x".into(),
+            truth: FurParams::preset("cat").unwrap(),
+            nrmse_truth: 0.01,
+            exposure_truth: 1.0,
+            n_valid: 10,
+            fit: None,
+            fit_note: None,
+        };
+        let intro = |entries: &[Entry]| {
+            let md = markdown(entries, &[]);
+            assert!(!md.contains("goniometer"), "{md}");
+            md.lines().nth(2).unwrap().to_string()
+        };
+        let lab = intro(&[entry("lab", false)]);
+        assert!(
+            lab.contains(
+                "(`params`); the data compared here are measured (none is labelled synthetic), and"
+            ),
+            "{lab}"
+        );
+        assert!(!lab.contains("SYNTHETIC"), "{lab}");
+        let sim = intro(&[entry("a", true), entry("b", true)]);
+        assert!(
+            sim.contains("the data compared here are SYNTHETIC (simulated profiles"),
+            "{sim}"
+        );
+        let mix = intro(&[entry("a", true), entry("lab", false)]);
+        assert!(
+            mix.contains("a MIX of SYNTHETIC (simulated) and measured"),
+            "{mix}"
+        );
+        let none = intro(&[]);
+        assert!(none.contains("(`params`), and each row"), "{none}");
     }
 }
