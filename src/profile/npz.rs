@@ -16,8 +16,8 @@
 //! float32 arrays are accepted too and widened to float64; the three axes may also be any
 //! integer dtype (NumPy's `np.array([0, 15, 30])` is int64), converted to float64.
 //!
-//! A cell is a sample when `present` is non-zero; without `present`, when `value` is not
-//! NaN. A sample's value, sigma and phi_i (NaN decoded as "none" for the latter two) obey
+//! A cell is a sample when `present` is 1 (any value but 0 and 1 is an error naming the
+//! first such cell's index); without `present`, when `value` is not NaN. A sample's value, sigma and phi_i (NaN decoded as "none" for the latter two) obey
 //! the CSV reader's rules ([`super::check_measured`]): an infinite `value`, a negative or
 //! infinite `sigma` or an infinite `phi_i` is an error naming the array and the cell's
 //! index; only cells that are samples are checked. The `present` mask is what lets a sparse CSV profile, including its invalid NaN
@@ -324,7 +324,22 @@ pub fn parse_npz_with(
     )?;
     let value = read_float(&va, path, "value")?;
     let present = match entry(&mut zip, path, "present")? {
-        Some(b) => Some(read_bytes_array(&b, path, "present")?),
+        Some(b) => {
+            let m = read_bytes_array(&b, path, "present")?;
+            // A mask holds 1 (a sample) or 0 (none); another value (255, a count) means the
+            // array is not one, and reading it as "a sample" would hide that.
+            if let Some((ix, v)) = m.indexed_iter().find(|(_, &v)| v > 1) {
+                return Err(arr_err(
+                    path,
+                    "present",
+                    format!(
+                        "index {:?}: {v} is neither 1 (a sample) nor 0 (none)",
+                        ix.slice()
+                    ),
+                ));
+            }
+            Some(m)
+        }
         None => None,
     };
     let sigma = match entry(&mut zip, path, "sigma")? {
@@ -904,6 +919,32 @@ mod tests {
         let v = ArrayD::from_shape_vec(IxDyn(shape), (0..n).map(f).collect()).unwrap();
         w.add_array("value", &v).unwrap();
         w.finish().unwrap().into_inner()
+    }
+
+    /// `present` holds only 1 (a sample) and 0 (none): a 2 is an error naming the array,
+    /// the first such cell (in index order) and the value, not a silent "present".
+    #[test]
+    fn present_other_than_0_or_1_is_an_error() {
+        let with_present = |mask: &[u8]| {
+            let mut w = NpzWriter::new(Cursor::new(Vec::new()));
+            w.add_array("theta_i", &ndarray::arr1(&[0.0])).unwrap();
+            w.add_array("theta_r", &ndarray::arr1(&[10.0, 20.0]))
+                .unwrap();
+            w.add_array("phi", &ndarray::arr1(&[0.0, 5.0])).unwrap();
+            let shape = IxDyn(&[1, 2, 2]);
+            let v = ArrayD::from_shape_vec(shape.clone(), vec![1.0; 4]).unwrap();
+            w.add_array("value", &v).unwrap();
+            let m = ArrayD::from_shape_vec(shape, mask.to_vec()).unwrap();
+            w.add_array("present", &m).unwrap();
+            parse_npz(&w.finish().unwrap().into_inner(), Path::new("m.npz"))
+        };
+        let e = with_present(&[1, 0, 2, 255]).unwrap_err().to_string();
+        assert_eq!(
+            e,
+            "m.npz: array 'present': index [0, 1, 0]: 2 is neither 1 (a sample) nor 0 (none)"
+        );
+        let (p, _) = with_present(&[1, 0, 0, 1]).unwrap();
+        assert_eq!(p.samples.len(), 2);
     }
 
     /// `np.arange(0, 360, 5.)` as the phi axis reads (element 37, 185, was "out of
