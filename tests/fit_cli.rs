@@ -1332,6 +1332,7 @@ fn fit_notes_parameters_beyond_the_medulla_tables() {
                 .contains("use the shape at g = 0.95"));
         }
     }
+}
 
 /// A species that cannot be fitted (here every value `?`: no valid sample) does not stop
 /// `fit --all`: the species after it are fitted, and the run ends listing every species
