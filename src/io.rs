@@ -393,18 +393,22 @@ pub fn check_replaceable(paths: &[PathBuf], force: bool) -> Result<()> {
         let dir = parent_dir(p);
         let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
         let ledger = read_ledger(&dir)?;
-        let recorded = name
-            .as_deref()
-            .and_then(|n| ledger.get(n))
-            .and_then(|v| v.as_str());
+        // A digest, or the two an interrupted write_output left (before and after).
+        let recorded: Option<Vec<&str>> =
+            name.as_deref()
+                .and_then(|n| ledger.get(n))
+                .map(|v| match v.as_array() {
+                    Some(a) => a.iter().filter_map(|h| h.as_str()).collect(),
+                    None => v.as_str().into_iter().collect(),
+                });
         let why = match recorded {
             None => format!(
                 "exists and was not written by furfit (it is not in {})",
                 dir.join(LEDGER).display()
             ),
-            Some(h) => {
+            Some(hashes) => {
                 let bytes = std::fs::read(p).map_err(|e| Error::io(p, e))?;
-                if sha256_hex(&bytes) == h {
+                if hashes.contains(&sha256_hex(&bytes).as_str()) {
                     continue;
                 }
                 "was changed since furfit wrote it".to_string()
@@ -446,6 +450,31 @@ fn remove_stale_siblings(path: &Path) {
     }
 }
 
+/// [`write_atomic`] an output of a ledger-keeping command and record it in its folder's
+/// [`LEDGER`] at once: a run stopped after it (an error, Ctrl-C) leaves it listed as
+/// furfit's, so the next run replaces it without --force.
+pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = write_temp(path, |w| w.write_all(bytes))?;
+    let new = serde_json::Value::from(sha256_hex(bytes));
+    // Until the rename the ledger accepts the content in place as well as the new one, so
+    // a kill at any point leaves the file listed with what it holds.
+    let entry = match std::fs::read(path) {
+        Ok(old) => serde_json::json!([sha256_hex(&old), new]),
+        Err(_) => new.clone(),
+    };
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+    let dir = parent_dir(path);
+    if let Some(name) = &name {
+        update_ledger(&dir, vec![(name.clone(), entry)])?;
+    }
+    commit(&tmp, path)?;
+    remove_stale_siblings(path);
+    match name {
+        Some(name) => update_ledger(&dir, vec![(name, new)]),
+        None => Ok(()),
+    }
+}
+
 /// Record `paths` (just written by furfit) with their content in their directories'
 /// [`LEDGER`]s (each written atomically), and remove what an interrupted earlier run left
 /// of them ([`remove_stale_siblings`]).
@@ -453,40 +482,50 @@ pub fn record_outputs(paths: &[PathBuf]) -> Result<()> {
     for p in paths {
         remove_stale_siblings(p);
     }
-    let mut by_dir: std::collections::BTreeMap<PathBuf, Vec<&PathBuf>> = Default::default();
+    let mut by_dir: std::collections::BTreeMap<PathBuf, Vec<(String, serde_json::Value)>> =
+        Default::default();
     for p in paths {
-        by_dir.entry(parent_dir(p)).or_default().push(p);
+        let Some(name) = p.file_name().map(|n| n.to_string_lossy().into_owned()) else {
+            continue;
+        };
+        let bytes = std::fs::read(p).map_err(|e| Error::io(p, e))?;
+        by_dir
+            .entry(parent_dir(p))
+            .or_default()
+            .push((name, serde_json::Value::from(sha256_hex(&bytes))));
     }
-    for (dir, files) in by_dir {
-        // Two furfit runs writing into one folder at once would each read the ledger, add
-        // their files and write it back, the later dropping the earlier's entries: the
-        // read-modify-write holds an exclusive lock on a file beside it (released when
-        // the handle drops, also if the process dies).
-        let lock_path = dir.join(LEDGER_LOCK);
-        let lock = std::fs::OpenOptions::new()
-            .create(true)
-            .truncate(false)
-            .write(true)
-            .open(&lock_path)
-            .map_err(|e| Error::io(&lock_path, e))?;
-        lock.lock().map_err(|e| Error::io(&lock_path, e))?;
-        // A ledger that is not one (hand-edited) is replaced: it protects nothing then.
-        let mut ledger = read_ledger(&dir).unwrap_or_default();
-        for p in files {
-            let Some(name) = p.file_name().map(|n| n.to_string_lossy().into_owned()) else {
-                continue;
-            };
-            let bytes = std::fs::read(p).map_err(|e| Error::io(p, e))?;
-            ledger.insert(name, serde_json::Value::from(sha256_hex(&bytes)));
-        }
-        let v = serde_json::json!({
-            "note": "files furfit wrote here, with the SHA-256 of their content: furfit replaces an existing file only if it is listed here unchanged (or with --force)",
-            "files": ledger,
-        });
-        let text = serde_json::to_string_pretty(&v).expect("JSON of strings") + "\n";
-        write_atomic(&dir.join(LEDGER), text.as_bytes())?;
+    for (dir, entries) in by_dir {
+        update_ledger(&dir, entries)?;
     }
     Ok(())
+}
+
+/// Set `entries` (file name, digest or digests) in `dir`'s [`LEDGER`], written atomically
+/// under the lock beside it.
+fn update_ledger(dir: &Path, entries: Vec<(String, serde_json::Value)>) -> Result<()> {
+    // Two furfit runs writing into one folder at once would each read the ledger, add
+    // their files and write it back, the later dropping the earlier's entries: the
+    // read-modify-write holds an exclusive lock on a file beside it (released when the
+    // handle drops, also if the process dies).
+    let lock_path = dir.join(LEDGER_LOCK);
+    let lock = std::fs::OpenOptions::new()
+        .create(true)
+        .truncate(false)
+        .write(true)
+        .open(&lock_path)
+        .map_err(|e| Error::io(&lock_path, e))?;
+    lock.lock().map_err(|e| Error::io(&lock_path, e))?;
+    // A ledger that is not one (hand-edited) is replaced: it protects nothing then.
+    let mut ledger = read_ledger(dir).unwrap_or_default();
+    for (name, digest) in entries {
+        ledger.insert(name, digest);
+    }
+    let v = serde_json::json!({
+        "note": "files furfit wrote here, with the SHA-256 of their content: furfit replaces an existing file only if it is listed here unchanged (or with --force)",
+        "files": ledger,
+    });
+    let text = serde_json::to_string_pretty(&v).expect("JSON of strings") + "\n";
+    write_atomic(&dir.join(LEDGER), text.as_bytes())
 }
 
 #[cfg(test)]

@@ -409,12 +409,12 @@ pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::pa
     }
     let bytes = std::fs::read(&tmp_png).map_err(|e| Error::io(&tmp_png, e))?;
     let _ = std::fs::remove_file(&tmp_png);
-    crate::io::write_atomic(&png, &bytes)?;
+    crate::io::write_output(&png, &bytes)?;
     let mut svg_text = String::new();
     {
         let root = SVGBackend::with_string(&mut svg_text, size).into_drawing_area();
         draw(root, &name, &sls, fit.nrmse, fit.synthetic).map_err(plot_err(&svg))?;
     }
-    crate::io::write_atomic(&svg, svg_text.as_bytes())?;
+    crate::io::write_output(&svg, svg_text.as_bytes())?;
     Ok(vec![png, svg])
 }

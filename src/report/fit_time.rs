@@ -100,7 +100,7 @@ fn draw<DB: DrawingBackend>(
 /// Write the CSV, PNG and SVG into `out`.
 pub fn write(fits: &[FitFile], out: &Path) -> Result<()> {
     ensure_font();
-    crate::io::write_atomic(&out.join("fit_error_vs_time.csv"), csv(fits).as_bytes())?;
+    crate::io::write_output(&out.join("fit_error_vs_time.csv"), csv(fits).as_bytes())?;
     let size = (1400u32, 560u32);
     let png = out.join("fit_error_vs_time.png");
     let tmp = out.join(".fit_error_vs_time.tmp.png");
@@ -110,11 +110,11 @@ pub fn write(fits: &[FitFile], out: &Path) -> Result<()> {
     }
     let bytes = std::fs::read(&tmp).map_err(|e| Error::io(&tmp, e))?;
     let _ = std::fs::remove_file(&tmp);
-    crate::io::write_atomic(&png, &bytes)?;
+    crate::io::write_output(&png, &bytes)?;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
         draw(root, fits).map_err(|e| Error::file(out, format!("plotting failed: {e:?}")))?;
     }
-    crate::io::write_atomic(&out.join("fit_error_vs_time.svg"), svg.as_bytes())
+    crate::io::write_output(&out.join("fit_error_vs_time.svg"), svg.as_bytes())
 }

@@ -506,8 +506,8 @@ pub fn csv(fits: &[FitFile]) -> String {
 
 /// Write `nrmse.md` and `nrmse.csv` into `out`.
 pub fn write(fits: &[FitFile], out: &Path) -> Result<()> {
-    crate::io::write_atomic(&out.join("nrmse.md"), markdown(fits).as_bytes())?;
-    crate::io::write_atomic(&out.join("nrmse.csv"), csv(fits).as_bytes())
+    crate::io::write_output(&out.join("nrmse.md"), markdown(fits).as_bytes())?;
+    crate::io::write_output(&out.join("nrmse.csv"), csv(fits).as_bytes())
 }
 
 /// What [`write_fit_reports`] wrote and what it had to skip.
@@ -548,15 +548,12 @@ pub fn write_fit_reports(
 }
 
 impl ReportSummary {
-    /// List files just written, in the summary and at once in their folder's ledger: a run
-    /// stopped part-way (an error, Ctrl-C) leaves every file it wrote recorded as furfit's,
-    /// so the next run replaces them without --force (an existing file it did not reach
-    /// stays as the ledger had it).
-    fn landed(&mut self, paths: impl IntoIterator<Item = PathBuf>) -> Result<()> {
-        let paths: Vec<PathBuf> = paths.into_iter().collect();
-        crate::io::record_outputs(&paths)?;
+    /// List files just written (each already in its folder's ledger: the report writers
+    /// use [`crate::io::write_output`], so a run stopped part-way leaves every file it
+    /// wrote recorded as furfit's; an existing file it did not reach stays as the ledger
+    /// had it).
+    fn landed(&mut self, paths: impl IntoIterator<Item = PathBuf>) {
         self.written.extend(paths);
-        Ok(())
     }
 }
 
@@ -581,12 +578,12 @@ fn write_planned(
     }
     let fits = fits.as_slice();
     write(fits, out)?;
-    sum.landed(["nrmse.md", "nrmse.csv"].map(|n| out.join(n)))?;
+    sum.landed(["nrmse.md", "nrmse.csv"].map(|n| out.join(n)));
     fit_time::write(fits, out)?;
-    sum.landed(["csv", "png", "svg"].map(|e| out.join(format!("fit_error_vs_time.{e}"))))?;
+    sum.landed(["csv", "png", "svg"].map(|e| out.join(format!("fit_error_vs_time.{e}"))));
     for (f, d) in fits.iter().zip(data) {
         match d.and_then(|p| fig11::write(f, &p, out)) {
-            Ok(paths) => sum.landed(paths)?,
+            Ok(paths) => sum.landed(paths),
             Err(e) => sum.skipped.push((f.label(), format!("fig11: {e}"))),
         }
     }
@@ -665,8 +662,9 @@ fn write_planned(
         }
     }
     let p = out.join("model_vs_simulation.md");
-    crate::io::write_atomic(&p, model_vs_sim::markdown(&entries, &unusable).as_bytes())?;
-    sum.landed([p])
+    crate::io::write_output(&p, model_vs_sim::markdown(&entries, &unusable).as_bytes())?;
+    sum.landed([p]);
+    Ok(())
 }
 
 #[cfg(test)]
