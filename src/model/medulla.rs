@@ -626,6 +626,14 @@ pub fn front_back_lerp(front: f64, back: f64, phi: f64) -> f64 {
 }
 
 /// Analytic probability that a chord at offset `x` scatters at least once.
+///
+/// The chord is the cross-section's (`theta = 0`), as the seed's `C^N` tables are built:
+/// MODEL.md parameterises `C^N` by `tau` alone. The unscattered medulla transmittance
+/// `T_m` uses the tilted path (`/ cos theta_d`, MODEL.md), so at `theta_d != 0`
+/// `T_m + P_s < 1` and TTs/TRTs are weaker than an energy balance would make them (for a
+/// thin medulla up to 20-30 % at `theta_d` 45-60 degrees; under 2 % when the medulla is
+/// optically thick, as for the red fox). Kept as the spec and the seed have it; using
+/// `tau sqrt(1 - x^2) / cos theta_d` here would be the consistent alternative.
 #[inline]
 pub fn scatter_probability(tau: f64, x: f64) -> f64 {
     let half = (1.0 - x * x).max(0.0).sqrt();
