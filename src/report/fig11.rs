@@ -266,18 +266,15 @@ fn lobe_panel<DB: DrawingBackend>(
         .draw()?;
     let colors = [RED, BLUE, GREEN, MAGENTA, CYAN];
     for (li, lobe) in Lobe::ALL.iter().enumerate() {
-        let pts: Vec<(f64, f64)> = row
-            .iter()
-            .map(|(p, _, l)| (*p, l[li].log10()))
-            .filter(|(_, y)| y.is_finite() && *y >= lo)
-            .collect();
-        if pts.is_empty() {
-            continue;
-        }
+        let runs = visible_runs(row.iter().map(|(p, _, l)| (*p, l[li].log10())), lo);
         let c = colors[li];
-        ch.draw_series(LineSeries::new(pts, c.stroke_width(1)))?
-            .label(lobe.name())
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], c));
+        for (k, pts) in runs.into_iter().enumerate() {
+            let s = ch.draw_series(LineSeries::new(pts, c.stroke_width(1)))?;
+            if k == 0 {
+                s.label(lobe.name())
+                    .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], c));
+            }
+        }
     }
     let total: Vec<(f64, f64)> = row
         .iter()
@@ -381,6 +378,22 @@ pub fn outputs(fit: &FitFile, out: &Path) -> [std::path::PathBuf; 2] {
     ["png", "svg"].map(|e| out.join(format!("fig11_{name}.{e}")))
 }
 
+/// The runs of consecutive points a log plot can show (finite, at least `lo`): a lobe that
+/// is exactly 0 over a range of `phi` (TT in front of a thick fiber) leaves a gap, where
+/// one line through all shown points drew a flat segment at the axis floor instead.
+fn visible_runs(pts: impl Iterator<Item = (f64, f64)>, lo: f64) -> Vec<Vec<(f64, f64)>> {
+    let mut runs: Vec<Vec<(f64, f64)>> = vec![Vec::new()];
+    for (x, y) in pts {
+        if y.is_finite() && y >= lo {
+            runs.last_mut().expect("never empty").push((x, y));
+        } else if !runs.last().expect("never empty").is_empty() {
+            runs.push(Vec::new());
+        }
+    }
+    runs.retain(|r| !r.is_empty());
+    runs
+}
+
 pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::path::PathBuf>> {
     ensure_font();
     let channel = profile
@@ -417,4 +430,34 @@ pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::pa
     }
     crate::io::write_output(&svg, svg_text.as_bytes())?;
     Ok(vec![png, svg])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::visible_runs;
+
+    /// Zeros (log10 = -inf) and values under the floor split a lobe's line instead of being
+    /// bridged by a segment along the floor.
+    #[test]
+    fn runs_break_at_zeros_and_under_the_floor() {
+        let ys = [
+            0.0,
+            f64::NEG_INFINITY,
+            f64::NEG_INFINITY,
+            -1.0,
+            -9.0,
+            -2.0,
+            -3.0,
+        ];
+        let runs = visible_runs(ys.iter().enumerate().map(|(i, y)| (i as f64, *y)), -5.0);
+        assert_eq!(
+            runs,
+            vec![
+                vec![(0.0, 0.0)],
+                vec![(3.0, -1.0)],
+                vec![(5.0, -2.0), (6.0, -3.0)]
+            ]
+        );
+        assert!(visible_runs(std::iter::once((0.0, f64::NAN)), -5.0).is_empty());
+    }
 }
