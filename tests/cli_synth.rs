@@ -519,18 +519,23 @@ fn synth_refuses_an_exposure_that_overflows() {
     assert!(!out.exists());
 }
 
+/// A parameter file `p.json` in `dir` holding `json`.
+fn params_file(dir: &std::path::Path, json: &str) -> std::path::PathBuf {
+    let p = dir.join("p.json");
+    std::fs::write(&p, json).unwrap();
+    p
+}
+
 /// A value the model itself gives below the normal range (TRT's far tail under heavy
 /// absorption: ~4e-320 at theta_i -80, theta_r -85) is written as it is at exposure 1; it
 /// was refused as an exposure underflow. It loads back as a valid sample.
 #[test]
 fn synth_writes_the_models_own_subnormal_values() {
     let dir = tempfile::tempdir().unwrap();
-    let params = dir.path().join("p.json");
-    std::fs::write(
-        &params,
+    let params = params_file(
+        dir.path(),
         r#"{"eta":1.05,"kappa":0.999,"alpha":2,"beta_m":3,"beta_n":0.3,"sigma_c_a":30,"sigma_m_s":0.5,"sigma_m_a":20,"g":0.9,"l":5}"#,
-    )
-    .unwrap();
+    );
     let out = dir.path().join("t.csv");
     let o = Command::new(env!("CARGO_BIN_EXE_furfit"))
         .arg("synth")
@@ -590,12 +595,10 @@ fn synth_refuses_an_exposure_that_underflows() {
 #[test]
 fn synth_survives_absorption_near_the_f64_limit() {
     let dir = tempfile::tempdir().unwrap();
-    let params = dir.path().join("p.json");
-    std::fs::write(
-        &params,
+    let params = params_file(
+        dir.path(),
         r#"{"eta":1.49,"kappa":0.86,"alpha":2.64,"beta_m":9.45,"beta_n":17.63,"sigma_c_a":1e300,"sigma_m_s":3.15,"sigma_m_a":0.21,"g":0.79,"l":0.68}"#,
-    )
-    .unwrap();
+    );
     let values = |model: &str| -> Vec<f64> {
         let out = dir.path().join(format!("{model}.csv"));
         let o = Command::new(env!("CARGO_BIN_EXE_furfit"))

@@ -1293,6 +1293,20 @@ impl MedullaSampler {
         }
     }
 
+    /// A uniform variate as the samplers use it: clamped to `[0, 1]`, 0.5 if not finite.
+    fn unit(u: f64) -> f64 {
+        if u.is_finite() {
+            u.clamp(0.0, 1.0)
+        } else {
+            0.5
+        }
+    }
+
+    /// The uniform draw over `range` an empty density falls back to, with its pdf.
+    fn uniform((lo, hi): (f64, f64), u: f64) -> (f64, f64) {
+        (lo + u * (hi - lo), 1.0 / (hi - lo))
+    }
+
     /// Sample a mixture `sum_c w_c p_c` from `u`; returns `(value, pdf)`.
     fn sample_mixture(
         comps: &[(f64, &PlDensity)],
@@ -1301,14 +1315,9 @@ impl MedullaSampler {
         fallback: (f64, f64),
     ) -> (f64, f64) {
         let total: f64 = comps.iter().map(|(w, p)| w * p.mass()).sum();
-        let u = if u.is_finite() {
-            u.clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
+        let u = Self::unit(u);
         if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-            let (lo, hi) = fallback;
-            return (lo + u * (hi - lo), 1.0 / (hi - lo));
+            return Self::uniform(fallback, u);
         }
         let target = u * total;
         let mut acc = 0.0;
@@ -1398,14 +1407,9 @@ impl MedullaSampler {
         let halves = self.cm_col_comps(tr, phi);
         let mass = halves.map(|c| c.iter().map(|(w, p)| w * p.mass()).sum::<f64>());
         let total = mass[0] + mass[1];
-        let u = if u.is_finite() {
-            u.clamp(0.0, 1.0)
-        } else {
-            0.5
-        };
+        let u = Self::unit(u);
         if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
-            let (lo, hi) = INCLINATION_RANGE;
-            return (lo + u * (hi - lo), 1.0 / (hi - lo));
+            return Self::uniform(INCLINATION_RANGE, u);
         }
         // The sign first (by the halves' masses), then |theta_i| within its half.
         let target = u * total;
