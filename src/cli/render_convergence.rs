@@ -123,13 +123,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let rows = culling_study(&s.strand, &params, &s)?;
         let mut md = format!(
             "# Render culling study\n\n`furfit render-convergence --culling-study --params {} \
-             --size {pw}x{ph} --frame {fw}x{fh} --max-spp {}`: multi-scale mode, same seed; \
+             --size {pw}x{ph} --frame {fw}x{fh} --max-spp {}` ({}): multi-scale mode, same seed; \
              RMSE against the unculled image, noise floor = RMSE between two seeds. Culling \
              acts where the far field / multi-scale term is computed: in the per-render \
              table build (`render::ntable`); tracing reads the table either way.\n\n\
              | variant | table build s | tracing s | total s | RMSE vs unculled | noise floor |\n\
              |---|---|---|---|---|---|\n",
-            a.params, a.max_spp
+            a.params,
+            a.max_spp,
+            crate::TOOL_VERSION
         );
         for r in &rows {
             outln!(

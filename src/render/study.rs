@@ -165,8 +165,9 @@ impl Convergence {
     /// Markdown report: the points, the per-mode inefficiency and the speedups; `threads`
     /// is the renders' thread count.
     pub fn to_markdown(&self, command: &str, min_spp: usize, threads: usize) -> String {
+        let version = crate::TOOL_VERSION;
         let mut s = format!(
-            "# Render convergence\n\nCommand: `{command}`\n\nRMSE of the linear image \
+            "# Render convergence\n\nCommand: `{command}` ({version})\n\nRMSE of the linear image \
              against a high-spp reference of the SAME mode (another seed). `seconds` is \
              path-tracing wall time on {threads} thread(s): absolute figures depend on the \
              machine and its load; the ratios are what matter (the modes take turns at each \

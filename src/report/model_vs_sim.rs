@@ -141,7 +141,11 @@ fn data_clause(entries: &[Entry]) -> &'static str {
 /// The Markdown report; `unusable` lists the species folders whose true parameters or data
 /// could not be read, with why.
 pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
-    let mut s = String::from("# Far-field model at the true parameters vs the data\n\n");
+    let mut s = format!(
+        "# Far-field model at the true parameters vs the data\n\nWritten by `furfit report` \
+         ({}).\n\n",
+        crate::TOOL_VERSION
+    );
     let _ = writeln!(
         s,
         "Data: each species folder whose `metadata.json` records the true parameters \
@@ -325,7 +329,7 @@ mod tests {
         let intro = |entries: &[Entry]| {
             let md = markdown(entries, &[]);
             assert!(!md.contains("goniometer"), "{md}");
-            md.lines().nth(2).unwrap().to_string()
+            md.lines().find(|l| l.starts_with("Data:")).unwrap().to_string()
         };
         let lab = intro(&[entry("lab", false)]);
         assert!(

@@ -421,6 +421,7 @@ fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
 pub fn markdown(fits: &[FitFile]) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# Fitted parameters and NRMSE (seed Table 4 layout)\n");
+    let _ = writeln!(s, "Written by `furfit report` ({}).\n", crate::TOOL_VERSION);
     let _ = writeln!(s, "These fits ran on {}.\n", data_label(fits));
     let _ = writeln!(
         s,
