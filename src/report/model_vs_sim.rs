@@ -329,7 +329,10 @@ mod tests {
         let intro = |entries: &[Entry]| {
             let md = markdown(entries, &[]);
             assert!(!md.contains("goniometer"), "{md}");
-            md.lines().find(|l| l.starts_with("Data:")).unwrap().to_string()
+            md.lines()
+                .find(|l| l.starts_with("Data:"))
+                .unwrap()
+                .to_string()
         };
         let lab = intro(&[entry("lab", false)]);
         assert!(
