@@ -548,17 +548,9 @@ pub fn write_fit_reports(
     Ok(sum)
 }
 
-impl ReportSummary {
-    /// List files just written (each already in its folder's ledger: the report writers
-    /// use [`crate::io::write_output`], so a run stopped part-way leaves every file it
-    /// wrote recorded as furfit's; an existing file it did not reach stays as the ledger
-    /// had it).
-    fn landed(&mut self, paths: impl IntoIterator<Item = PathBuf>) {
-        self.written.extend(paths);
-    }
-}
-
-/// Write the planned reports, listing each file in `sum.written` once it is written.
+/// Write the planned reports, listing each file in `sum.written` once it is written. Each
+/// is already in its folder's ledger then ([`crate::io::write_output`]), so a run stopped
+/// part-way leaves every file it wrote recorded as furfit's.
 fn write_planned(
     fits: &[FitFile],
     measurements: &Path,
@@ -579,12 +571,14 @@ fn write_planned(
     }
     let fits = fits.as_slice();
     write(fits, out)?;
-    sum.landed(["nrmse.md", "nrmse.csv"].map(|n| out.join(n)));
+    sum.written
+        .extend(["nrmse.md", "nrmse.csv"].map(|n| out.join(n)));
     fit_time::write(fits, out)?;
-    sum.landed(["csv", "png", "svg"].map(|e| out.join(format!("fit_error_vs_time.{e}"))));
+    sum.written
+        .extend(["csv", "png", "svg"].map(|e| out.join(format!("fit_error_vs_time.{e}"))));
     for (f, d) in fits.iter().zip(data) {
         match d.and_then(|p| fig11::write(f, &p, out)) {
-            Ok(paths) => sum.landed(paths),
+            Ok(paths) => sum.written.extend(paths),
             Err(e) => sum.skipped.push((f.label(), format!("fig11: {e}"))),
         }
     }
@@ -664,7 +658,7 @@ fn write_planned(
     }
     let p = out.join("model_vs_simulation.md");
     crate::io::write_output(&p, model_vs_sim::markdown(&entries, &unusable).as_bytes())?;
-    sum.landed([p]);
+    sum.written.push(p);
     Ok(())
 }
 
