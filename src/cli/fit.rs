@@ -335,6 +335,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     "  warning: the last LM run stopped at --max-iters {} before a convergence test passed: the result may not be the optimum (raise --max-iters)",
                     opts.max_iters
                 );
+            } else if o.uncertainty.step_se > opts.step_se.unwrap_or(f64::INFINITY) {
+                outln!(
+                    "  warning: the local optimum is {:.2} standard errors from the result (converged fits: below {}); the solver ended with \"{}\"",
+                    o.uncertainty.step_se,
+                    opts.step_se.unwrap_or(f64::INFINITY),
+                    o.termination
+                );
             }
             if o.capped_slices.0 > 0 {
                 outln!(

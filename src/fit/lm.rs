@@ -10,7 +10,7 @@
 //!
 //! Termination (besides argmin's `max_iters`): `||J^T r||_inf <= gtol`; an accepted step
 //! with `||delta|| <= xtol (||u|| + xtol)`; the damping exceeding `1e16` (no further
-//! descent possible); and either an accepted step whose relative cost reduction is
+//! descent possible; see below); and either an accepted step whose relative cost reduction is
 //! `<= ftol` or, with [`LevenbergMarquardt::step_se`] set, such a step (progress has
 //! slowed) followed, on a true Jacobian, by a Gauss-Newton step to the local optimum that
 //! moves no coordinate by more than that many of its standard errors.
@@ -23,7 +23,13 @@
 //! direction of `H`, below `1e-10` of the largest, or with a standard error above
 //! [`LevenbergMarquardt::max_se`]) are left out, as the uncertainty estimate flags them:
 //! driven towards a bound through a bounded map, such a coordinate keeps a step of a
-//! fixed size in its (growing) standard error and would never pass.
+//! fixed size in its (growing) standard error and would never pass. Where that test keeps
+//! failing while ten accepted steps together lower `chi^2 = |r|^2 / s^2` by less than
+//! 0.01 ([`STALLED`]), the run stops: what is left is invisible in the data (the cost at
+//! that scale is rough, e.g. from the far field's tolerance-mode refinement). A run whose
+//! damping runs out on a true Jacobian stops converged if the standard-error test passes
+//! there, else with [`DAMPING_EXHAUSTED`]; [`LevenbergMarquardt::last_step_se`] keeps the
+//! last test's value.
 //!
 //! With [`LevenbergMarquardt::broyden`] on, an accepted step updates the Jacobian by
 //! Broyden's rank-one secant formula `J += (r_new - r - J delta) delta^T / |delta|^2`
@@ -33,7 +39,7 @@
 //! the solver only stops on a step computed from a freshly differentiated Jacobian, so
 //! the secant updates change the cost of the path, not where it may end.
 
-use super::uncertainty::{pseudo_inverse, residual_variance, NULL_LOAD};
+use super::uncertainty::{gauss_newton_step_se, residual_variance};
 use argmin::core::{
     Error, IterState, Jacobian, Operator, Problem, Solver, State, TerminationReason,
     TerminationStatus, KV,
@@ -100,7 +106,58 @@ pub struct LevenbergMarquardt {
     fresh: bool,
     /// Did the last accepted step reduce the cost by at most `ftol` (relative)?
     stalled: bool,
+    /// Accepted steps so far.
+    accepted: u64,
+    /// Progress between failed standard-error tests.
+    stall: StallWatch,
+    /// The last standard-error test's Gauss-Newton step, in standard errors.
+    last_step_se: Option<f64>,
 }
+
+/// Watches the progress of a run whose standard-error test keeps failing.
+#[derive(Clone, Debug, Default)]
+struct StallWatch {
+    /// `(accepted steps, cost)` at the start of the current window.
+    from: Option<(u64, f64)>,
+}
+
+impl StallWatch {
+    /// Called at each failed test with the run's accepted-step count, cost and residual
+    /// variance: has a window of [`STALL_STEPS`] accepted steps lowered
+    /// `chi^2 = |r|^2 / s^2` by less than [`STALL_CHI2`] in all? Each full window that
+    /// gained more starts the next one.
+    fn stalled(&mut self, accepted: u64, cost: f64, s2: f64) -> bool {
+        match self.from {
+            Some((k, c0)) if accepted >= k + STALL_STEPS => {
+                if 2.0 * (c0 - cost) < STALL_CHI2 * s2 {
+                    return true;
+                }
+                self.from = Some((accepted, cost));
+            }
+            None => self.from = Some((accepted, cost)),
+            Some(_) => {}
+        }
+        false
+    }
+}
+
+/// Damping beyond which no step is tried.
+const MAX_DAMPING: f64 = 1e16;
+/// Termination reason when the damping grew past [`MAX_DAMPING`] and the standard-error
+/// test (if set) did not pass.
+pub const DAMPING_EXHAUSTED: &str = "damping exhausted (no descent direction left)";
+/// Termination reason of the standard-error test.
+pub const CONVERGED_SE: &str = "Gauss-Newton step below tolerance (standard errors)";
+/// Termination reason of a run the standard-error test could not end: [`STALL_STEPS`]
+/// accepted steps lowered chi^2 by less than [`STALL_CHI2`] (see [`LevenbergMarquardt::last_step_se`]
+/// for how far the optimum of the local model still was).
+pub const STALLED: &str =
+    "stalled: 10 accepted steps lowered chi^2 by < 0.01 before the standard-error test passed";
+/// Accepted steps over which a stall is judged.
+pub const STALL_STEPS: u64 = 10;
+/// Total chi^2 gain below which those steps count as stalled (a hundredth of what moves a
+/// parameter by one standard error).
+pub const STALL_CHI2: f64 = 0.01;
 
 impl LevenbergMarquardt {
     /// A solver whose trace times count from `clock`.
@@ -124,7 +181,16 @@ impl LevenbergMarquardt {
             broyden: false,
             fresh: true,
             stalled: false,
+            accepted: 0,
+            stall: StallWatch::default(),
+            last_step_se: None,
         }
+    }
+
+    /// The Gauss-Newton step of the last standard-error test, in standard errors of the
+    /// determined coordinates (`None` if the test never ran).
+    pub fn last_step_se(&self) -> Option<f64> {
+        self.last_step_se
     }
 
     /// Why the solver stopped on its own, if it did.
@@ -150,6 +216,23 @@ impl LevenbergMarquardt {
         Ok((with_point(state, u, r, jac, grad, cost), None))
     }
 
+    /// Stop once the damping has grown past any use (no step on a true Jacobian lowers
+    /// the cost): converged if the standard-error test (when set) passes there, else
+    /// [`DAMPING_EXHAUSTED`].
+    fn check_exhausted(&mut self, jtj: &DMatrix<f64>, grad: &DVector<f64>, r: &DVector<f64>) {
+        if self.mu <= MAX_DAMPING || !self.fresh {
+            return;
+        }
+        self.converged = Some(DAMPING_EXHAUSTED);
+        if let Some(tol) = self.step_se {
+            let step_se = gauss_newton_step_se(jtj, grad, r, self.max_se);
+            self.last_step_se = Some(step_se);
+            if step_se <= tol {
+                self.converged = Some(CONVERGED_SE);
+            }
+        }
+    }
+
     fn update_scale(&mut self, jtj: &DMatrix<f64>) -> DVector<f64> {
         let d = jtj.diagonal().map(|x| x.max(1e-12));
         let s = match self.scale.take() {
@@ -158,48 +241,6 @@ impl LevenbergMarquardt {
         };
         self.scale = Some(s.clone());
         s
-    }
-}
-
-/// The largest step of a determined coordinate in its own standard errors,
-/// `max_j |delta_j| / SE_j`, for the Gauss-Newton step `delta = -H^+ g` and the linearised
-/// covariance `s^2 H^+` (module doc). Coordinates loading on a singular direction or with
-/// `SE_j > max_se` are not determined by the data and left out (0 when none is left).
-fn gauss_newton_step_se(
-    jtj: &DMatrix<f64>,
-    grad: &DVector<f64>,
-    r: &DVector<f64>,
-    max_se: f64,
-) -> f64 {
-    let p = grad.len();
-    let s2 = residual_variance(r, p);
-    let (pinv, null_load) = pseudo_inverse(jtj);
-    // The determined coordinates, and their Gauss-Newton step with the others held: an
-    // undetermined coordinate's own step (towards a bound, say) drags correlated ones
-    // along in the full step without changing the cost, so only the conditional step
-    // says how far the determined ones are from their optimum.
-    let se: Vec<f64> = (0..p)
-        .map(|j| (s2 * pinv[(j, j)]).max(0.0).sqrt())
-        .collect();
-    let det: Vec<usize> = (0..p)
-        .filter(|&j| null_load[j] <= NULL_LOAD && se[j] <= max_se)
-        .collect();
-    if det.is_empty() {
-        return 0.0;
-    }
-    let h_cc = DMatrix::from_fn(det.len(), det.len(), |a, b| jtj[(det[a], det[b])]);
-    let g_c = DVector::from_fn(det.len(), |a, _| grad[det[a]]);
-    let Some(delta) = h_cc.cholesky().map(|c| -c.solve(&g_c)) else {
-        return f64::INFINITY;
-    };
-    let worst = det
-        .iter()
-        .zip(delta.iter())
-        .fold(0.0f64, |w, (&j, d)| w.max(d.abs() / se[j].max(1e-300)));
-    if worst.is_finite() {
-        worst
-    } else {
-        f64::INFINITY
     }
 }
 
@@ -262,8 +303,15 @@ where
         // with it which coordinates count as determined, is not yet what it will be), on a
         // true Jacobian.
         if let (Some(tol), true, true) = (self.step_se, self.fresh, self.stalled) {
-            if gauss_newton_step_se(&jtj, &grad, &r, self.max_se) <= tol {
-                self.converged = Some("Gauss-Newton step below tolerance (standard errors)");
+            let step_se = gauss_newton_step_se(&jtj, &grad, &r, self.max_se);
+            self.last_step_se = Some(step_se);
+            if step_se <= tol {
+                self.converged = Some(CONVERGED_SE);
+                return Ok((with_point(state, u, r, jac, grad, cost), None));
+            }
+            let s2 = residual_variance(&r, grad.len());
+            if self.stall.stalled(self.accepted, cost, s2) {
+                self.converged = Some(STALLED);
                 return Ok((with_point(state, u, r, jac, grad, cost), None));
             }
         }
@@ -277,6 +325,7 @@ where
             self.mu *= self.nu;
             self.nu *= 2.0;
             self.rejected += 1;
+            self.check_exhausted(&jtj, &grad, &r);
             return Ok((with_point(state, u, r, jac, grad, cost), None));
         };
         let u_new = &u + &delta;
@@ -293,6 +342,7 @@ where
         if rho > 0.0 && cost_new.is_finite() {
             self.mu *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
             self.nu = 2.0;
+            self.accepted += 1;
             self.stalled = cost - cost_new <= self.ftol * cost;
             let converged = if delta.norm() <= self.xtol * (u.norm() + self.xtol) {
                 Some("step below tolerance")
@@ -341,9 +391,7 @@ where
                 // The secant Jacobian may be what failed: differentiate at `u` again.
                 return self.refresh(problem, state, u, r, cost);
             }
-            if self.mu > 1e16 {
-                self.converged = Some("damping exhausted (no descent direction left)");
-            }
+            self.check_exhausted(&jtj, &grad, &r);
             Ok((with_point(state, u, r, jac, grad, cost), None))
         }
     }
@@ -474,10 +522,7 @@ mod tests {
             })
             .run()
             .unwrap();
-        assert_eq!(
-            res.solver.converged_reason(),
-            Some("Gauss-Newton step below tolerance (standard errors)")
-        );
+        assert_eq!(res.solver.converged_reason(), Some(CONVERGED_SE));
         // Accepted steps that barely moved the cost (the ftol test) before the stop: the
         // first gets a true Jacobian and the test; a run that kept secant updates took
         // one after another (23 in a row in a dog fit).
@@ -494,5 +539,27 @@ mod tests {
         let g = j.transpose() * &r;
         let step = gauss_newton_step_se(&(j.transpose() * &j), &g, &r, f64::INFINITY);
         assert!(step <= 0.1, "Gauss-Newton step {step} standard errors");
+    }
+
+    /// The stall rule: ten accepted steps worth < 0.01 chi^2 in all end a run; a window
+    /// that gained more starts the next one; fewer than ten steps never do.
+    #[test]
+    fn stall_watch_needs_ten_steps_without_visible_gain() {
+        let s2 = 2.0; // chi^2 = 2 cost / s2 = cost here
+        let mut w = StallWatch::default();
+        assert!(!w.stalled(3, 100.0, s2));
+        // Nine more steps gaining 0.001 each: window not full yet.
+        assert!(!w.stalled(12, 99.991, s2));
+        // The tenth: 0.010 gained... exactly at the limit is progress, below is not.
+        assert!(!w.stalled(13, 99.99, s2));
+        let mut w = StallWatch::default();
+        assert!(!w.stalled(0, 100.0, s2));
+        assert!(w.stalled(10, 99.995, s2));
+        // A window that gained 0.5 chi^2 restarts from its end.
+        let mut w = StallWatch::default();
+        assert!(!w.stalled(0, 100.0, s2));
+        assert!(!w.stalled(10, 99.5, s2));
+        assert!(!w.stalled(15, 99.499, s2));
+        assert!(w.stalled(20, 99.498, s2));
     }
 }

@@ -95,12 +95,18 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "standard_error": se,
             "unconstrained": unconstrained,
             "fixed": fixed,
-            "method": "linearised: s^2 (J^T J)^-1 in the solver's bounded-map coordinates, mapped to file units by the map's derivative",
+            "method": "linearised: s^2 (J^T J)^+ (pseudo-inverse) in the solver's bounded-map coordinates, mapped to file units by the map's derivative; s^2 = RSS / (n - p - 1) assumes independent residuals, so structured misfit (a model that is not the data's physics) makes these errors too small; --profile gives re-solved intervals",
             "at_bound": unc.at_bound().iter().map(|id| id.spec().name).collect::<Vec<_>>(),
+            // Held at their value by the linearisation (on a bound or a singular
+            // direction): every standard error above is conditional on them, and far too
+            // small if the data favour other values of them.
+            "conditional_on": unc.held().iter().map(|id| id.spec().name).collect::<Vec<_>>(),
             "profile": (!out.profile.is_empty())
                 .then(|| crate::fit::likelihood::to_json(&out.profile, out.profile_time_s)),
         },
-        "correlation": {"keys": keys, "matrix": matrix},
+        // In the solver's coordinates u (log space for the exp-mapped absorptions and
+        // sigma_m_s), where the linearisation is made.
+        "correlation": {"keys": keys, "matrix": matrix, "coordinates": "solver (u)"},
         "solver": {
             "name": "Levenberg-Marquardt (argmin), multi-start",
             "iterations": out.iterations,
@@ -131,6 +137,9 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "model_time_s": out.model_time_s,
             "model_time_share": out.model_time_s / out.wall_time_s.max(1e-12),
             "termination": out.termination,
+            // The local optimum's distance from the result in standard errors (converged:
+            // below the solver's 0.1).
+            "gauss_newton_step_se": num(unc.step_se),
         },
         "data": {
             "files": files,

@@ -72,6 +72,11 @@ pub struct Uncertainty {
     pub correlation: DMatrix<f64>,
     /// Residual variance `s^2 = sum r^2 / (n - p - 1)` (`p` free parameters and the exposure).
     pub s2: f64,
+    /// How far the local optimum of the linearised model is from the result: the largest
+    /// Gauss-Newton step of a determined parameter in its standard errors
+    /// ([`gauss_newton_step_se`], parameters on a bound held). A converged fit has it
+    /// below the solver's `step_se` (0.1).
+    pub step_se: f64,
 }
 
 impl Uncertainty {
@@ -107,13 +112,29 @@ pub fn residual_variance(r: &DVector<f64>, p: usize) -> f64 {
     r.norm_squared() / r.len().saturating_sub(p + 1).max(1) as f64
 }
 
-/// The pseudo-inverse of `J^T J` (`p x p`) over its singular values above `1e-10` of the
-/// largest, and per coordinate its load on the directions left out (the null directions).
-/// `s^2` times it is the linearised covariance; shared by the uncertainty estimate and the
-/// solver's standard-error stop ([`super::lm`]).
+/// The pseudo-inverse of `J^T J` (`p x p`), and per coordinate its load on the directions
+/// left out (the null directions). `s^2` times it is the linearised covariance; shared by
+/// the uncertainty estimate and the solver's standard-error stop ([`super::lm`]).
+///
+/// The cut is made on the scaled matrix `D J^T J D` with `D = diag(J^T J)^(-1/2)` (the
+/// columns' cosine matrix): singular values below `1e-10` of the largest are near-exact
+/// collinearity of columns, whatever the parameters' units or the bounded maps' slopes (an
+/// unscaled cut dropped a column merely because its map's derivative was small). A zero
+/// column is a null direction of its own.
 pub fn pseudo_inverse(jtj: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
     let p = jtj.nrows();
-    let svd = jtj.clone().svd(true, true);
+    let d: Vec<f64> = (0..p)
+        .map(|j| {
+            let h = jtj[(j, j)];
+            if h > 0.0 && h.is_finite() {
+                1.0 / h.sqrt()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let scaled = DMatrix::from_fn(p, p, |i, j| d[i] * jtj[(i, j)] * d[j]);
+    let svd = scaled.svd(true, true);
     let smax = svd.singular_values.max();
     let v_t = svd.v_t.clone().unwrap_or_else(|| DMatrix::identity(p, p));
     let mut pinv = DMatrix::zeros(p, p);
@@ -128,7 +149,61 @@ pub fn pseudo_inverse(jtj: &DMatrix<f64>) -> (DMatrix<f64>, Vec<f64>) {
             }
         }
     }
-    (pinv, null_load)
+    for j in 0..p {
+        if d[j] == 0.0 {
+            // Its scaled row and column are zero: the SVD gives it a null direction of its
+            // own, but say so whatever the ordering of equal (zero) singular values.
+            null_load[j] = 1.0;
+        }
+    }
+    (
+        DMatrix::from_fn(p, p, |i, j| d[i] * pinv[(i, j)] * d[j]),
+        null_load,
+    )
+}
+
+/// The largest step of a determined coordinate in its own standard errors,
+/// `max_j |delta_j| / SE_j`, for the Gauss-Newton step `delta = -H^+ g` (`H = J^T J`,
+/// `g = J^T r`) and the linearised covariance `s^2 H^+`: how far the local optimum of the
+/// linearised model still is, in the statistic a user reads. Coordinates loading on a
+/// singular direction or with `SE_j > max_se` are not determined by the data and left out
+/// (0 when none is left).
+pub fn gauss_newton_step_se(
+    jtj: &DMatrix<f64>,
+    grad: &DVector<f64>,
+    r: &DVector<f64>,
+    max_se: f64,
+) -> f64 {
+    let p = grad.len();
+    let s2 = residual_variance(r, p);
+    let (pinv, null_load) = pseudo_inverse(jtj);
+    // The determined coordinates, and their Gauss-Newton step with the others held: an
+    // undetermined coordinate's own step (towards a bound, say) drags correlated ones
+    // along in the full step without changing the cost, so only the conditional step
+    // says how far the determined ones are from their optimum.
+    let se: Vec<f64> = (0..p)
+        .map(|j| (s2 * pinv[(j, j)]).max(0.0).sqrt())
+        .collect();
+    let det: Vec<usize> = (0..p)
+        .filter(|&j| null_load[j] <= NULL_LOAD && se[j] <= max_se)
+        .collect();
+    if det.is_empty() {
+        return 0.0;
+    }
+    let h_cc = DMatrix::from_fn(det.len(), det.len(), |a, b| jtj[(det[a], det[b])]);
+    let g_c = DVector::from_fn(det.len(), |a, _| grad[det[a]]);
+    let Some(delta) = h_cc.cholesky().map(|c| -c.solve(&g_c)) else {
+        return f64::INFINITY;
+    };
+    let worst = det
+        .iter()
+        .zip(delta.iter())
+        .fold(0.0f64, |w, (&j, d)| w.max(d.abs() / se[j].max(1e-300)));
+    if worst.is_finite() {
+        worst
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// Uncertainty from the Jacobian `jac` (n x p, free parameters) and residuals `r` at `u`.
@@ -150,16 +225,32 @@ pub fn estimate(
             free,
             correlation: DMatrix::zeros(0, 0),
             s2,
+            step_se: 0.0,
         };
     }
-    let (mut cov, null_load) = pseudo_inverse(&(jac.transpose() * jac));
+    // Parameters on their bound are held at it: their columns are dropped, so every other
+    // standard error is conditional on them (as `Why::held` says), however far into the
+    // bound the map has taken them. (Left in, a column whose map's slope had not quite
+    // vanished made the others marginal over it instead.)
+    let bound: Vec<bool> = free
+        .iter()
+        .enumerate()
+        .map(|(j, id)| reparam::at_bound(*id, u[j]))
+        .collect();
+    let mut j_held = jac.clone();
+    for (j, _) in bound.iter().enumerate().filter(|(_, b)| **b) {
+        j_held.column_mut(j).fill(0.0);
+    }
+    let jtj = j_held.transpose() * &j_held;
+    let step_se = gauss_newton_step_se(&jtj, &(j_held.transpose() * r), r, MAX_SE_U);
+    let (mut cov, null_load) = pseudo_inverse(&jtj);
     cov *= s2;
     let mut se = [None; N_PARAMS];
     let mut unconstrained = Vec::new();
     let kappa = layout.file_values(u.as_slice())[ParamId::Kappa.index()];
     for (j, id) in free.iter().enumerate() {
         let se_u = cov[(j, j)].max(0.0).sqrt();
-        if reparam::at_bound(*id, u[j]) {
+        if bound[j] {
             // Not "no information": the data may well pin it (another start recovers an
             // interior value), but not through a derivative that has vanished.
             unconstrained.push((*id, Why::Bound));
@@ -193,5 +284,6 @@ pub fn estimate(
         free,
         correlation: corr,
         s2,
+        step_se,
     }
 }
