@@ -361,3 +361,47 @@ fn profile_repolishes_from_a_better_re_solve() {
         );
     }
 }
+
+/// Red fox with 5 % noise: one of `sigma_c_a` and `sigma_m_a`, which trade off against
+/// each other, ends on its bound (0), and the other gets a linearised SE conditional on it
+/// (far too small). Its profile must walk past that SE's reach (seed 1: `sigma_c_a` at
+/// 9e-9) and re-solve the partner off its bound (seed 2: `sigma_m_a` at the map's clamp,
+/// 9e-14, where a re-solve from it cannot move it): each case alone gave an interval
+/// about a tenth as wide ("beyond" after 16 SE steps, or ends ~1 % from the fit). The
+/// check is independent of the profile code: a fit with the parameter fixed at the
+/// reported lower end (everything else free) costs `Delta = 1` more than the optimum;
+/// [0.6, 1.5] allows the crossing tolerance (0.1) and that refit's own stopping tolerance.
+#[test]
+fn profile_re_solves_a_partner_off_its_bound() {
+    let truth = FurParams::preset("red-fox").unwrap();
+    for (seed, id, partner) in [
+        (1, ParamId::SigmaMA, ParamId::SigmaCA),
+        (2, ParamId::SigmaCA, ParamId::SigmaMA),
+    ] {
+        let data = synth(&truth, 0.05, seed);
+        let o = FitOptions {
+            profile: vec![id],
+            ..opts()
+        };
+        let fit = fit_data(&data, &o, None).unwrap();
+        assert_eq!(
+            fit.uncertainty.at_bound(),
+            vec![partner],
+            "seed {seed}: precondition (partner on its bound) no longer holds"
+        );
+        let iv = &fit.profile[0];
+        assert_eq!(iv.lo.kind(), "crossing", "seed {seed}: {iv:?}");
+        let mut fixed = opts();
+        fixed.fix(id.spec().name, iv.lo.value()).unwrap();
+        fixed.init = Some(fit.params.to_file_units());
+        let refit = fit_data(&data, &fixed, None).unwrap();
+        let n = data.len() as f64 - 11.0;
+        let delta = n * ((refit.nrmse / fit.nrmse).powi(2) - 1.0);
+        assert!(
+            (0.6..=1.5).contains(&delta),
+            "seed {seed}: Delta {delta:.3} at {} = {} ({iv:?})",
+            id.spec().name,
+            iv.lo.value()
+        );
+    }
+}

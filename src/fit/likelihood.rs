@@ -7,7 +7,8 @@
 //!
 //! Each side steps the parameter's unbounded coordinate `u` by `c * step`,
 //! `c = 1, 2, 4, 8, 16` ([`STEPS`]; `step = SE(u)` at most [`MAX_STEP_U`], which is also
-//! taken when the linearised one is undefined), re-solving the others from the previous
+//! taken when the linearised one is undefined; a smaller step goes on doubling up to the
+//! same reach, `16 MAX_STEP_U`), re-solving the others from the previous
 //! point (warm start), until `Delta >= 1`; the bracketed crossing is then narrowed by up
 //! to [`REFINE`] more re-solves (regula falsi in `sqrt(Delta)`, which is linear in the
 //! step for a quadratic valley, with a bisection when it stalls) until `Delta` is within
@@ -16,7 +17,8 @@
 //! that side, and the other side starts from the map's interior edge
 //! (`reparam::interior_edge`) with the map's own step. A side whose `u` reaches the map's
 //! clamp without crossing ends at the bound; one still below 1 after the last step
-//! reports how far it got. A re-solve cheaper than the optimum (`Delta < -0.1`) means the
+//! reports how far it got. Each re-solve with another parameter on its bound is also run
+//! from that parameter's interior edge, and the better kept. A re-solve cheaper than the optimum (`Delta < -0.1`) means the
 //! fit stopped short of the valley's floor; the interval says so.
 
 use super::problem::LogResidualProblem;
@@ -27,6 +29,22 @@ use nalgebra::DVector;
 
 /// Multiples of the step tried on each side.
 pub const STEPS: [f64; 5] = [1.0, 2.0, 4.0, 8.0, 16.0];
+/// The multiples of `step` tried on a side: [`STEPS`], then further doublings while the
+/// offset stays within `16 * MAX_STEP_U`, the reach of a profile whose step is
+/// [`MAX_STEP_U`]. A linearised SE that holds a partner on its bound can be far too small
+/// (a valley two absorptions trade along): its profile must still be able to walk as far
+/// as one with an undefined SE.
+fn steps(step: f64) -> Vec<f64> {
+    let mut out = STEPS.to_vec();
+    let reach = STEPS[STEPS.len() - 1] * MAX_STEP_U;
+    let mut c = 2.0 * STEPS[STEPS.len() - 1];
+    while c * step <= reach * (1.0 + 1e-12) && out.len() < 64 {
+        out.push(c);
+        c *= 2.0;
+    }
+    out
+}
+
 /// Largest step in `u` (a factor e for `exp` maps): a huge linearised `SE(u)` (24 for an
 /// absorption the data barely sees) would jump past the crossing by orders of magnitude.
 pub const MAX_STEP_U: f64 = 1.0;
@@ -159,7 +177,7 @@ pub fn interval(pp: &ProfileProblem, rss0: f64, s2: f64, resolve: &mut Resolve) 
         // The bracket's inner end: `(u, Delta, solution)`, from the fit itself.
         let mut inner = (u0, 0.0f64, others(&pp.u));
         let offsets = if on_bound { &[0.0][..] } else { &[][..] };
-        for &c in offsets.iter().chain(&STEPS) {
+        for &c in offsets.iter().chain(&steps(step)) {
             let uj = (base + dir * c * step).clamp(-clamp, clamp);
             if uj == inner.0 {
                 return End::Bound(reparam::to_value(id, uj));
@@ -302,15 +320,42 @@ pub fn intervals(
             let sub = LogResidualProblem::new(full.data, layout, full.far);
             if start.is_empty() {
                 // Nothing left to re-solve.
-                (sub.residuals(&[]).norm_squared(), start.clone())
+                return (sub.residuals(&[]).norm_squared(), start.clone());
+            }
+            let (sol, rss) = refit(&sub, start.clone());
+            // A partner on its bound cannot leave it in the re-solve (its map's derivative
+            // has all but vanished there), yet with this parameter moved the data may
+            // favour an interior value (two absorptions trading off against each other):
+            // re-solve also from the partners' interior edge and keep the better.
+            let lifted = lift_off_bounds(&sub.layout.free(), start);
+            if lifted == *start {
+                return (rss, sol);
+            }
+            let (sol2, rss2) = refit(&sub, lifted);
+            if rss2 < rss {
+                (rss2, sol2)
             } else {
-                let (sol, rss) = refit(&sub, start.clone());
                 (rss, sol)
             }
         };
         out.push(interval(&pp, rss0, s2, &mut resolve));
     }
     out
+}
+
+/// `u` with every coordinate on its bound ([`reparam::at_bound`]) moved to the map's
+/// interior edge on that side ([`reparam::interior_edge`]), where a solver can move it.
+fn lift_off_bounds(free: &[ParamId], u: &DVector<f64>) -> DVector<f64> {
+    DVector::from_iterator(
+        u.len(),
+        free.iter().zip(u.iter()).map(|(&id, &v)| {
+            if reparam::at_bound(id, v) {
+                reparam::interior_edge(id, v).0
+            } else {
+                v
+            }
+        }),
+    )
 }
 
 /// One line for the terminal: `eta 1.6012 in [1.5870, 1.6130] (profile, 68 %; 6 re-solves)`,
@@ -426,7 +471,10 @@ mod tests {
             (hi.ln() - wall).abs() <= 1.1f64.ln() / 8.0 + 1e-12,
             "{iv:?}"
         );
-        assert!(iv.refits <= 2 * (STEPS.len() + REFINE), "{iv:?}");
+        assert!(
+            iv.refits <= 2 * (steps(MAX_STEP_U).len() + REFINE),
+            "{iv:?}"
+        );
     }
 
     /// A coefficient fitted onto its bound 0 (exp map, u = -30): the lower end is the
@@ -504,5 +552,33 @@ mod tests {
         assert_eq!(iv.hi, End::Beyond(reparam::to_value(id, 16.0)));
         // Steps -1, -2, -4, -8, -16: -16 is below ln(1e-4).
         assert_eq!(iv.lo, End::Bound(reparam::to_value(id, -reparam::U_MAX)));
+    }
+
+    /// A linearised SE far smaller than the valley (held by a partner on its bound): the
+    /// profile keeps doubling past 16 steps and finds the crossing at u0 - 0.5, which
+    /// 16 x 0.01 would never reach.
+    #[test]
+    fn a_tight_standard_error_still_walks_to_the_crossing() {
+        let (u0, rss0, s2) = (-1.0, 1.0, 1.0);
+        let id = ParamId::SigmaMA;
+        let pp = ProfileProblem {
+            id,
+            j: 0,
+            u: DVector::from_vec(vec![u0]),
+            se_u: Some(0.01),
+        };
+        let mut resolve =
+            |uj: f64, s: &DVector<f64>| (rss0 + s2 * ((uj - u0) / 0.5).powi(2), s.clone());
+        let iv = interval(&pp, rss0, s2, &mut resolve);
+        assert_eq!(
+            (iv.lo.kind(), iv.hi.kind()),
+            ("crossing", "crossing"),
+            "{iv:?}"
+        );
+        // The narrowing ends within CROSS_TOL of Delta = 1, i.e. within ~5 % of 0.5 in u.
+        let lo = iv.lo.value().ln();
+        assert!((lo - (u0 - 0.5)).abs() < 0.03, "{lo} {iv:?}");
+        assert_eq!(steps(1.0), STEPS.to_vec());
+        assert_eq!(*steps(0.01).last().unwrap(), 1024.0);
     }
 }
