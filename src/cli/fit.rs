@@ -77,7 +77,8 @@ pub struct Args {
     /// model profiles (down to 1e-44) would outweigh the lobes in log space.
     #[arg(long, default_value_t = crate::fit::DEFAULT_FLOOR, value_parser = super::unit_fraction)]
     pub floor: f64,
-    /// Weight residuals by sigma/value (every valid sample needs a sigma > 0).
+    /// Weight residuals by sigma/value (every valid sample needs a sigma > 0, and none may
+    /// lie more than 1000 times below the channel's median sigma/value)
     #[arg(long)]
     pub weighted: bool,
     /// Print timing figures (evaluations/s, share of time in the model).

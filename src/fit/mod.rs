@@ -754,7 +754,9 @@ pub fn channel_data(
     // The first sample (in angle order) that --weighted cannot weight, named by its
     // coordinates and, when it was read from a file, its file and line.
     let mut first_unweighted = None;
+    let mut used = Vec::with_capacity(samples.len());
     for s in samples {
+        used.push(s);
         let (ti, tr, ph) = s.angles_rad();
         pts.push(ti, tr, ph);
         vals.push(s.value);
@@ -797,10 +799,45 @@ pub fn channel_data(
             )));
         }
     }
+    if weighted {
+        // One sample whose relative sigma is orders of magnitude below the others' takes a
+        // weight that decides the fit alone (a sigma of 1e-20 froze the solver at its
+        // start): a typing or unit slip in the sigma column, not a measurement.
+        let mut sorted = rel.clone();
+        sorted.sort_by(f64::total_cmp);
+        let median = sorted[sorted.len() / 2];
+        let (k, &least) = rel
+            .iter()
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .expect("at least one sample");
+        if least * MAX_SIGMA_SPREAD < median {
+            let s = used[k];
+            let at = profile
+                .origin_of(s)
+                .map(|o| format!(" ({o})"))
+                .unwrap_or_default();
+            return Err(Error::Invalid(format!(
+                "{what}: --weighted: the sample at theta_i {}, theta_r {}, phi {}{at} has sigma/value {least:.3e}, {:.3e} times below the median {median:.3e} of channel {channel}; its weight 1/(sigma/value)^2 would decide the fit alone (allowed: up to {} times below). Check its sigma, or fit without --weighted",
+                s.theta_i,
+                s.theta_r,
+                s.phi,
+                median / least,
+                Num(MAX_SIGMA_SPREAD)
+            )));
+        }
+    }
     let mut data = FitData::new(pts, &vals, if weighted { Some(&rel) } else { None });
     data.n_below_floor = n_below_floor;
     Ok(data)
 }
+
+/// How far below the median relative sigma (`sigma / value`) of a channel a sample's may
+/// lie under `--weighted`: its weight is then at most 1e6 times the median's. Photon noise
+/// spans about 0.1 % at a lobe's peak to tens of per cent in the tails, a few hundred; an
+/// audit's sample at 7e3 times below the median dragged eta and beta_n off the optimum
+/// of the rest.
+pub const MAX_SIGMA_SPREAD: f64 = 1e3;
 
 #[cfg(test)]
 mod tests;

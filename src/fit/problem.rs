@@ -49,16 +49,25 @@ impl FitData {
             });
         let range = if hi > lo { hi - lo } else { 1.0 };
         let mut w: Vec<f64> = match rel_sigma {
-            Some(rs) => rs
-                .iter()
-                .map(|&s| {
-                    if s.is_finite() && s > 0.0 {
-                        1.0 / (s * s)
-                    } else {
-                        1.0
-                    }
-                })
-                .collect(),
+            Some(rs) => {
+                // Relative to the geometric mean sigma, so that sigmas scaled as a whole
+                // (1e-160 or 1e160 times the values) neither overflow nor underflow.
+                let ok: Vec<f64> = rs
+                    .iter()
+                    .filter(|s| s.is_finite() && **s > 0.0)
+                    .map(|s| s.ln())
+                    .collect();
+                let ln_gm = ok.iter().sum::<f64>() / ok.len().max(1) as f64;
+                rs.iter()
+                    .map(|&s| {
+                        if s.is_finite() && s > 0.0 {
+                            (-2.0 * (s.ln() - ln_gm)).exp()
+                        } else {
+                            1.0
+                        }
+                    })
+                    .collect()
+            }
             None => vec![1.0; ln_y.len()],
         };
         let mean = w.iter().sum::<f64>() / w.len().max(1) as f64;

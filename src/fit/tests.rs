@@ -217,3 +217,51 @@ fn flat_profile_is_refused() {
         .to_string();
     assert!(e.contains("same value") && e.contains("range"), "{e}");
 }
+
+/// `--weighted` refuses a sample whose relative sigma lies more than MAX_SIGMA_SPREAD below
+/// the median (one such sample froze an audit's fit at its start) and names it; at the
+/// limit it is accepted. Sigmas scaled as a whole by 1e-160 or 1e160 give the same weights
+/// as unscaled ones (they overflowed to inf / underflowed to 0 before): to 1e-12
+/// relative, the rounding of a log and an exp.
+#[test]
+fn weighted_refuses_a_sigma_orders_below_the_rest_and_survives_any_scale() {
+    use crate::profile::Sample;
+    let profile = |rel: &[f64]| Profile {
+        samples: rel
+            .iter()
+            .enumerate()
+            .map(|(k, &r)| {
+                let mut s = Sample::new(10.0, 20.0, 10.0 * k as f64, 2.0 + k as f64);
+                s.sigma = Some(r * s.value);
+                s
+            })
+            .collect(),
+        files: vec!["lab.csv".into()],
+        ..Default::default()
+    };
+    let mut rel = vec![0.05; 9];
+    rel[4] = 0.05 / (1.001 * MAX_SIGMA_SPREAD);
+    let mut p = profile(&rel);
+    p.samples[4].origin = crate::profile::Origin { file: 0, line: 6 };
+    let e = channel_data(&p, 0, true, 0.0).unwrap_err().to_string();
+    assert!(
+        e.contains("phi 40 (lab.csv line 6)") && e.contains("times below the median"),
+        "{e}"
+    );
+    rel[4] = 0.05 / (0.999 * MAX_SIGMA_SPREAD);
+    assert!(channel_data(&profile(&rel), 0, true, 0.0).is_ok());
+    let spread: Vec<f64> = (0..9).map(|k| 0.01 * (1.0 + k as f64)).collect();
+    let w = |scale: f64| {
+        let r: Vec<f64> = spread.iter().map(|x| x * scale).collect();
+        channel_data(&profile(&r), 0, true, 0.0).unwrap().w
+    };
+    let base = w(1.0);
+    for scale in [1e-160, 1e160] {
+        for (a, b) in w(scale).iter().zip(&base) {
+            assert!(
+                a.is_finite() && (a - b).abs() <= 1e-12 * b,
+                "{scale}: {a} vs {b}"
+            );
+        }
+    }
+}
