@@ -58,8 +58,13 @@ pub struct FitFile {
     pub load: crate::profile::LoadOptions,
     /// Channel name fitted at the top level ("" for a single channel).
     pub channel: String,
-    /// Convergence trace: `(stage, iter, time_s, nrmse)`.
+    /// Convergence trace: `(stage, iter, time_s, value)`; the value is the NRMSE of the
+    /// stage's data for an unweighted fit, the RMS of the weighted normalised log
+    /// residuals for a weighted one (see [`FitFile::weighted`]).
     pub trace: Vec<(String, u64, f64, f64)>,
+    /// Fitted with `--weighted` (`solver.weighted`): then the trace values are weighted
+    /// RMS residuals, not NRMSE (the fitter records them under `nrmse` all the same).
+    pub weighted: bool,
     pub wall_time_s: f64,
     pub unconstrained: Vec<String>,
     /// Standard errors (file units) per parameter, `None` if fixed/infinite.
@@ -221,6 +226,7 @@ impl FitFile {
             load,
             channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
             trace,
+            weighted: v["solver"]["weighted"].as_bool().unwrap_or(false),
             wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
             unconstrained,
             se,
@@ -417,7 +423,7 @@ fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
     rows
 }
 
-/// The Markdown table.
+/// The Markdown table, followed by the introduction of `fit_error_vs_time.*`.
 pub fn markdown(fits: &[FitFile]) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "# Fitted parameters and NRMSE (seed Table 4 layout)\n");
@@ -448,6 +454,9 @@ pub fn markdown(fits: &[FitFile]) -> String {
         }
         s.push('\n');
     }
+    // The convergence figure is introduced here, with what its values are.
+    s.push('\n');
+    s.push_str(&super::fit_time::description(fits));
     s
 }
 
