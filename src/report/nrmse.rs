@@ -5,7 +5,7 @@
 //!
 //! Also home of [`FitFile`], the reader of `fits/*.json` shared by the fit reports.
 
-use crate::error::{Error, Result};
+use crate::error::{Error, Num, Result};
 use crate::model::far::FarOptions;
 use crate::params::{preset_record, FurParams, ParamId};
 use serde_json::Value;
@@ -65,6 +65,14 @@ pub struct FitFile {
     /// Fitted with `--weighted` (`solver.weighted`): then the trace values are weighted
     /// RMS residuals, not NRMSE (the fitter records them under `nrmse` all the same).
     pub weighted: bool,
+    /// The fit left out valid samples below `floor` times the channel's largest valid
+    /// value (`data.floor`; `None` in fit files from before it was recorded).
+    pub floor: Option<f64>,
+    /// Valid samples of the channel (`data.n_valid`).
+    pub n_valid: Option<u64>,
+    /// Of those, the ones below the floor, left out of the fit and its NRMSE
+    /// (`data.n_below_floor`).
+    pub n_below_floor: Option<u64>,
     pub wall_time_s: f64,
     pub unconstrained: Vec<String>,
     /// Standard errors (file units) per parameter, `None` if fixed/infinite.
@@ -227,6 +235,9 @@ impl FitFile {
             channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
             trace,
             weighted: v["solver"]["weighted"].as_bool().unwrap_or(false),
+            floor: v["data"]["floor"].as_f64(),
+            n_valid: v["data"]["n_valid"].as_u64(),
+            n_below_floor: v["data"]["n_below_floor"].as_u64(),
             wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
             unconstrained,
             se,
@@ -361,6 +372,20 @@ fn pct(x: f64) -> String {
     }
 }
 
+/// How many samples a fit used, and how many valid ones it left out below its floor.
+fn samples_used(f: &FitFile) -> String {
+    match (f.n_valid, f.n_below_floor) {
+        (Some(v), Some(0)) => format!("all {v}"),
+        (Some(v), Some(b)) => format!(
+            "{} of {v} ({b} below {} x peak left out)",
+            v.saturating_sub(b),
+            f.floor
+                .map_or("the floor".to_string(), |x| Num(x).to_string())
+        ),
+        _ => "-".into(),
+    }
+}
+
 /// Rows of the table: `(label, unit, value per species)`.
 fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
     let mut rows = Vec::new();
@@ -394,6 +419,14 @@ fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
             .map(|f| if f.synthetic { "synthetic" } else { "measured" }.to_string())
             .collect(),
     ));
+    // Only when some fit left samples out: its NRMSE does not cover them.
+    if fits.iter().any(|f| f.n_below_floor.is_some_and(|n| n > 0)) {
+        rows.push((
+            "samples used (valid, >= floor x peak)".into(),
+            "-".into(),
+            fits.iter().map(samples_used).collect(),
+        ));
+    }
     rows.push((
         "NRMSE (this fit)".into(),
         "%".into(),
@@ -431,12 +464,15 @@ pub fn markdown(fits: &[FitFile]) -> String {
     let _ = writeln!(s, "These fits ran on {}.\n", data_label(fits));
     let _ = writeln!(
         s,
-        "NRMSE = RMS of (ln model - ln measured) over the valid samples / (max - min ln measured), \
-         after the optimal exposure (MODEL.md). The paper's rows are the values it reports for \
+        "NRMSE = RMS of (ln model - ln measured) / (max - min ln measured), both over the samples \
+         the fit used: the valid samples of at least floor x the channel's largest valid value \
+         (the fit file's `data.floor`, default {}; the others are left out of the fit and of \
+         its NRMSE), after the optimal exposure (MODEL.md). The paper's rows are the values it reports for \
          ITS measured data; they are context, not a target this data can be compared with \
          sample for sample. `*` marks a parameter the data does not constrain (see the fit \
          file's `uncertainty.unconstrained`), `(fixed)` one held at its value by `--fix`. A fit \
-         of several channels has a column per channel (`<fit>-<channel>`).\n"
+         of several channels has a column per channel (`<fit>-<channel>`).\n",
+        Num(crate::fit::DEFAULT_FLOOR)
     );
     let _ = write!(s, "| parameter | unit |");
     for f in fits {
@@ -486,6 +522,23 @@ pub fn csv(fits: &[FitFile]) -> String {
     let _ = write!(s, "\nsynthetic,-");
     for f in fits {
         let _ = write!(s, ",{}", f.synthetic);
+    }
+    // What the NRMSE covers: the valid samples less those below floor x peak.
+    let _ = write!(s, "\nfloor,fraction of peak");
+    for f in fits {
+        let _ = write!(s, ",{}", f.floor.map(|x| x.to_string()).unwrap_or_default());
+    }
+    for (name, n) in [
+        (
+            "n_valid",
+            (|f: &FitFile| f.n_valid) as fn(&FitFile) -> Option<u64>,
+        ),
+        ("n_below_floor", |f: &FitFile| f.n_below_floor),
+    ] {
+        let _ = write!(s, "\n{name},samples");
+        for f in fits {
+            let _ = write!(s, ",{}", n(f).map(|x| x.to_string()).unwrap_or_default());
+        }
     }
     let _ = write!(s, "\nnrmse,fraction");
     for f in fits {
@@ -699,6 +752,66 @@ mod legacy_tests {
                 (kept, kept, kept),
                 "{tool} {file}"
             );
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A fit file `<name>.json` in `dir` whose `data` holds `data`.
+    fn fit(dir: &Path, name: &str, data: serde_json::Value) -> FitFile {
+        let v = serde_json::json!({
+            "params": FurParams::preset("cat").unwrap().to_json_value(),
+            "exposure": 1.0,
+            "nrmse": 0.02,
+            "data": data,
+        });
+        let p = dir.join(format!("{name}.json"));
+        std::fs::write(&p, v.to_string()).unwrap();
+        FitFile::read(&p).unwrap().remove(0)
+    }
+
+    /// The NRMSE is said to cover the samples the fit used, and a fit that left samples
+    /// out below its floor says how many (shipped fits leave none out: no row then).
+    #[test]
+    fn markdown_counts_the_samples_left_out_below_the_floor() {
+        let tmp = tempfile::tempdir().unwrap();
+        let all = fit(
+            tmp.path(),
+            "all",
+            serde_json::json!({"floor": 1e-8, "n_valid": 1000, "n_used": 1000, "n_below_floor": 0}),
+        );
+        let cut = fit(
+            tmp.path(),
+            "cut",
+            serde_json::json!({"floor": 1e-3, "n_valid": 1000, "n_used": 950, "n_below_floor": 50}),
+        );
+        let md = markdown(std::slice::from_ref(&all));
+        assert!(
+            md.contains(
+                "both over the samples the fit used: the valid samples of at least floor x \
+                 the channel's largest valid value (the fit file's `data.floor`, default 1e-8;"
+            ),
+            "{md}"
+        );
+        assert!(!md.contains("over the valid samples"), "{md}");
+        assert!(!md.contains("| samples used"), "{md}");
+        let md = markdown(&[all.clone(), cut.clone()]);
+        assert!(
+            md.contains(
+                "| samples used (valid, >= floor x peak) | - | all 1000 | 950 of 1000 (50 below 0.001 x peak left out) |"
+            ),
+            "{md}"
+        );
+        let csv = csv(&[all, cut]);
+        for row in [
+            "floor,fraction of peak,0.00000001,0.001",
+            "n_valid,samples,1000,1000",
+            "n_below_floor,samples,0,50",
+        ] {
+            assert!(csv.lines().any(|l| l == row), "no '{row}' in\n{csv}");
         }
     }
 }
