@@ -1,14 +1,15 @@
 //! `reports/model_vs_simulation.md`: how well the far-field model describes the data (for
-//! the shipped species, the virtual goniometer's output). Per species folder with a `metadata.json` holding the TRUE
-//! parameters (`params`), the NRMSE of the far-field model at those parameters against the
-//! simulated profile (with its optimal exposure), the NRMSE of our fit, and fitted vs true
-//! parameters side by side. The simulator is an independent 3-D Monte Carlo, so a large
-//! NRMSE at the true parameters measures model error, not a bug in either; the table
-//! reports it as it comes out.
+//! the shipped species, the virtual goniometer's output). Per species folder with a
+//! `metadata.json` holding the TRUE parameters (`params`), the NRMSE of the far-field model
+//! at those parameters against the simulated profile (with its optimal exposure, on the
+//! samples the fit used and with the far field it used: [`truth_settings`]), the NRMSE of
+//! our fit, and fitted vs true parameters side by side. The simulator is an independent
+//! 3-D Monte Carlo, so a large NRMSE at the true parameters measures model error, not a bug
+//! in either; the table reports it as it comes out.
 
 use super::nrmse::FitFile;
 use crate::error::{Error, Result};
-use crate::fit::forward::{predict_points, Points};
+use crate::fit::forward::predict_points;
 use crate::fit::problem::nrmse;
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
@@ -63,34 +64,52 @@ pub fn true_params(species_dir: &Path) -> Result<Option<(FurParams, Option<Strin
     Ok(Some((truth, what)))
 }
 
-/// NRMSE (MODEL.md, optimal exposure) of the far-field model at `params` on channel
-/// `channel` of `profile`. Returns `(nrmse, exposure, n_valid)`.
+/// The sample floor and far field of "NRMSE at truth": those the fit recorded
+/// (`data.floor`, `solver.tol` / `.segments` / `.scattered_step`), so it covers the same
+/// samples with the same model as the fit's NRMSE; `furfit fit`'s defaults without a fit.
+/// A fit file without `data.floor` was made before the floor existed, with every valid
+/// sample.
+pub fn truth_settings(fit: Option<&FitFile>) -> (f64, FarOptions) {
+    match fit {
+        Some(f) => (f.floor.unwrap_or(0.0), f.far),
+        None => (crate::fit::DEFAULT_FLOOR, FarOptions::default()),
+    }
+}
+
+/// NRMSE at the true parameters, and what it covers.
+#[derive(Clone, Copy, Debug)]
+pub struct TruthNrmse {
+    /// NRMSE (MODEL.md) with the optimal exposure.
+    pub nrmse: f64,
+    pub exposure: f64,
+    /// Samples used: valid and at least the floor x the channel's peak.
+    pub n_used: usize,
+    /// Valid samples left out below the floor.
+    pub n_below_floor: usize,
+}
+
+/// NRMSE (MODEL.md, optimal exposure) of the far field `far` at `params` on channel
+/// `channel` of `profile`, over the samples a fit with relative floor `floor` uses (the
+/// fitter's own selection, [`crate::fit::channel_data`]: valid, at least `floor` x the
+/// channel's largest valid value, normalised by their log range); `None` when the
+/// channel has no valid sample.
 pub fn nrmse_at(
     params: &FurParams,
     profile: &Profile,
     channel: usize,
-) -> Option<(f64, f64, usize)> {
-    let mut pts = Points::default();
-    let mut ln_y = Vec::new();
-    for s in profile
-        .samples
-        .iter()
-        .filter(|s| s.channel == channel && s.is_valid())
-    {
-        let (a, b, c) = s.angles_rad();
-        pts.push(a, b, c);
-        ln_y.push(s.value.ln());
-    }
-    if ln_y.is_empty() {
-        return None;
-    }
-    let lo = ln_y.iter().copied().fold(f64::INFINITY, f64::min);
-    let hi = ln_y.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-    let range = if hi > lo { hi - lo } else { 1.0 };
-    let mut m = vec![0.0; pts.len()];
-    predict_points(params, &pts, &FarOptions::default(), LobeSet::ALL, &mut m);
-    let (e, k) = nrmse(&m, &ln_y, range);
-    Some((e, k, ln_y.len()))
+    floor: f64,
+    far: &FarOptions,
+) -> Option<TruthNrmse> {
+    let data = crate::fit::channel_data(profile, channel, false, floor).ok()?;
+    let mut m = vec![0.0; data.ln_y.len()];
+    predict_points(params, &data.points, far, LobeSet::ALL, &mut m);
+    let (nrmse, exposure) = nrmse(&m, &data.ln_y, data.range);
+    Some(TruthNrmse {
+        nrmse,
+        exposure,
+        n_used: data.ln_y.len(),
+        n_below_floor: data.n_below_floor,
+    })
 }
 
 /// One species' entry.
@@ -103,9 +122,8 @@ pub struct Entry {
     /// What the data are (metadata.json `what`/`source`, else the data's label).
     pub data: String,
     pub truth: FurParams,
-    pub nrmse_truth: f64,
-    pub exposure_truth: f64,
-    pub n_valid: usize,
+    /// At the truth, on the fit's samples with its far field ([`truth_settings`]).
+    pub at_truth: TruthNrmse,
     pub fit: Option<FitFile>,
     /// Why the species' fit is not shown (its data changed since), if so.
     pub fit_note: Option<String>,
@@ -150,17 +168,21 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
         s,
         "Data: each species folder whose `metadata.json` records the true parameters \
          (`params`){}, and each row says what its data are. \
-         \"NRMSE at truth\" evaluates the far-field model (tolerance mode, 1e-4 of each \
-         lobe's peak, as `furfit fit` uses by default) at the TRUE \
-         parameters with the optimal exposure: it is the model's own error against these \
-         data. A fit usually does better by moving parameters away from the truth to \
+         \"NRMSE at truth\" evaluates the far-field model at the TRUE parameters with the \
+         optimal exposure, on the samples the fit used (valid and at least its `data.floor` \
+         x the channel's largest valid value, normalised by their log range) with the far \
+         field the fit recorded (`solver.tol`, `solver.segments`, `solver.scattered_step`), \
+         so both NRMSE columns cover the same samples with the same model; without a fit of \
+         this data, with `furfit fit`'s defaults (floor {}, tolerance mode at 1e-4 of each \
+         lobe's peak). It is the model's own error against these data. A fit usually does better by moving parameters away from the truth to \
          absorb that error, which is why fitted and true values differ. \
          \"NRMSE of fit\" is from `fits/<species>.json` when that fit was made from this \
          folder's current data. SE is the fit's linearised standard error, s^2 (J^T J)^-1: it assumes \
          independent residuals, but here they are mostly model error, correlated between \
          neighbouring samples, so it understates the real spread, most on shallow \
          directions (equally good fits can differ by more than one SE there).\n",
-        data_clause(entries)
+        data_clause(entries),
+        crate::error::Num(crate::fit::DEFAULT_FLOOR)
     );
     for (species, why) in unusable {
         let _ = writeln!(s, "- {species}: not compared: {why}");
@@ -177,7 +199,7 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
         return s;
     }
     s.push_str(
-        "| species | data | valid samples | NRMSE at truth | NRMSE of fit |\n|---|---|---:|---:|---:|\n",
+        "| species | data | samples used | NRMSE at truth | NRMSE of fit |\n|---|---|---:|---:|---:|\n",
     );
     for e in entries {
         let _ = writeln!(
@@ -185,8 +207,11 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
             "| {} | {} | {} | {:.2}% | {} |",
             e.name(),
             if e.synthetic { "SYNTHETIC" } else { "measured" },
-            e.n_valid,
-            100.0 * e.nrmse_truth,
+            match e.at_truth.n_below_floor {
+                0 => e.at_truth.n_used.to_string(),
+                b => format!("{} ({b} below the floor left out)", e.at_truth.n_used),
+            },
+            100.0 * e.at_truth.nrmse,
             match (&e.fit, &e.fit_note) {
                 (Some(f), _) => format!("{:.2}%", 100.0 * f.nrmse),
                 (None, Some(_)) => "(the data changed since the fit: refit)".into(),
@@ -235,7 +260,7 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
                 t[k]
             );
         }
-        let _ = writeln!(s, "\nExposure at truth: {:.4e}.", e.exposure_truth);
+        let _ = writeln!(s, "\nExposure at truth: {:.4e}.", e.at_truth.exposure);
     }
     s
 }
@@ -295,9 +320,12 @@ mod tests {
             synthetic: true,
             data: "synthetic, noisy".into(),
             truth: FurParams::preset("cat").unwrap(),
-            nrmse_truth: 0.01,
-            exposure_truth: 1.0,
-            n_valid: 10,
+            at_truth: TruthNrmse {
+                nrmse: 0.01,
+                exposure: 1.0,
+                n_used: 10,
+                n_below_floor: 0,
+            },
             fit: None,
             fit_note: Some("changed".into()),
         };
@@ -320,9 +348,12 @@ mod tests {
             synthetic,
             data: "x".into(),
             truth: FurParams::preset("cat").unwrap(),
-            nrmse_truth: 0.01,
-            exposure_truth: 1.0,
-            n_valid: 10,
+            at_truth: TruthNrmse {
+                nrmse: 0.01,
+                exposure: 1.0,
+                n_used: 10,
+                n_below_floor: 0,
+            },
             fit: None,
             fit_note: None,
         };
@@ -354,5 +385,94 @@ mod tests {
         );
         let none = intro(&[]);
         assert!(none.contains("(`params`), and each row"), "{none}");
+    }
+
+    /// "NRMSE at truth" takes the fit's floor and far field, so it covers what the fit's
+    /// NRMSE covers; without a fit, `furfit fit`'s defaults; a fit file from before the
+    /// floor, every valid sample.
+    #[test]
+    fn truth_settings_follow_the_fit() {
+        let tmp = tempfile::tempdir().unwrap();
+        let read = |name: &str, extra: serde_json::Value| {
+            let mut v = serde_json::json!({
+                "params": FurParams::preset("cat").unwrap().to_json_value(),
+                "exposure": 1.0,
+                "nrmse": 0.02,
+            });
+            v.as_object_mut()
+                .unwrap()
+                .extend(extra.as_object().unwrap().clone());
+            let p = tmp.path().join(format!("{name}.json"));
+            std::fs::write(&p, v.to_string()).unwrap();
+            FitFile::read(&p).unwrap().remove(0)
+        };
+        let f = read(
+            "fixed",
+            serde_json::json!({
+                "data": {"floor": 1e-3},
+                "solver": {"tol": null, "segments": {"unscattered": 16, "scattered": 7}},
+            }),
+        );
+        let (floor, far) = truth_settings(Some(&f));
+        assert_eq!(floor, 1e-3);
+        assert_eq!(
+            far,
+            FarOptions {
+                n_unscattered: 16,
+                n_scattered: 7,
+                tol: None,
+                ..FarOptions::default()
+            }
+        );
+        assert_eq!(
+            truth_settings(None),
+            (crate::fit::DEFAULT_FLOOR, FarOptions::default())
+        );
+        let old = read("old", serde_json::json!({}));
+        assert_eq!(truth_settings(Some(&old)).0, 0.0);
+    }
+
+    /// On data made by the far field it is evaluated with, over the samples above the
+    /// floor, the NRMSE at truth is zero to rounding; the samples below the floor (here
+    /// wildly off the model) are left out and counted, as the fitter leaves them out.
+    #[test]
+    fn nrmse_at_uses_the_floor_and_the_far_field_given() {
+        let truth = FurParams::preset("cat").unwrap();
+        let fixed = FarOptions::paper();
+        let mut pts = crate::fit::forward::Points::default();
+        let mut angles = Vec::new();
+        for ti in [-20.0f64, 20.0] {
+            for tr in (-3..=3).map(|k| 20.0 * k as f64) {
+                for ph in (-11..=12).map(|k| 15.0 * k as f64) {
+                    pts.push(ti.to_radians(), tr.to_radians(), ph.to_radians());
+                    angles.push((ti, tr, ph));
+                }
+            }
+        }
+        let mut m = vec![0.0; pts.len()];
+        predict_points(&truth, &pts, &fixed, LobeSet::ALL, &mut m);
+        let peak = m.iter().copied().fold(0.0, f64::max);
+        let mut prof = Profile::default();
+        for (k, (&(ti, tr, ph), &v)) in angles.iter().zip(&m).enumerate() {
+            // Five samples twelve decades below the peak: under the default floor.
+            let v = if k % 67 == 1 { 1e-12 * peak } else { v };
+            prof.samples
+                .push(crate::profile::Sample::new(ti, tr, ph, v));
+        }
+        let n = prof.n_valid();
+        let t = nrmse_at(&truth, &prof, 0, 1e-8, &fixed).unwrap();
+        assert_eq!((t.n_used, t.n_below_floor), (n - 5, 5));
+        // The model's own values: only the rounding of ln and of the closed-form exposure
+        // is left (~1e-16); 1e-12 is far below any model difference.
+        assert!(t.nrmse < 1e-12, "{}", t.nrmse);
+        assert!((t.exposure - 1.0).abs() < 1e-12, "{}", t.exposure);
+        // Without the floor the five outliers, 27 nats off, dominate.
+        let all = nrmse_at(&truth, &prof, 0, 0.0, &fixed).unwrap();
+        assert_eq!((all.n_used, all.n_below_floor), (n, 0));
+        assert!(all.nrmse > 0.05, "{}", all.nrmse);
+        // Another far field is another model: the tolerance mode is 1.5e-3 off the fixed
+        // segmentation's values here; 1e-6 tells it from rounding with room either side.
+        let tol = nrmse_at(&truth, &prof, 0, 1e-8, &FarOptions::default()).unwrap();
+        assert!(tol.nrmse > 1e-6, "{}", tol.nrmse);
     }
 }

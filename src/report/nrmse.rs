@@ -696,7 +696,9 @@ fn write_planned(
                 .as_ref()
                 .and_then(|f| prof.channels.iter().position(|c| *c == f.channel))
                 .unwrap_or(0);
-            if let Some((e, k, n)) = model_vs_sim::nrmse_at(&truth, &prof, ch) {
+            // On the fit's samples with its far field: like with like beside its NRMSE.
+            let (floor, far) = model_vs_sim::truth_settings(fit.as_ref());
+            if let Some(at_truth) = model_vs_sim::nrmse_at(&truth, &prof, ch, floor, &far) {
                 entries.push(model_vs_sim::Entry {
                     species,
                     channel: prof.channels.get(ch).cloned(),
@@ -709,9 +711,7 @@ fn write_planned(
                         }
                     }),
                     truth,
-                    nrmse_truth: e,
-                    exposure_truth: k,
-                    n_valid: n,
+                    at_truth,
                     fit,
                     fit_note,
                 });
