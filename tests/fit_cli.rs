@@ -1247,7 +1247,7 @@ fn fit_tells_same_named_inputs_run_from_other_folders_apart() {
 }
 
 /// Data whose synthetic label comes after the fit (a metadata.json added to the folder,
-/// the profile unchanged) are reported as synthetic in nrmse.md too, not as measured.
+/// the profile unchanged) are reported as synthetic in nrmse.md too, not as unmarked data.
 #[test]
 fn report_labels_data_synthetic_when_the_label_came_after_the_fit() {
     let tmp = tempfile::tempdir().unwrap();
@@ -1274,7 +1274,11 @@ fn report_labels_data_synthetic_when_the_label_came_after_the_fit() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap()
     };
-    assert!(report().contains("measured data"));
+    let md = report();
+    assert!(
+        md.contains("These fits ran on data not marked synthetic (treated as measured"),
+        "{md}"
+    );
     std::fs::write(dir.join("metadata.json"), r#"{"synthetic": true}"#).unwrap();
     let md = report();
     assert!(md.contains("SYNTHETIC data"), "{md}");

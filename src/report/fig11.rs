@@ -311,9 +311,13 @@ fn draw<DB: DrawingBackend>(
     let (top, body) = root.split_vertically(40);
     top.draw(&Text::new(
         format!(
-            "{species}: measured | fitted | ln(fit/measured), one log10 scale for both profiles; NRMSE {:.2}% ({} data)",
+            "{species}: measured | fitted | ln(fit/measured), one log10 scale for both profiles; NRMSE {:.2}% ({})",
             100.0 * nrmse,
-            if synthetic { "SYNTHETIC" } else { "measured" }
+            if synthetic {
+                "SYNTHETIC data"
+            } else {
+                "data not marked synthetic"
+            }
         ),
         (10, 12),
         (FONT, 16),

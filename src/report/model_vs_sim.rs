@@ -149,10 +149,11 @@ fn data_clause(entries: &[Entry]) -> &'static str {
         "; the data compared here are SYNTHETIC (simulated profiles, labelled synthetic in \
          their files or their folder's `metadata.json`), not measurements"
     } else if n_syn == 0 {
-        "; the data compared here are measured (none is labelled synthetic)"
+        "; the data compared here are not marked synthetic (treated as measured: none is \
+         labelled synthetic, which does not show that they were measured)"
     } else {
-        "; the data compared here are a MIX of SYNTHETIC (simulated) and measured profiles \
-         (the `data` column says which)"
+        "; the data compared here are a MIX of SYNTHETIC (simulated) profiles and profiles \
+         not marked synthetic (treated as measured; the `data` column says which)"
     }
 }
 
@@ -206,7 +207,11 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
             s,
             "| {} | {} | {} | {:.2}% | {} |",
             e.name(),
-            if e.synthetic { "SYNTHETIC" } else { "measured" },
+            if e.synthetic {
+                "SYNTHETIC"
+            } else {
+                "not marked synthetic"
+            },
             match e.at_truth.n_below_floor {
                 0 => e.at_truth.n_used.to_string(),
                 b => format!("{} ({b} below the floor left out)", e.at_truth.n_used),
@@ -224,7 +229,11 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
             s,
             "\n## {}\n\nData: {} ({})\n",
             e.name(),
-            if e.synthetic { "SYNTHETIC" } else { "measured" },
+            if e.synthetic {
+                "SYNTHETIC"
+            } else {
+                "not marked synthetic, treated as measured"
+            },
             e.data
         );
         if let Some(n) = &e.fit_note {
@@ -368,11 +377,22 @@ mod tests {
         let lab = intro(&[entry("lab", false)]);
         assert!(
             lab.contains(
-                "(`params`); the data compared here are measured (none is labelled synthetic), and"
+                "(`params`); the data compared here are not marked synthetic (treated as measured: \
+                 none is labelled synthetic, which does not show that they were measured), and"
             ),
             "{lab}"
         );
         assert!(!lab.contains("SYNTHETIC"), "{lab}");
+        // Rows and sections of unlabelled data do not call them measured either.
+        let md = markdown(&[entry("lab", false)], &[]);
+        assert!(
+            md.contains("| lab | not marked synthetic | 10 | 1.00% |"),
+            "{md}"
+        );
+        assert!(
+            md.contains("Data: not marked synthetic, treated as measured (x)"),
+            "{md}"
+        );
         let sim = intro(&[entry("a", true), entry("b", true)]);
         assert!(
             sim.contains("the data compared here are SYNTHETIC (simulated profiles"),
@@ -380,7 +400,10 @@ mod tests {
         );
         let mix = intro(&[entry("a", true), entry("lab", false)]);
         assert!(
-            mix.contains("a MIX of SYNTHETIC (simulated) and measured"),
+            mix.contains(
+                "a MIX of SYNTHETIC (simulated) profiles and profiles not marked synthetic \
+                 (treated as measured;"
+            ),
             "{mix}"
         );
         let none = intro(&[]);

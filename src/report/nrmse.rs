@@ -358,9 +358,12 @@ pub fn data_label(fits: &[FitFile]) -> &'static str {
     if n_syn == fits.len() {
         "SYNTHETIC data (simulated profiles labelled synthetic in their files), not measurements"
     } else if n_syn == 0 {
-        "measured data (no fit file marks its data synthetic)"
+        // furfit cannot know data are measured, only that nothing marks them synthetic.
+        "data not marked synthetic (treated as measured: no fit file or data folder marks \
+         them synthetic, which does not show that they were measured)"
     } else {
-        "a MIX of synthetic and measured data (see the `data` row)"
+        "a MIX of synthetic data and data not marked synthetic (treated as measured; see the \
+         `data` row)"
     }
 }
 
@@ -416,7 +419,14 @@ fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
         "data".into(),
         "-".into(),
         fits.iter()
-            .map(|f| if f.synthetic { "synthetic" } else { "measured" }.to_string())
+            .map(|f| {
+                if f.synthetic {
+                    "synthetic"
+                } else {
+                    "not marked synthetic"
+                }
+                .to_string()
+            })
             .collect(),
     ));
     // Only when some fit left samples out: its NRMSE does not cover them.
@@ -707,7 +717,7 @@ fn write_planned(
                         if prof.is_synthetic() {
                             "synthetic (labelled so in the data)".into()
                         } else {
-                            "measured (no synthetic label)".into()
+                            "no synthetic label in the data or its folder's metadata.json".into()
                         }
                     }),
                     truth,
@@ -771,6 +781,31 @@ mod tests {
         let p = dir.join(format!("{name}.json"));
         std::fs::write(&p, v.to_string()).unwrap();
         FitFile::read(&p).unwrap().remove(0)
+    }
+
+    /// furfit cannot know that data are measured: data without a synthetic mark are
+    /// called what they are, in the heading and the `data` row.
+    #[test]
+    fn unmarked_data_are_not_called_measured() {
+        let tmp = tempfile::tempdir().unwrap();
+        let lab = fit(tmp.path(), "lab", serde_json::json!({}));
+        let sim = fit(tmp.path(), "sim", serde_json::json!({"synthetic": true}));
+        let md = markdown(std::slice::from_ref(&lab));
+        assert!(
+            md.contains("These fits ran on data not marked synthetic (treated as measured:"),
+            "{md}"
+        );
+        assert!(md.contains("| data | - | not marked synthetic |"), "{md}");
+        assert!(!md.contains("| measured"), "{md}");
+        let md = markdown(&[sim, lab]);
+        assert!(
+            md.contains("a MIX of synthetic data and data not marked synthetic"),
+            "{md}"
+        );
+        assert!(
+            md.contains("| data | - | synthetic | not marked synthetic |"),
+            "{md}"
+        );
     }
 
     /// The NRMSE is said to cover the samples the fit used, and a fit that left samples
