@@ -157,6 +157,38 @@ fn data_clause(entries: &[Entry]) -> &'static str {
     }
 }
 
+/// `x` to `digits` significant digits (at least 1): plain decimals for magnitudes in
+/// [1e-4, 1e6), else exponent form as [`crate::error::Num`] writes them. Standard errors
+/// and fitted - true differences span decades across parameters; a fixed count of
+/// decimals printed an SE of 0.00034 as 0.000.
+fn sig(x: f64, digits: usize) -> String {
+    if !x.is_finite() {
+        return "-".into();
+    }
+    if x == 0.0 {
+        return "0".into();
+    }
+    let d = digits.max(1);
+    // Round first: 0.0995 to two digits is 0.10, whose decimals follow from 0.1.
+    let r: f64 = format!("{:.*e}", d - 1, x).parse().unwrap_or(x);
+    let a = r.abs();
+    if !(1e-4..1e6).contains(&a) {
+        return format!("{:.*e}", d - 1, r);
+    }
+    let decimals = d as i32 - 1 - a.log10().floor() as i32;
+    format!("{:.*}", decimals.max(0) as usize, r)
+}
+
+/// [`sig`] with a sign (`+` for positive differences).
+fn sig_signed(x: f64, digits: usize) -> String {
+    let s = sig(x, digits);
+    if x > 0.0 && x.is_finite() {
+        format!("+{s}")
+    } else {
+        s
+    }
+}
+
 /// The Markdown report; `unusable` lists the species folders whose true parameters or data
 /// could not be read, with why.
 pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
@@ -254,9 +286,9 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
                     (
                         format!("{v:.4}"),
                         f.se[k]
-                            .map(|x| format!("{x:.3}{flag}"))
+                            .map(|x| format!("{}{flag}", sig(x, 2)))
                             .unwrap_or_else(|| format!("-{flag}")),
-                        format!("{:+.4}", v - t[k]),
+                        sig_signed(v - t[k], 2),
                     )
                 }
                 None => ("-".into(), "-".into(), "-".into()),
@@ -497,5 +529,60 @@ mod tests {
         // segmentation's values here; 1e-6 tells it from rounding with room either side.
         let tol = nrmse_at(&truth, &prof, 0, 1e-8, &FarOptions::default()).unwrap();
         assert!(tol.nrmse > 1e-6, "{}", tol.nrmse);
+    }
+
+    /// No nonzero standard error or difference prints as zero: two significant digits at
+    /// every magnitude (the exact strings, so no tolerance is involved).
+    #[test]
+    fn se_and_differences_keep_significant_digits() {
+        for (x, want) in [
+            (0.00034, "0.00034"),
+            (0.17425, "0.17"),
+            (0.0995, "0.10"),
+            (1.0, "1.0"),
+            (1234.0, "1200"),
+            (3.4e-7, "3.4e-7"),
+            (0.0, "0"),
+            (f64::NAN, "-"),
+        ] {
+            assert_eq!(sig(x, 2), want, "{x}");
+        }
+        assert_eq!(sig_signed(0.0003, 2), "+0.00030");
+        assert_eq!(sig_signed(-0.0123, 2), "-0.012");
+        // In the report: the audit's eta row, an SE of 0.00034 beside a +0.0003 difference.
+        let tmp = tempfile::tempdir().unwrap();
+        let truth = FurParams::preset("cat").unwrap();
+        let mut params = truth.to_json_value();
+        let eta = params["eta"].as_f64().unwrap();
+        params["eta"] = serde_json::json!(eta + 0.0003);
+        let v = serde_json::json!({
+            "params": params,
+            "exposure": 1.0,
+            "nrmse": 0.02,
+            "uncertainty": {"standard_error": {"eta": 0.00034, "kappa": 0.0123}},
+        });
+        let p = tmp.path().join("cat.json");
+        std::fs::write(&p, v.to_string()).unwrap();
+        let fit = FitFile::read(&p).unwrap().remove(0);
+        let e = Entry {
+            species: "cat".into(),
+            channel: None,
+            synthetic: true,
+            data: "x".into(),
+            truth,
+            at_truth: TruthNrmse {
+                nrmse: 0.03,
+                exposure: 1.0,
+                n_used: 10,
+                n_below_floor: 0,
+            },
+            fit: Some(fit),
+            fit_note: None,
+        };
+        let md = markdown(&[e], &[]);
+        let row = md.lines().find(|l| l.starts_with("| eta |")).unwrap();
+        assert!(row.ends_with("| 0.00034 | +0.00030 |"), "{row}");
+        let row = md.lines().find(|l| l.starts_with("| kappa |")).unwrap();
+        assert!(row.ends_with("| 0.012 | 0 |"), "{row}");
     }
 }
