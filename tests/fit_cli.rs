@@ -1284,6 +1284,46 @@ fn report_labels_data_synthetic_when_the_label_came_after_the_fit() {
     assert!(md.contains("SYNTHETIC data"), "{md}");
 }
 
+/// A fit that left samples out below its `--floor`: nrmse.md says how many, and
+/// model_vs_simulation's NRMSE at truth covers the same samples as the fit's NRMSE (it
+/// covered every valid sample, whatever the fit used).
+#[test]
+fn report_counts_samples_below_the_floor_and_compares_like_with_like() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    // 2 % of the peak leaves out a part of the mouse's tails (checked below).
+    let o = fit_cmd(root)
+        .args(["measurements/mouse", "--floor", "0.02"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("fits/mouse.json")).unwrap())
+            .unwrap();
+    let (valid, below, used) = (
+        v["data"]["n_valid"].as_u64().unwrap(),
+        v["data"]["n_below_floor"].as_u64().unwrap(),
+        v["data"]["n_used"].as_u64().unwrap(),
+    );
+    assert!(below > 0 && used == valid - below, "{}", v["data"]);
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
+    let want = format!(
+        "| samples used (valid, >= floor x peak) | - | {used} of {valid} ({below} below 0.02 x peak left out) |"
+    );
+    assert!(md.contains(&want), "no '{want}' in\n{md}");
+    let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
+    let row = mvs.lines().find(|l| l.starts_with("| mouse |")).unwrap();
+    assert!(
+        row.starts_with(&format!(
+            "| mouse | SYNTHETIC | {used} ({below} below the floor left out) |"
+        )),
+        "{row}"
+    );
+}
+
 /// `fit --all` names every species whose data do not load in one run (not one per run),
 /// and says which folders it passed over for holding no profile file; nothing is fitted.
 #[test]
