@@ -399,7 +399,7 @@ impl FurParams {
             let id = ParamId::from_name(key).ok_or_else(|| Error::Param {
                 key: key.clone(),
                 msg: format!(
-                    "unknown key (expected one of: {})",
+                    "unknown key (expected one of: {}, and optionally exposure)",
                     ParamId::ALL.map(|p| p.spec().name).join(", ")
                 ),
             })?;

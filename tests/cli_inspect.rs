@@ -250,7 +250,7 @@ fn folder_metadata_labels_data_synthetic() {
     let (ok, out, err) = inspect(&[dir.as_os_str()]);
     assert!(ok, "{err}");
     assert!(
-        out.contains("data     measured (no synthetic label"),
+        out.contains("data     not marked synthetic, treated as measured (no synthetic label"),
         "{out}"
     );
 

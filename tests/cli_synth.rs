@@ -126,6 +126,27 @@ fn synth_rejects_bad_input() {
         "{err}"
     );
     assert!(!out.exists());
+    // An exposure that underflows the values is blamed on where it came from: the option,
+    // or the parameter file's `exposure` key (the message named --exposure for both).
+    let params = dir.path().join("p.json");
+    let mut v = serde_json::json!({"exposure": 1e-320});
+    for (id, x) in furfit::ParamId::ALL
+        .iter()
+        .zip(furfit::FurParams::preset("cat").unwrap().to_file_units())
+    {
+        v[id.spec().name] = serde_json::json!(x);
+    }
+    std::fs::write(&params, v.to_string()).unwrap();
+    let st = synth(params.to_str().unwrap(), &[]);
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(
+        err.contains("the exposure of") && err.contains("p.json") && err.contains("underflows"),
+        "{err}"
+    );
+    let st = synth("cat", &["--exposure", "3e-308"]);
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("--exposure: the value"), "{err}");
+    assert!(!out.exists());
 }
 
 /// `--scattered-step strict` reaches the library's strict far field bit for bit (so the

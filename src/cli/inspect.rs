@@ -111,7 +111,7 @@ fn describe(path: &std::path::Path, l: &profile::Loaded) -> Vec<String> {
     out.push(if p.is_synthetic() {
         "  data     synthetic".into()
     } else {
-        "  data     measured (no synthetic label in the file or its folder's metadata.json)".into()
+        "  data     not marked synthetic, treated as measured (no synthetic label in the file or its folder's metadata.json)".into()
     });
     for n in &l.notes {
         out.push(format!("  note: {n}"));

@@ -554,7 +554,7 @@ fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, Stri
     let about = if v.get("solver").is_some() {
         let data = match v["data"]["synthetic"].as_bool() {
             Some(true) => "SYNTHETIC data",
-            Some(false) => "measured data",
+            Some(false) => "data not marked synthetic",
             None => "data of unrecorded kind",
         };
         match v["species"].as_str() {

@@ -192,8 +192,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         } else {
             ("overflows", "smaller")
         };
+        // Name where the exposure came from: the option, or the parameter file's key.
+        let source = if a.exposure.is_some() {
+            "--exposure".to_string()
+        } else {
+            format!("the exposure of {}", a.params)
+        };
         bail!(
-            "--exposure: the value at theta_i {}, theta_r {}, phi {} {what} ({:e}); use a {fix} exposure",
+            "{source}: the value at theta_i {}, theta_r {}, phi {} {what} ({:e}); use a {fix} exposure",
             s.theta_i,
             s.theta_r,
             s.phi,

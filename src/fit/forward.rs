@@ -2,8 +2,9 @@
 //! "What a goniometer sample predicts", before the exposure `k`) at a list of goniometer
 //! points.
 //!
-//! All model evaluations of the fitter go through [`predict_points`]; it is the single
-//! place that calls into the model, so the fitter never re-implements any physics.
+//! Every model evaluation of the fitter goes through this module: [`predict_points`] and
+//! [`ModelTerms`] call the grid prediction of [`crate::synth::GridPlan`] (the model
+//! `furfit synth` writes), so the fitter never re-implements any physics.
 
 use crate::model::far::{Decisions, FarOptions};
 use crate::model::{FurModel, LobeSet, LobeValues};

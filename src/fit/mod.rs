@@ -66,7 +66,8 @@ pub struct FitOptions {
     pub n_best: usize,
     /// Iteration cap of each LM run.
     pub max_iters: u64,
-    /// Far-field options (default: the paper's fixed 8 / 5 segments).
+    /// Far-field options (default: tolerance mode 1e-4 from the paper's 8 / 5 initial
+    /// segments).
     pub far: FarOptions,
     /// User start (file units); always among the LM starts.
     pub init: Option<[f64; N_PARAMS]>,
@@ -145,7 +146,8 @@ impl FitOptions {
                 ),
             });
         }
-        self.layout.fixed[id.index()] = Some(value);
+        // -0 is 0 (a fit file showed `"kappa": -0.0`).
+        self.layout.fixed[id.index()] = Some(value + 0.0);
         Ok(())
     }
 }

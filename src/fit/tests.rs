@@ -265,3 +265,12 @@ fn weighted_refuses_a_sigma_orders_below_the_rest_and_survives_any_scale() {
         }
     }
 }
+
+/// `--fix kappa=-0` is kappa 0 (the fit file showed `"kappa": -0.0`).
+#[test]
+fn fix_negative_zero_is_zero() {
+    let mut o = FitOptions::default();
+    o.fix("kappa", -0.0).unwrap();
+    let v = o.layout.fixed[ParamId::Kappa.index()].unwrap();
+    assert!(v == 0.0 && v.is_sign_positive());
+}
