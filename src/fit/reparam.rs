@@ -104,6 +104,24 @@ pub fn to_value(id: ParamId, u: f64) -> f64 {
     }
 }
 
+/// Does `u ± se_u` span most of the parameter's range? Bounded maps: the values at the two
+/// ends are more than half the range apart; `exp` maps (no upper end): a factor above
+/// `e^4` between them (`se_u > 2`). Judged on the values, not on `se_u` alone: near a
+/// bound a sigmoid's `u` is stretched, and `l = 9.97` with `SE(u) = 2.3` spans 8 % of
+/// (0, 10], not most of it.
+pub fn spans_most(id: ParamId, u: f64, se_u: f64) -> bool {
+    if !se_u.is_finite() {
+        return true;
+    }
+    match map_of(id) {
+        Map::Exp => se_u > 2.0,
+        _ => {
+            let (lo, hi) = (to_value(id, -U_MAX), to_value(id, U_MAX));
+            to_value(id, u + se_u) - to_value(id, u - se_u) > 0.5 * (hi - lo)
+        }
+    }
+}
+
 /// `d value / d u` at `u` (file units per unit of `u`); 0 beyond the clamp.
 pub fn derivative(id: ParamId, u: f64) -> f64 {
     if clamp_u(id, u) != u {
@@ -180,6 +198,20 @@ pub fn to_u_start(id: ParamId, v: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// "Spans most of its range" is judged on values: `l = 9.97` with a wide `SE(u)` (its
+    /// sigmoid stretched near the bound 10) spans a few per cent, while the same `SE(u)`
+    /// at mid-range spans most of it; exp maps keep the factor rule.
+    #[test]
+    fn spans_most_is_judged_on_values() {
+        let u_edge = to_u(ParamId::L, 9.97);
+        assert!(!spans_most(ParamId::L, u_edge, 2.3));
+        assert!(spans_most(ParamId::L, to_u(ParamId::L, 5.0), 2.3));
+        assert!(!spans_most(ParamId::L, to_u(ParamId::L, 5.0), 0.3));
+        assert!(spans_most(ParamId::SigmaMA, 0.0, 2.1));
+        assert!(!spans_most(ParamId::SigmaMA, 0.0, 1.9));
+        assert!(spans_most(ParamId::Eta, 0.0, f64::INFINITY));
+    }
 
     #[test]
     fn round_trip_and_derivative() {

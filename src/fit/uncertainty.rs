@@ -5,8 +5,8 @@
 //! A free parameter is flagged *unconstrained* when the data does not pin it down:
 //! - it loads on a (numerically) null direction of `J^T J` (singular value below
 //!   `1e-10` of the largest): its standard error is reported as `null` (infinite);
-//! - or `SE(u) > 2`: within one standard error the bounded map moves across most of its
-//!   range (sigmoid/tanh) or by a factor `e^2` (exp parameters);
+//! - or one standard error either side spans most of its range: more than half of it for
+//!   the bounded maps, a factor above `e^4` for the exp ones ([`reparam::spans_most`]);
 //! - or, for `sigma_m_s`, `sigma_m_a` and `g`, when `kappa < 1e-3`: the medulla is (nearly)
 //!   absent, so the scattered lobes that carry these parameters vanish.
 
@@ -24,7 +24,8 @@ pub enum Why {
     Bound,
     /// On a singular direction of `J^T J`, left out of the pseudo-inverse.
     Singular,
-    /// `SE(u) > MAX_SE_U`: it stays in the covariance.
+    /// `u ± SE(u)` spans most of its range ([`reparam::spans_most`]): it stays in the
+    /// covariance.
     Wide,
     /// A medulla parameter while `kappa < KAPPA_ABSENT`.
     NoMedulla,
@@ -261,7 +262,7 @@ pub fn estimate(
             continue;
         }
         se[id.index()] = Some(reparam::derivative(*id, u[j]).abs() * se_u);
-        if se_u > MAX_SE_U {
+        if reparam::spans_most(*id, u[j], se_u) {
             unconstrained.push((*id, Why::Wide));
         } else if kappa < KAPPA_ABSENT
             && matches!(id, ParamId::SigmaMS | ParamId::SigmaMA | ParamId::G)
