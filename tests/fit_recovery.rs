@@ -389,6 +389,14 @@ fn profile_re_solves_a_partner_off_its_bound() {
             vec![partner],
             "seed {seed}: precondition (partner on its bound) no longer holds"
         );
+        // Its linearised SE is conditional on the partner's bound value: flagged as such.
+        assert!(
+            fit.uncertainty
+                .unconstrained
+                .contains(&(id, furfit::fit::uncertainty::Why::Coupled)),
+            "seed {seed}: {:?}",
+            fit.uncertainty.unconstrained
+        );
         let iv = &fit.profile[0];
         assert_eq!(iv.lo.kind(), "crossing", "seed {seed}: {iv:?}");
         let mut fixed = opts();

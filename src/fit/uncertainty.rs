@@ -29,6 +29,10 @@ pub enum Why {
     Wide,
     /// A medulla parameter while `kappa < KAPPA_ABSENT`.
     NoMedulla,
+    /// Its effect on the residuals is (nearly) that of a parameter held on its bound
+    /// ([`flag_coupled`]): the two trade off, and its standard error, conditional on the
+    /// held value, says nothing of how far it could move.
+    Coupled,
 }
 
 impl Why {
@@ -39,6 +43,7 @@ impl Why {
             Why::Singular => "no information in the data at this value (singular direction)",
             Why::Wide => "standard error spans most of its range",
             Why::NoMedulla => "kappa ~ 0: no medulla, scattered lobes absent",
+            Why::Coupled => "trades off with a parameter held on its bound (see conditional_on); its standard error assumes that value",
         }
     }
 
@@ -100,6 +105,48 @@ impl Uncertainty {
             .filter(|(_, why)| why.held())
             .map(|(id, _)| *id)
             .collect()
+    }
+}
+
+/// Share of a parameter's Jacobian column that the held parameters' effects explain
+/// (multiple correlation `R`, [`flag_coupled`]) above which it counts as trading off with
+/// them ([`Why::Coupled`]).
+pub const COUPLED_R: f64 = 0.99;
+
+/// Flag the free parameters whose Jacobian column (of `jac`) lies within [`COUPLED_R`]
+/// (multiple correlation) in the span of the effects of the parameters held on their
+/// bounds, given as `(id, column)`: the residuals' change from the bound to the map's
+/// interior edge, per unit of value (the map's derivative has vanished at the bound, so
+/// `jac`'s own column says nothing). Such a parameter's conditional SE is falsely tight:
+/// the data fix only a combination with the held ones (two absorptions at correlation -1;
+/// springbok's `sigma_c_a` 1859 with `kappa` 0.9998 and `sigma_m_a` at 0).
+pub fn flag_coupled(unc: &mut Uncertainty, jac: &DMatrix<f64>, held: &[(ParamId, DVector<f64>)]) {
+    let cols: Vec<&DVector<f64>> = held
+        .iter()
+        .map(|(_, c)| c)
+        .filter(|c| c.norm() > 0.0 && c.iter().all(|x| x.is_finite()))
+        .collect();
+    if cols.is_empty() {
+        return;
+    }
+    let h = DMatrix::from_columns(&cols.iter().map(|c| c.normalize()).collect::<Vec<_>>());
+    let svd = h.clone().svd(true, true);
+    for (j, id) in unc.free.clone().into_iter().enumerate() {
+        if held.iter().any(|(p, _)| *p == id) || unc.unconstrained.iter().any(|(p, _)| *p == id) {
+            continue;
+        }
+        let col = jac.column(j).into_owned();
+        let norm = col.norm();
+        if norm.is_nan() || norm <= 0.0 {
+            continue;
+        }
+        let Ok(x) = svd.solve(&col, 1e-12) else {
+            continue;
+        };
+        let r = (&h * x).norm() / norm;
+        if r >= COUPLED_R {
+            unc.unconstrained.push((id, Why::Coupled));
+        }
     }
 }
 
@@ -286,5 +333,58 @@ pub fn estimate(
         correlation: corr,
         s2,
         step_se,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A column within the span of the held effects (R = 0.995) is flagged, one at
+    /// R = 0.98 and one orthogonal are not, and a held parameter itself is left alone.
+    #[test]
+    fn flag_coupled_uses_the_span_of_the_held_effects() {
+        let n = 50;
+        let a = DVector::from_fn(n, |i, _| ((i as f64) * 0.3).sin());
+        let b = DVector::from_fn(n, |i, _| ((i as f64) * 0.7).cos());
+        // Orthogonal to a and b (up to rounding): a third frequency.
+        let c = DVector::from_fn(n, |i, _| ((i as f64) * 1.9).sin());
+        let c = &c - &a * (a.dot(&c) / a.dot(&a));
+        let c = &c - &b * (b.dot(&c) / b.dot(&b));
+        let mix = |r: f64| (&a + &b).normalize() * r + c.normalize() * (1.0 - r * r).sqrt();
+        let free = vec![
+            ParamId::SigmaCA,
+            ParamId::SigmaMA,
+            ParamId::Eta,
+            ParamId::L,
+            ParamId::Kappa,
+        ];
+        let jac = DMatrix::from_columns(&[
+            mix(0.995),
+            mix(0.98),
+            c.clone(),
+            DVector::zeros(n),
+            DVector::zeros(n),
+        ]);
+        let mut unc = Uncertainty {
+            se: [None; N_PARAMS],
+            unconstrained: vec![(ParamId::Kappa, Why::Bound)],
+            free,
+            correlation: DMatrix::zeros(5, 5),
+            s2: 1.0,
+            step_se: 0.0,
+        };
+        flag_coupled(
+            &mut unc,
+            &jac,
+            &[(ParamId::Kappa, a.clone()), (ParamId::L, b.clone() * 3.0)],
+        );
+        assert_eq!(
+            unc.unconstrained,
+            vec![
+                (ParamId::Kappa, Why::Bound),
+                (ParamId::SigmaCA, Why::Coupled)
+            ]
+        );
     }
 }
