@@ -957,6 +957,14 @@ fn fit_profile_option() {
         );
     }
     assert!(v["uncertainty"]["profile"]["params"]["kappa"].is_null());
+    // Every re-solve of this well-posed profile succeeds (a failed one is counted here).
+    assert_eq!(v["uncertainty"]["profile"]["failed_resolves"], 0);
+    // Unweighted: the NRMSE's exposure is the fit's (same closed form; rounding only).
+    let (ke, k) = (
+        v["nrmse_exposure"].as_f64().unwrap(),
+        v["exposure"].as_f64().unwrap(),
+    );
+    assert!((ke - k).abs() <= 1e-12 * k, "{ke} vs {k}");
     for (arg, needle) in [
         ("kappa", "kappa is fixed"),
         ("etta", "unknown parameter 'etta'"),

@@ -359,6 +359,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             for iv in &o.profile {
                 outln!("  {}", crate::fit::likelihood::describe(iv));
             }
+            if o.profile_failed > 0 {
+                outln!(
+                    "  warning: {} profile re-solve(s) failed in the solver and were scored at their start: an interval end beside them may lie too far out",
+                    o.profile_failed
+                );
+            }
             for (id, why) in &o.uncertainty.unconstrained {
                 outln!("  unconstrained: {} ({why})", id.spec().name);
             }

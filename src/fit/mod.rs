@@ -173,8 +173,11 @@ pub struct FitOutcome {
     pub params: FurParams,
     /// Exposure `k` of the solve (weighted when `weighted`).
     pub exposure: f64,
-    /// MODEL.md NRMSE (unit weights, its own optimal exposure) on all valid samples.
+    /// MODEL.md NRMSE (unit weights, its own optimal exposure) on the samples used.
     pub nrmse: f64,
+    /// The exposure that NRMSE is taken at: `exposure` itself for an unweighted fit, the
+    /// unweighted optimum for a weighted one (whose `exposure` minimises the weighted cost).
+    pub nrmse_exposure: f64,
     pub uncertainty: Uncertainty,
     pub iterations: u64,
     pub evaluations: u64,
@@ -199,6 +202,9 @@ pub struct FitOutcome {
     /// timing: they take `profile_time_s` after it).
     pub profile: Vec<likelihood::Interval>,
     pub profile_time_s: f64,
+    /// Profile re-solves the solver failed on (scored at their start, so an interval end
+    /// beside them may lie too far out).
+    pub profile_failed: usize,
 }
 
 /// Progress callback: a short stage message.
@@ -574,11 +580,14 @@ pub fn fit_data(
     let mut out = finish_at(&u, iters, termination, trace.clone())?;
     if !opts.profile.is_empty() {
         let t = Instant::now();
-        // A re-solve with one more parameter fixed: its solution and RSS (2 x its cost).
+        // A re-solve with one more parameter fixed: its solution and RSS (2 x its cost). One
+        // the solver fails on is scored at its start (an upper bound of its RSS), and counted.
+        let failed = std::cell::Cell::new(0usize);
         let mut refit = |p: &LogResidualProblem, start: DVector<f64>| match lm_on(p, start.clone())
         {
             Ok(run) => (run.u, 2.0 * run.cost),
             Err(_) => {
+                failed.set(failed.get() + 1);
                 let rss = p.residuals(start.as_slice()).norm_squared();
                 (start, rss)
             }
@@ -621,6 +630,7 @@ pub fn fit_data(
             }
         }
         out.profile_time_s = t.elapsed().as_secs_f64();
+        out.profile_failed = failed.get();
     }
     Ok(out)
 }
@@ -701,7 +711,7 @@ fn finish(
             .expect("three timings")
     };
     let (t_full, m) = time_min3(full);
-    let (nrmse, _) = problem::nrmse(&m, &data.ln_y, data.range);
+    let (nrmse, nrmse_exposure) = problem::nrmse(&m, &data.ln_y, data.range);
     let sample_evaluations = full_evals * data.len() as u64 + sub_evals * sub.data.len() as u64;
     // Time in the model, estimated as evaluations x the time of one evaluation measured
     // alone (concurrent evaluations during the solve make per-call timers overlap). A
@@ -720,6 +730,7 @@ fn finish(
         params,
         exposure: lk.exp(),
         nrmse,
+        nrmse_exposure,
         uncertainty: unc,
         iterations,
         evaluations: full_evals + sub_evals,
@@ -734,6 +745,7 @@ fn finish(
         capped_slices,
         profile: Vec::new(),
         profile_time_s: 0.0,
+        profile_failed: 0,
     })
 }
 

@@ -91,6 +91,9 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
         "units": units_json(),
         "exposure": out.exposure,
         "nrmse": out.nrmse,
+        // The exposure the NRMSE is taken at (MODEL.md: its own optimum, unweighted): equal
+        // to `exposure` unless the fit is weighted.
+        "nrmse_exposure": out.nrmse_exposure,
         "uncertainty": {
             "standard_error": se,
             "unconstrained": unconstrained,
@@ -102,7 +105,11 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             // small if the data favour other values of them.
             "conditional_on": unc.held().iter().map(|id| id.spec().name).collect::<Vec<_>>(),
             "profile": (!out.profile.is_empty())
-                .then(|| crate::fit::likelihood::to_json(&out.profile, out.profile_time_s)),
+                .then(|| {
+                    let mut v = crate::fit::likelihood::to_json(&out.profile, out.profile_time_s);
+                    v["failed_resolves"] = serde_json::json!(out.profile_failed);
+                    v
+                }),
         },
         // In the solver's coordinates u (log space for the exp-mapped absorptions and
         // sigma_m_s), where the linearisation is made.

@@ -274,3 +274,33 @@ fn fix_negative_zero_is_zero() {
     let v = o.layout.fixed[ParamId::Kappa.index()].unwrap();
     assert!(v == 0.0 && v.is_sign_positive());
 }
+
+/// The fit reports the exposure its NRMSE is taken at: the fit's own for an unweighted fit
+/// (the same closed form; 1e-12 for the rounding of two sums), the unweighted optimum for a
+/// weighted one, whose `exposure` minimises the weighted cost instead.
+#[test]
+fn nrmse_exposure_is_the_unweighted_optimum() {
+    let truth = FurParams::preset("mouse").unwrap();
+    let pts = small_points();
+    // Values off the model by a pattern the weights favour unevenly.
+    let y: Vec<f64> = synth(&truth, &pts, 2.0)
+        .iter()
+        .enumerate()
+        .map(|(i, v)| v * (1.0 + 0.2 * ((i % 7) as f64 - 3.0) / 3.0))
+        .collect();
+    // Sigmas growing with the deviation: the weighted optimum sits low.
+    let rel: Vec<f64> = (0..y.len()).map(|i| 0.01 * (1 + i % 7) as f64).collect();
+    let mut o = FitOptions {
+        far: FarOptions::paper(),
+        ..FitOptions::default()
+    };
+    let t = truth.to_file_units();
+    for id in ParamId::ALL {
+        o.fix(id.spec().name, t[id.index()]).unwrap();
+    }
+    let plain = fit_data(&FitData::new(pts.clone(), &y, None), &o, None).unwrap();
+    assert!((plain.nrmse_exposure - plain.exposure).abs() <= 1e-12 * plain.exposure);
+    let weighted = fit_data(&FitData::new(pts, &y, Some(&rel)), &o, None).unwrap();
+    assert!((weighted.nrmse_exposure - plain.exposure).abs() <= 1e-12 * plain.exposure);
+    assert!((weighted.exposure / weighted.nrmse_exposure - 1.0).abs() > 1e-3);
+}
