@@ -129,13 +129,8 @@ fn synth_rejects_bad_input() {
     // An exposure that underflows the values is blamed on where it came from: the option,
     // or the parameter file's `exposure` key (the message named --exposure for both).
     let params = dir.path().join("p.json");
-    let mut v = serde_json::json!({"exposure": 1e-320});
-    for (id, x) in furfit::ParamId::ALL
-        .iter()
-        .zip(furfit::FurParams::preset("cat").unwrap().to_file_units())
-    {
-        v[id.spec().name] = serde_json::json!(x);
-    }
+    let mut v = furfit::FurParams::preset("cat").unwrap().to_json_value();
+    v["exposure"] = serde_json::json!(1e-320);
     std::fs::write(&params, v.to_string()).unwrap();
     let st = synth(params.to_str().unwrap(), &[]);
     let err = String::from_utf8_lossy(&st.stderr);

@@ -674,26 +674,7 @@ fn finish(
     };
     let t_jac = t_jac.elapsed().as_secs_f64();
     let mut unc = uncertainty::estimate(&opts.layout, &u, &jac, &r);
-    // The effect of each parameter held on its bound, as a secant from the bound to the
-    // map's interior edge (one evaluation each), to find the parameters trading off with it.
-    let free = opts.layout.free();
-    let held: Vec<(ParamId, DVector<f64>)> = unc
-        .at_bound()
-        .into_iter()
-        .filter_map(|id| {
-            let j = free.iter().position(|&f| f == id)?;
-            // A tenth of the way in value from the bound to the interior edge: local, yet
-            // a step the clamped map can take.
-            let (v0, v_edge) = (
-                reparam::to_value(id, u[j]),
-                reparam::to_value(id, reparam::interior_edge(id, u[j]).0),
-            );
-            let mut edge = u.clone();
-            edge[j] = reparam::to_u(id, v0 + 0.1 * (v_edge - v0));
-            let dv = reparam::to_value(id, edge[j]) - v0;
-            (dv != 0.0).then(|| (id, (full.residuals(edge.as_slice()) - &r) / dv))
-        })
-        .collect();
+    let held = uncertainty::bound_effects(full, &u, &r, &unc);
     uncertainty::flag_coupled(&mut unc, &jac, &held);
     let params = opts.layout.params(u.as_slice());
     params.validate()?;

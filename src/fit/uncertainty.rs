@@ -10,7 +10,7 @@
 //! - or, for `sigma_m_s`, `sigma_m_a` and `g`, when `kappa < 1e-3`: the medulla is (nearly)
 //!   absent, so the scattered lobes that carry these parameters vanish.
 
-use super::problem::ParamLayout;
+use super::problem::{LogResidualProblem, ParamLayout};
 use super::reparam;
 use crate::params::{ParamId, N_PARAMS};
 use nalgebra::{DMatrix, DVector};
@@ -112,6 +112,32 @@ impl Uncertainty {
 /// (multiple correlation `R`, [`flag_coupled`]) above which it counts as trading off with
 /// them ([`Why::Coupled`]).
 pub const COUPLED_R: f64 = 0.99;
+
+/// The effect on the residuals of each parameter on its bound in `unc`, per unit of its
+/// value: the secant from the fitted point (residuals `r` at `u`) a tenth of the way in
+/// value to its map's interior edge (local, yet a step the clamped map can take), one
+/// evaluation of `problem` each. The input of [`flag_coupled`].
+pub fn bound_effects(
+    problem: &LogResidualProblem,
+    u: &DVector<f64>,
+    r: &DVector<f64>,
+    unc: &Uncertainty,
+) -> Vec<(ParamId, DVector<f64>)> {
+    unc.at_bound()
+        .into_iter()
+        .filter_map(|id| {
+            let j = unc.free.iter().position(|&f| f == id)?;
+            let (v0, v_edge) = (
+                reparam::to_value(id, u[j]),
+                reparam::to_value(id, reparam::interior_edge(id, u[j]).0),
+            );
+            let mut edge = u.clone();
+            edge[j] = reparam::to_u(id, v0 + 0.1 * (v_edge - v0));
+            let dv = reparam::to_value(id, edge[j]) - v0;
+            (dv != 0.0).then(|| (id, (problem.residuals(edge.as_slice()) - r) / dv))
+        })
+        .collect()
+}
 
 /// Flag the free parameters whose Jacobian column (of `jac`) lies within [`COUPLED_R`]
 /// (multiple correlation) in the span of the effects of the parameters held on their
@@ -222,9 +248,28 @@ pub fn gauss_newton_step_se(
     r: &DVector<f64>,
     max_se: f64,
 ) -> f64 {
-    let p = grad.len();
-    let s2 = residual_variance(r, p);
     let (pinv, null_load) = pseudo_inverse(jtj);
+    step_se_with(
+        jtj,
+        grad,
+        residual_variance(r, grad.len()),
+        &pinv,
+        &null_load,
+        max_se,
+    )
+}
+
+/// [`gauss_newton_step_se`] with `jtj`'s [`pseudo_inverse`] and the residual variance
+/// `s2` already at hand.
+fn step_se_with(
+    jtj: &DMatrix<f64>,
+    grad: &DVector<f64>,
+    s2: f64,
+    pinv: &DMatrix<f64>,
+    null_load: &[f64],
+    max_se: f64,
+) -> f64 {
+    let p = grad.len();
     // The determined coordinates, and their Gauss-Newton step with the others held: an
     // undetermined coordinate's own step (towards a bound, say) drags correlated ones
     // along in the full step without changing the cost, so only the conditional step
@@ -290,8 +335,15 @@ pub fn estimate(
         j_held.column_mut(j).fill(0.0);
     }
     let jtj = j_held.transpose() * &j_held;
-    let step_se = gauss_newton_step_se(&jtj, &(j_held.transpose() * r), r, MAX_SE_U);
     let (mut cov, null_load) = pseudo_inverse(&jtj);
+    let step_se = step_se_with(
+        &jtj,
+        &(j_held.transpose() * r),
+        s2,
+        &cov,
+        &null_load,
+        MAX_SE_U,
+    );
     cov *= s2;
     let mut se = [None; N_PARAMS];
     let mut unconstrained = Vec::new();

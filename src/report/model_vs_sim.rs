@@ -310,6 +310,16 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
 mod tests {
     use super::*;
 
+    /// NRMSE `nrmse` at truth on 10 samples, none below the floor, exposure 1.
+    fn at_truth(nrmse: f64) -> TruthNrmse {
+        TruthNrmse {
+            nrmse,
+            exposure: 1.0,
+            n_used: 10,
+            n_below_floor: 0,
+        }
+    }
+
     /// `params` may name a preset (as `--params` does); a bad entry is an error naming
     /// the metadata file and the key; the data's description comes from `what`/`source`.
     #[test]
@@ -361,12 +371,7 @@ mod tests {
             synthetic: true,
             data: "synthetic, noisy".into(),
             truth: FurParams::preset("cat").unwrap(),
-            at_truth: TruthNrmse {
-                nrmse: 0.01,
-                exposure: 1.0,
-                n_used: 10,
-                n_below_floor: 0,
-            },
+            at_truth: at_truth(0.01),
             fit: None,
             fit_note: Some("changed".into()),
         };
@@ -389,12 +394,7 @@ mod tests {
             synthetic,
             data: "x".into(),
             truth: FurParams::preset("cat").unwrap(),
-            at_truth: TruthNrmse {
-                nrmse: 0.01,
-                exposure: 1.0,
-                n_used: 10,
-                n_below_floor: 0,
-            },
+            at_truth: at_truth(0.01),
             fit: None,
             fit_note: None,
         };
@@ -570,12 +570,7 @@ mod tests {
             synthetic: true,
             data: "x".into(),
             truth,
-            at_truth: TruthNrmse {
-                nrmse: 0.03,
-                exposure: 1.0,
-                n_used: 10,
-                n_below_floor: 0,
-            },
+            at_truth: at_truth(0.03),
             fit: Some(fit),
             fit_note: None,
         };
