@@ -323,6 +323,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .map(|id| format!("{}={:.4}", id.spec().name, file[id.index()]))
                 .collect();
             outln!("  {}", line.join(" "));
+            for l in se_lines(&o.uncertainty) {
+                outln!("  {l}");
+            }
             let fixed: Vec<&str> = crate::ParamId::ALL
                 .iter()
                 .filter(|id| opts.layout.fixed[id.index()].is_some())
@@ -442,4 +445,37 @@ fn profile_params(names: &str, opts: &FitOptions) -> anyhow::Result<Vec<crate::P
         out.push(id);
     }
     Ok(out)
+}
+
+/// The standard errors as the fit prints them: independent-residual and, when there are
+/// enough rows, sweep-robust, per free parameter with one.
+fn se_lines(unc: &crate::fit::uncertainty::Uncertainty) -> Vec<String> {
+    let sig = |x: f64| crate::report::sig(x, 2);
+    let mut out = Vec::new();
+    let rb = unc.robust.as_ref();
+    let cells: Vec<String> = crate::ParamId::ALL
+        .iter()
+        .filter_map(|id| {
+            let se = unc.se[id.index()]?;
+            let r = rb.and_then(|r| r.se[id.index()]);
+            Some(match r {
+                Some(r) => format!("{} {} | {}", id.spec().name, sig(se), sig(r)),
+                None => format!("{} {}", id.spec().name, sig(se)),
+            })
+        })
+        .collect();
+    if cells.is_empty() {
+        return out;
+    }
+    out.push(match rb {
+        Some(r) => format!(
+            "standard errors, independent residuals | robust to correlation along the sweeps (residuals' lag-1 autocorrelation along phi {:.2}; {} rows, up to {} theta_r lags):",
+            r.phi_lag1,
+            r.rows,
+            r.bandwidth.iter().flatten().max().copied().unwrap_or(0)
+        ),
+        None => "standard errors (independent residuals; too few (theta_i, theta_r) rows for the sweep-robust ones):".into(),
+    });
+    out.push(format!("  {}", cells.join(", ")));
+    out
 }

@@ -676,6 +676,7 @@ fn finish(
     let mut unc = uncertainty::estimate(&opts.layout, &u, &jac, &r);
     let held = uncertainty::bound_effects(full, &u, &r, &unc);
     uncertainty::flag_coupled(&mut unc, &jac, &held);
+    unc.robust = uncertainty::robust(&opts.layout, &u, &jac, &r, &data.points.pts, &unc);
     let params = opts.layout.params(u.as_slice());
     params.validate()?;
     // Time of one evaluation alone: the fastest of three, since a single timing of a

@@ -48,6 +48,34 @@ fn num(x: f64) -> Value {
     }
 }
 
+/// What `uncertainty.robust` says of its method.
+pub const ROBUST_METHOD: &str = "diagonal of the sandwich H^+ Omega H^+ (H = J^T J with the same held parameters): each row of samples sharing (theta_i, theta_r) adds its score J^T r whole, so residuals may be correlated along phi, and rows of one theta_i up to `bandwidth` steps apart in theta_r add their Bartlett-weighted cross products (Newey-West, lags per parameter by Andrews' AR(1) plug-in rule), times G/(G-1) for G rows; still linearised, and model error is a bias no standard error covers";
+
+/// `uncertainty.robust` of a fit file: the sweep-correlation-robust standard errors, or
+/// null with too few rows.
+fn robust_json(rb: Option<&super::uncertainty::Robust>) -> Value {
+    let Some(rb) = rb else {
+        return Value::Null;
+    };
+    let se: Map<String, Value> = ParamId::ALL
+        .iter()
+        .map(|id| {
+            let v = rb.se[id.index()].map(num).unwrap_or(Value::Null);
+            (id.spec().name.to_string(), v)
+        })
+        .collect();
+    json!({
+        "standard_error": se,
+        "rows": rb.rows,
+        "bandwidth": ParamId::ALL
+            .iter()
+            .map(|id| (id.spec().name.to_string(), json!(rb.bandwidth[id.index()])))
+            .collect::<Map<String, Value>>(),
+        "phi_lag1_autocorrelation": num(rb.phi_lag1),
+        "method": ROBUST_METHOD,
+    })
+}
+
 /// The JSON object of one channel's fit.
 pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
     let unc = &out.uncertainty;
@@ -104,6 +132,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             // direction): every standard error above is conditional on them, and far too
             // small if the data favour other values of them.
             "conditional_on": unc.held().iter().map(|id| id.spec().name).collect::<Vec<_>>(),
+            "robust": robust_json(unc.robust.as_ref()),
             "profile": (!out.profile.is_empty())
                 .then(|| {
                     let mut v = crate::fit::likelihood::to_json(&out.profile, out.profile_time_s);

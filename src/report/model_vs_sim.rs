@@ -8,6 +8,7 @@
 //! in either; the table reports it as it comes out.
 
 use super::nrmse::FitFile;
+use super::sig;
 use crate::error::{Error, Result};
 use crate::fit::forward::predict_points;
 use crate::fit::problem::nrmse;
@@ -157,26 +158,34 @@ fn data_clause(entries: &[Entry]) -> &'static str {
     }
 }
 
-/// `x` to `digits` significant digits (at least 1): plain decimals for magnitudes in
-/// [1e-4, 1e6), else exponent form as [`crate::error::Num`] writes them. Standard errors
-/// and fitted - true differences span decades across parameters; a fixed count of
-/// decimals printed an SE of 0.00034 as 0.000.
-fn sig(x: f64, digits: usize) -> String {
-    if !x.is_finite() {
-        return "-".into();
+/// How many fitted parameters with a standard error lie within two of them of the truth,
+/// for the plain and the robust errors (measured on the entries shown, not assumed).
+fn coverage_line(entries: &[Entry]) -> String {
+    let (mut n, mut plain, mut n_rob, mut rob) = (0, 0, 0, 0);
+    for e in entries {
+        let Some(f) = &e.fit else { continue };
+        let (v, t) = (f.params.to_file_units(), e.truth.to_file_units());
+        for id in ParamId::ALL {
+            let k = id.index();
+            if f.unconstrained.iter().any(|u| u == id.spec().name) {
+                continue;
+            }
+            let d = (v[k] - t[k]).abs();
+            if let Some(se) = f.se[k] {
+                n += 1;
+                plain += usize::from(d <= 2.0 * se);
+            }
+            if let Some(se) = f.se_robust[k] {
+                n_rob += 1;
+                rob += usize::from(d <= 2.0 * se);
+            }
+        }
     }
-    if x == 0.0 {
-        return "0".into();
-    }
-    let d = digits.max(1);
-    // Round first: 0.0995 to two digits is 0.10, whose decimals follow from 0.1.
-    let r: f64 = format!("{:.*e}", d - 1, x).parse().unwrap_or(x);
-    let a = r.abs();
-    if !(1e-4..1e6).contains(&a) {
-        return format!("{:.*e}", d - 1, r);
-    }
-    let decimals = d as i32 - 1 - a.log10().floor() as i32;
-    format!("{:.*}", decimals.max(0) as usize, r)
+    format!(
+        "Truth within two standard errors of the fit (parameters not flagged unconstrained): \
+         {plain} of {n} with SE, {rob} of {n_rob} with robust SE. With no model error about \
+         95 % would be."
+    )
 }
 
 /// [`sig`] with a sign (`+` for positive differences).
@@ -213,7 +222,12 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
          folder's current data. SE is the fit's linearised standard error, s^2 (J^T J)^-1: it assumes \
          independent residuals, but here they are mostly model error, correlated between \
          neighbouring samples, so it understates the real spread, most on shallow \
-         directions (equally good fits can differ by more than one SE there).\n",
+         directions (equally good fits can differ by more than one SE there). \
+         \"robust SE\" (`uncertainty.robust` of the fit) allows residuals correlated along \
+         phi and between neighbouring theta_r rows (a row-clustered Newey-West sandwich), \
+         so it is the one to read for the spread of equally good fits. Neither covers the \
+         model's error, which is a bias: fitted - true can exceed both by far, as the \
+         count below shows.\n",
         data_clause(entries),
         crate::error::Num(crate::fit::DEFAULT_FLOOR)
     );
@@ -256,6 +270,7 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
             }
         );
     }
+    let _ = writeln!(s, "\n{}", coverage_line(entries));
     for e in entries {
         let _ = writeln!(
             s,
@@ -271,11 +286,11 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
         if let Some(n) = &e.fit_note {
             let _ = writeln!(s, "Fit not shown: {n}\n");
         }
-        s.push_str("| parameter | unit | true | fitted | SE | fitted - true |\n|---|---|---:|---:|---:|---:|\n");
+        s.push_str("| parameter | unit | true | fitted | SE | robust SE | fitted - true |\n|---|---|---:|---:|---:|---:|---:|\n");
         let t = e.truth.to_file_units();
         for id in ParamId::ALL {
             let k = id.index();
-            let (fv, se, d) = match &e.fit {
+            let (fv, se, rse, d) = match &e.fit {
                 Some(f) => {
                     let v = f.params.to_file_units()[k];
                     let flag = if f.unconstrained.iter().any(|u| u == id.spec().name) {
@@ -288,14 +303,15 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
                         f.se[k]
                             .map(|x| format!("{}{flag}", sig(x, 2)))
                             .unwrap_or_else(|| format!("-{flag}")),
+                        f.se_robust[k].map_or_else(|| "-".into(), |x| sig(x, 2)),
                         sig_signed(v - t[k], 2),
                     )
                 }
-                None => ("-".into(), "-".into(), "-".into()),
+                None => ("-".into(), "-".into(), "-".into(), "-".into()),
             };
             let _ = writeln!(
                 s,
-                "| {} | {} | {:.4} | {fv} | {se} | {d} |",
+                "| {} | {} | {:.4} | {fv} | {se} | {rse} | {d} |",
                 id.spec().name,
                 id.spec().unit,
                 t[k]
@@ -309,6 +325,12 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn coverage_line_of(md: &str) -> &str {
+        md.lines()
+            .find(|l| l.starts_with("Truth within"))
+            .unwrap_or("")
+    }
 
     /// NRMSE `nrmse` at truth on 10 samples, none below the floor, exposure 1.
     fn at_truth(nrmse: f64) -> TruthNrmse {
@@ -559,7 +581,10 @@ mod tests {
             "params": params,
             "exposure": 1.0,
             "nrmse": 0.02,
-            "uncertainty": {"standard_error": {"eta": 0.00034, "kappa": 0.0123}},
+            "uncertainty": {
+                "standard_error": {"eta": 0.00034, "kappa": 0.0123},
+                "robust": {"standard_error": {"eta": 0.0041}},
+            },
         });
         let p = tmp.path().join("cat.json");
         std::fs::write(&p, v.to_string()).unwrap();
@@ -576,8 +601,14 @@ mod tests {
         };
         let md = markdown(&[e], &[]);
         let row = md.lines().find(|l| l.starts_with("| eta |")).unwrap();
-        assert!(row.ends_with("| 0.00034 | +0.00030 |"), "{row}");
+        assert!(row.ends_with("| 0.00034 | 0.0041 | +0.00030 |"), "{row}");
         let row = md.lines().find(|l| l.starts_with("| kappa |")).unwrap();
-        assert!(row.ends_with("| 0.012 | 0 |"), "{row}");
+        assert!(row.ends_with("| 0.012 | - | 0 |"), "{row}");
+        // eta lies within two of either SE of the truth, kappa (difference 0) too.
+        assert!(
+            md.contains("2 of 2 with SE, 1 of 1 with robust SE"),
+            "{}",
+            coverage_line_of(&md)
+        );
     }
 }

@@ -77,6 +77,9 @@ pub struct FitFile {
     pub unconstrained: Vec<String>,
     /// Standard errors (file units) per parameter, `None` if fixed/infinite.
     pub se: [Option<f64>; 10],
+    /// Sweep-robust standard errors (`uncertainty.robust`; `None` where the fit has none,
+    /// or from before they were recorded).
+    pub se_robust: [Option<f64>; 10],
     /// The far field the fit used (`solver.segments`, `.tol`, `.scattered_step`; fits
     /// written before `tol` was recorded used the fixed segmentation).
     pub far: FarOptions,
@@ -210,6 +213,11 @@ impl FitFile {
         for id in ParamId::ALL {
             se[id.index()] = v["uncertainty"]["standard_error"][id.spec().name].as_f64();
         }
+        let mut se_robust = [None; 10];
+        for id in ParamId::ALL {
+            se_robust[id.index()] =
+                v["uncertainty"]["robust"]["standard_error"][id.spec().name].as_f64();
+        }
         let fixed = v["uncertainty"]["fixed"]
             .as_array()
             .map(|a| {
@@ -241,6 +249,7 @@ impl FitFile {
             wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
             unconstrained,
             se,
+            se_robust,
             far: recorded_far(&v["solver"]),
         })
     }
