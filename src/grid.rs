@@ -38,11 +38,34 @@ pub fn parse_grid(what: &str, text: &str) -> Result<Vec<f64>> {
         if n > 10_000_000 {
             return Err(bad("grid too large".into()));
         }
-        // a + i*s, not repeated addition, so values are reproducible.
-        Ok((0..=n).map(|i| a + i as f64 * s).collect())
+        // a + i*s, not repeated addition, so values are reproducible; rounded to the
+        // decimals written, so 0:1:0.1 gives 0.3 (as a lab file writes it), not
+        // 0.30000000000000004, which matches no other file's 0.3.
+        let decimals = parts
+            .iter()
+            .map(|p| decimals_written(p))
+            .collect::<Option<Vec<usize>>>()
+            .and_then(|d| d.into_iter().max());
+        Ok((0..=n)
+            .map(|i| {
+                let v = a + i as f64 * s;
+                decimals.map_or(v, |d| format!("{v:.d$}").parse().unwrap_or(v))
+            })
+            .collect())
     } else {
         t.split(',').map(num).collect()
     }
+}
+
+/// Digits after the decimal point of a plain decimal (`None` for an exponent form or more
+/// than 15 digits: no rounding then).
+fn decimals_written(s: &str) -> Option<usize> {
+    let s = s.trim();
+    if s.contains(['e', 'E']) {
+        return None;
+    }
+    let d = s.split_once('.').map_or(0, |(_, f)| f.len());
+    (d <= 15).then_some(d)
 }
 
 /// Parse a relative-azimuth grid (degrees) and keep one spelling per direction: values are
@@ -50,7 +73,15 @@ pub fn parse_grid(what: &str, text: &str) -> Result<Vec<f64>> {
 /// dropped and the result is sorted, so `-180:180:4` yields 90 distinct directions ending at 180, not 91 with
 /// -180 and 180 both present (the same direction, which a profile may hold only once).
 pub fn parse_phi_grid(what: &str, text: &str) -> Result<Vec<f64>> {
-    let mut out: Vec<f64> = parse_grid(what, text)?.into_iter().map(wrap_deg).collect();
+    let raw = parse_grid(what, text)?;
+    // The range a profile file may hold (DATA.md): a grid the loaders would refuse to read
+    // back is refused here.
+    if let Some(v) = raw.iter().find(|v| v.abs() > 360.0) {
+        return Err(Error::Invalid(format!(
+            "{what} '{text}': {v} is outside [-360, 360] deg"
+        )));
+    }
+    let mut out: Vec<f64> = raw.into_iter().map(wrap_deg).collect();
     // Sorted first, so repeats are neighbours (linear in the grid's length).
     out.sort_by(f64::total_cmp);
     out.dedup_by(|b, a| (*b - *a).abs() < 1e-9);
@@ -105,6 +136,35 @@ pub fn wrap_deg(v: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Values are the decimals written (0.3 is the f64 nearest 0.3, as a file's "0.3"
+    /// parses), and an exponent form is left unrounded.
+    #[test]
+    fn range_values_round_to_the_decimals_written() {
+        let g = parse_grid("--theta-r", "0:1:0.1").unwrap();
+        assert_eq!(g.len(), 11);
+        assert_eq!(g[3], 0.3);
+        assert_eq!(g[6], 0.6);
+        assert_eq!(g[10], 1.0);
+        let g = parse_grid("--theta-r", "-60:60:2.5").unwrap();
+        assert_eq!(g[1], -57.5);
+        let g = parse_grid("--phi", "0:3e-1:1e-1").unwrap();
+        assert_eq!(g[3], 3.0 * 0.1, "exponent form: a + i s as computed");
+    }
+
+    #[test]
+    fn phi_grid_refuses_what_a_file_may_not_hold() {
+        let e = parse_phi_grid("--phi", "0:720:10").unwrap_err().to_string();
+        assert!(
+            e.contains("--phi") && e.contains("370") && e.contains("[-360, 360]"),
+            "{e}"
+        );
+        // 270 wraps to -90 and 360 repeats 0: four directions, sorted.
+        assert_eq!(
+            parse_phi_grid("--phi", "0:360:90").unwrap(),
+            vec![-90.0, 0.0, 90.0, 180.0]
+        );
+    }
 
     #[test]
     fn theta_grid_drops_repeats_in_order() {

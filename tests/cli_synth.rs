@@ -142,6 +142,52 @@ fn synth_rejects_bad_input() {
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(err.contains("--exposure: the value"), "{err}");
     assert!(!out.exists());
+    // A tolerance the refinement cannot reach (the audit's 1e-300 ran a fit for minutes).
+    let st = synth("cat", &["--tol", "1e-300"]);
+    assert_eq!(st.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("--tol must be in [1e-8, 1)"), "{err}");
+    assert!(synth("cat", &["--tol", "1e-8"]).status.success());
+    std::fs::remove_file(&out).unwrap();
+    // A phi grid a profile file could not hold, and grid values as written (0.3, not
+    // 0.30000000000000004).
+    let st = furfit()
+        .args([
+            "synth",
+            "--params",
+            "cat",
+            "--theta-i",
+            "0",
+            "--theta-r",
+            "0",
+        ])
+        .args(["--phi", "0:720:10", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("outside [-360, 360]"), "{err}");
+    assert!(!out.exists());
+    let st = furfit()
+        .args([
+            "synth",
+            "--params",
+            "cat",
+            "--theta-i",
+            "0",
+            "--theta-r",
+            "0:0.5:0.1",
+        ])
+        .args(["--phi", "0", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(st.status.success());
+    let text = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        text.contains(",0.3,") && !text.contains("0000000"),
+        "{text}"
+    );
 }
 
 /// `--scattered-step strict` reaches the library's strict far field bit for bit (so the

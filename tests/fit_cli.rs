@@ -1463,3 +1463,42 @@ fn fit_records_its_distance_from_the_local_optimum() {
     assert!(cut > 0.1, "{cut}");
     assert!(out.contains("--max-iters 1"), "{out}");
 }
+
+/// A noise-free round trip (synth then fit): the fit reproduces the data to rounding, says
+/// so instead of warning that the optimum is "N standard errors" away (a ratio of two
+/// rounding errors), and records sweep-robust standard errors over its 50 rows.
+#[test]
+fn exact_round_trip_notes_rounding_and_records_robust_errors() {
+    let tmp = tempfile::tempdir().unwrap();
+    let data = tmp.path().join("h.csv");
+    let o = furfit()
+        .args(["synth", "--params", "human", "--theta-i", "0,30"])
+        .args(["--theta-r", "-60:60:5", "--phi", "-170:180:10", "--out"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let out = tmp.path().join("h.json");
+    let o = furfit()
+        .arg("fit")
+        .arg(&data)
+        .args(["--threads", "2", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("residuals are at rounding level"), "{text}");
+    assert!(!text.contains("standard errors from the result"), "{text}");
+    assert!(
+        text.contains("robust to correlation along the sweeps"),
+        "{text}"
+    );
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let rb = &v["uncertainty"]["robust"];
+    assert_eq!(rb["rows"], 50, "{rb}");
+    assert!(rb["standard_error"]["eta"].as_f64().is_some(), "{rb}");
+    assert!(rb["bandwidth"]["eta"].as_u64().is_some(), "{rb}");
+    assert!(rb["method"].as_str().unwrap().contains("Newey-West"));
+}

@@ -339,6 +339,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     "  warning: the last LM run stopped at --max-iters {} before a convergence test passed: the result may not be the optimum (raise --max-iters)",
                     opts.max_iters
                 );
+            } else if o.uncertainty.s2.sqrt() < crate::fit::uncertainty::ROUNDING_RMS {
+                // Noise-free data the model reproduces (a synth round trip): the standard
+                // errors are ~0, so a step measured in them is rounding over rounding.
+                outln!(
+                    "  note: the residuals are at rounding level (RMS {:.1e} in log space): the model reproduces the data exactly, and the standard errors (about 0) say nothing",
+                    o.uncertainty.s2.sqrt()
+                );
             } else if o.uncertainty.step_se > opts.step_se.unwrap_or(f64::INFINITY) {
                 outln!(
                     "  warning: the local optimum is {:.2} standard errors from the result (converged fits: below {}); the solver ended with \"{}\"",

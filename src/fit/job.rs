@@ -49,8 +49,10 @@ pub fn species_name(p: &Path) -> String {
             return n;
         }
     }
+    // Dots trimmed: `..csv` has the stem ".", whose fit file `..json` hides in listings.
     p.file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
+        .map(|s| s.to_string_lossy().trim_matches('.').to_string())
+        .filter(|s| !s.is_empty())
         .unwrap_or_else(|| "profile".into())
 }
 
@@ -311,7 +313,13 @@ pub fn fit_loaded(
             .filter(|s| s.channel == c && s.is_valid())
             .count();
         let n_all = prof.samples.iter().filter(|s| s.channel == c).count();
-        let out = fit_data(&data, opts, progress)?;
+        let out = fit_data(&data, opts, progress).map_err(|e| match e {
+            // Which channel, when there are several (r, g, b): each is fitted on its own.
+            Error::Invalid(m) if n_ch > 1 => {
+                Error::Invalid(format!("channel '{}': {m}", name_of(c)))
+            }
+            other => other,
+        })?;
         let info = DataInfo {
             files: file_info.clone(),
             n_valid,
@@ -340,4 +348,16 @@ pub fn fit_loaded(
         + "\n";
     crate::io::write_atomic(&job.out, text.as_bytes())?;
     Ok((top, sums))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn species_names_have_no_leading_or_trailing_dots() {
+        assert_eq!(species_name(Path::new("/nowhere/red-fox.csv")), "red-fox");
+        assert_eq!(species_name(Path::new("/nowhere/..csv")), "profile");
+        assert_eq!(species_name(Path::new("/nowhere/.fox.csv")), "fox");
+    }
 }

@@ -15,6 +15,10 @@ use super::reparam;
 use crate::params::{ParamId, N_PARAMS};
 use nalgebra::{DMatrix, DVector};
 
+/// Residual RMS (log space) below which a fit reproduces its data to rounding: noise-free
+/// data of the model itself, whose standard errors are ~0 and mean nothing.
+pub const ROUNDING_RMS: f64 = 1e-9;
+
 /// SE(u) above which a parameter counts as unconstrained.
 pub const MAX_SE_U: f64 = 2.0;
 /// Why a free parameter counts as not constrained by the data.
