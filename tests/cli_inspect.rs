@@ -195,11 +195,26 @@ fn inspect_warns_about_radians() {
 }
 
 /// An axis whose values are not evenly spaced says its step is only the most common one
-/// (theta_i 0, 15, 45 printed "step 15 deg").
+/// (theta_i 0, 15, 45 printed "step 15 deg"), or, when no step repeats, gives their range.
 #[test]
 fn inspect_labels_uneven_steps() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("uneven.csv");
+    std::fs::write(
+        &p,
+        "theta_i,theta_r,phi,value\n0,0,0,1\n15,10,0,1\n30,20,0,1\n60,30,0,1\n",
+    )
+    .unwrap();
+    let (ok, out, err) = inspect(&[p.as_os_str()]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("theta_i  4 distinct, 0 .. 60 deg, most common step 15 deg (uneven)"),
+        "{out}"
+    );
+    assert!(
+        out.contains("theta_r  4 distinct, 0 .. 30 deg, step 10 deg\n"),
+        "{out}"
+    );
     std::fs::write(
         &p,
         "theta_i,theta_r,phi,value\n0,0,0,1\n15,10,0,1\n45,20,0,1\n",
@@ -208,11 +223,7 @@ fn inspect_labels_uneven_steps() {
     let (ok, out, err) = inspect(&[p.as_os_str()]);
     assert!(ok, "{err}");
     assert!(
-        out.contains("theta_i  3 distinct, 0 .. 45 deg, most common step 15 deg (uneven)"),
-        "{out}"
-    );
-    assert!(
-        out.contains("theta_r  3 distinct, 0 .. 20 deg, step 10 deg\n"),
+        out.contains("theta_i  3 distinct, 0 .. 45 deg, uneven steps 15..30 deg\n"),
         "{out}"
     );
     // Values 4e-15 apart are near-duplicates, not a "step 0 deg".
@@ -350,4 +361,59 @@ fn inspect_names_every_format_of_a_mixed_folder() {
     let (ok, out, err) = inspect(&[d.as_os_str()]);
     assert!(ok, "{err}");
     assert!(out.contains("format   mixed: csv, yan-2015 text"), "{out}");
+}
+
+/// A lone .npy (its theta_i axis given by --theta-i) beside a Yan file with its own
+/// `# theta_i:` line: the Yan file keeps its line, with a note (it was "a Yan-2015 file
+/// holds one incident angle; --theta-i gave 2 values", so the two could not be read
+/// together). Without the .npy, the disagreement stays an error.
+#[test]
+fn theta_i_for_a_lone_npy_leaves_a_headed_yan_file_alone() {
+    use ndarray::{ArrayD, IxDyn};
+    use ndarray_npy::WriteNpyExt;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    ArrayD::<f64>::from_elem(IxDyn(&[2, 1, 2]), 1.0)
+        .write_npy(std::fs::File::create(d.join("v.npy")).unwrap())
+        .unwrap();
+    std::fs::write(d.join("y.txt"), "# theta_i: 45\nphi theta value\n0 10 1\n").unwrap();
+    let (npy, yan) = (d.join("v.npy"), d.join("y.txt"));
+    let grids = ["--theta-i", "0,30", "--theta-r", "10", "--phi", "0,90"];
+    let mut args = vec![npy.as_os_str(), yan.as_os_str()];
+    args.extend(grids.iter().map(std::ffi::OsStr::new));
+    let (ok, out, err) = inspect(&args);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("theta_i  1 distinct, 45 .. 45 deg")
+            && out.contains(
+                "note: --theta-i 0,30 (the lone .npy's axis) ignored: line 1 gives this \
+                 file's theta_i, 45"
+            ),
+        "{out}"
+    );
+    let (ok, _, err) = inspect(&[yan.as_os_str(), "--theta-i".as_ref(), "30".as_ref()]);
+    assert!(!ok);
+    assert!(
+        err.contains("y.txt:1: theta_i comment: the file says theta_i 45 but --theta-i is 30"),
+        "{err}"
+    );
+}
+
+/// A file labelled `synthetic: false` is labelled measured, and inspect says so (it said
+/// "no synthetic label in the file").
+#[test]
+fn inspect_names_an_explicit_measured_label() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("lab.csv");
+    std::fs::write(
+        &p,
+        "# synthetic: false\ntheta_i,theta_r,phi,value\n0,10,0,1\n0,10,30,2\n",
+    )
+    .unwrap();
+    let (ok, out, err) = inspect(&[p.as_os_str()]);
+    assert!(ok, "{err}");
+    assert!(
+        out.contains("  data     labelled measured (synthetic: false)\n"),
+        "{out}"
+    );
 }

@@ -1205,8 +1205,8 @@ fn clashing_yan_files_under_one_theta_i_get_the_hint() {
     fails_with(
         o,
         &[
-            "f20.txt line 1: duplicate sample (theta_i 30, theta_r 10, phi 0) with",
-            "the first copy is in f0.txt line 1;",
+            "f20.txt:1: column 3 (value): duplicate sample (theta_i 30, theta_r 10, phi 0) with",
+            "the first copy is in f0.txt:1: column 3 (value);",
             "--theta-i 30 applies to every Yan-2015 file",
         ],
     );

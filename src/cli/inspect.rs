@@ -26,10 +26,14 @@ fn axis_line(name: &str, a: &Option<AxisStats>) -> String {
             a.distinct,
             Num(a.min),
             Num(a.max),
-            match (a.step, a.even) {
-                (None, _) => "step -".into(),
-                (Some(s), true) => format!("step {} deg", Num(s)),
-                (Some(s), false) => format!("most common step {} deg (uneven)", Num(s)),
+            match (a.step, a.even, a.step_range) {
+                (None, ..) => "step -".into(),
+                (Some(s), true, _) => format!("step {} deg", Num(s)),
+                // No step repeats: none is "most common".
+                (Some(_), false, Some((lo, hi))) if !a.step_repeats => {
+                    format!("uneven steps {}..{} deg", Num(lo), Num(hi))
+                }
+                (Some(s), false, _) => format!("most common step {} deg (uneven)", Num(s)),
             },
             match a.near_pair {
                 Some((x, y)) => format!(
@@ -108,8 +112,15 @@ fn describe(path: &std::path::Path, l: &profile::Loaded) -> Vec<String> {
         }
     }
     // Said either way: reports label their data by the same test.
+    let dir = if path.is_dir() {
+        path.to_path_buf()
+    } else {
+        crate::io::parent_dir(path)
+    };
     out.push(if p.is_synthetic() {
         "  data     synthetic".into()
+    } else if let Some(label) = profile::provenance::measured_label(p, &dir) {
+        format!("  data     labelled measured ({label})")
     } else {
         "  data     not marked synthetic, treated as measured (no synthetic label in the file or its folder's metadata.json)".into()
     });
@@ -120,7 +131,8 @@ fn describe(path: &std::path::Path, l: &profile::Loaded) -> Vec<String> {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let opts = args.load.to_options()?;
+    // Loaded apart but in one run: a lone .npy among them makes --theta-i its axis.
+    let opts = args.load.to_options()?.for_inputs(&args.files);
     let mut failed = 0;
     let mut formats = Vec::new();
     // Described first, printed after the axis options are checked (as fit does), so an
@@ -159,4 +171,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!("{failed} of {} file(s) could not be read", args.files.len());
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::profile::Sample;
+
+    /// Steps that never repeat (theta_i 0, 10, 25, 45) are given as a range, not as a
+    /// "most common step 10 deg"; a step that does repeat keeps that wording.
+    #[test]
+    fn axis_line_gives_the_range_of_steps_that_never_repeat() {
+        let at = |v: &[f64]| -> Vec<Sample> {
+            v.iter().map(|&t| Sample::new(t, 0.0, 0.0, 1.0)).collect()
+        };
+        let a = AxisStats::of(&at(&[0.0, 10.0, 25.0, 45.0]), |s| s.theta_i);
+        assert_eq!(
+            axis_line("theta_i", &a),
+            "  theta_i  4 distinct, 0 .. 45 deg, uneven steps 10..20 deg"
+        );
+        let a = AxisStats::of(&at(&[0.0, 10.0, 20.0, 45.0]), |s| s.theta_i);
+        assert!(
+            axis_line("theta_i", &a).ends_with("most common step 10 deg (uneven)"),
+            "{a:?}"
+        );
+    }
 }

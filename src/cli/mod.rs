@@ -41,7 +41,10 @@ pub(crate) fn out_line(args: std::fmt::Arguments) {
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct LoadArgs {
     /// Incident angle (deg) for Yan-2015 files without a `# theta_i:` line; for a lone .npy,
-    /// its theta_i axis grid (e.g. `0,15,30`). An error if no input is one of those.
+    /// its theta_i axis grid (e.g. `0,15,30`). An error if no input is one of those. A Yan
+    /// file with its own `# theta_i:` line must agree with it, unless a lone .npy is among
+    /// the inputs: then the grid is the .npy's and such a file keeps its own line (noted).
+    /// A Yan file without the line takes a single value.
     #[arg(long, allow_hyphen_values = true)]
     pub theta_i: Option<String>,
     /// theta_r axis grid (deg) of a lone .npy, e.g. `-60:60:2`. An error without a lone .npy.
@@ -85,6 +88,7 @@ impl LoadArgs {
             phi_offset: self.phi_offset,
             flip_phi: self.flip_phi,
             flip_theta_r: self.flip_theta_r,
+            theta_i_for_npy: false,
         })
     }
 }

@@ -157,6 +157,7 @@ pub fn load_inputs(inputs: &[PathBuf], opts: &LoadOptions) -> Result<Profile> {
 
 /// [`load_inputs`], also keeping the loader notes.
 pub fn load_inputs_full(inputs: &[PathBuf], opts: &LoadOptions) -> Result<LoadedInputs> {
+    let opts = &opts.for_inputs(inputs);
     let mut parts = Vec::new();
     let mut notes = Vec::new();
     let mut files = Vec::new();
@@ -219,6 +220,8 @@ pub fn load_options_from_json(v: &Value) -> LoadOptions {
         phi_offset: v["phi_offset"].as_f64().unwrap_or(0.0),
         flip_phi: v["flip_phi"].as_bool().unwrap_or(false),
         flip_theta_r: v["flip_theta_r"].as_bool().unwrap_or(false),
+        // Derived from the inputs when they are loaded (LoadOptions::for_inputs).
+        theta_i_for_npy: false,
     }
 }
 
@@ -359,5 +362,40 @@ mod tests {
         assert_eq!(species_name(Path::new("/nowhere/red-fox.csv")), "red-fox");
         assert_eq!(species_name(Path::new("/nowhere/..csv")), "profile");
         assert_eq!(species_name(Path::new("/nowhere/.fox.csv")), "fox");
+    }
+
+    /// The inputs loaded together decide what --theta-i is: beside a lone .npy it is the
+    /// .npy's axis and a Yan file in a species folder keeps its own `# theta_i:` line, as
+    /// `report` re-reads a fit's data (the fit file does not record this; it is derived).
+    #[test]
+    fn theta_i_beside_a_lone_npy_is_derived_from_the_inputs() {
+        use ndarray_npy::WriteNpyExt;
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().join("fox");
+        std::fs::create_dir(&d).unwrap();
+        ndarray::ArrayD::<f64>::from_elem(ndarray::IxDyn(&[2, 1, 1]), 1.0)
+            .write_npy(std::fs::File::create(d.join("v.npy")).unwrap())
+            .unwrap();
+        std::fs::write(d.join("y.txt"), "# theta_i: 45\n0 10 1\n").unwrap();
+        let opts = LoadOptions {
+            theta_i: Some(vec![0.0, 30.0]),
+            theta_r: Some(vec![10.0]),
+            phi: Some(vec![0.0]),
+            ..Default::default()
+        };
+        let l = load_inputs_full(std::slice::from_ref(&d), &opts).unwrap();
+        let mut ti: Vec<f64> = l.profile.samples.iter().map(|s| s.theta_i).collect();
+        ti.sort_by(f64::total_cmp);
+        assert_eq!(ti, vec![0.0, 30.0, 45.0]);
+        assert!(
+            l.notes
+                .iter()
+                .any(|n| n.contains("(the lone .npy's axis) ignored")),
+            "{:?}",
+            l.notes
+        );
+        // The Yan file alone: the option is for it, and it disagrees.
+        let e = load_inputs_full(&[d.join("y.txt")], &opts).unwrap_err();
+        assert!(e.to_string().contains("--theta-i gave 2 values"), "{e}");
     }
 }

@@ -24,8 +24,10 @@
 //! - `value`: empty, `nan` (any case), or `<= 0` gives an *invalid* sample, kept and counted
 //!   ([`Profile::n_invalid`]). An infinite value is an error (it is not a measurement).
 //! - `sigma`: empty or `nan` means "no sigma"; otherwise finite and `>= 0`.
-//! - `phi_i`: empty means none; otherwise a finite number (degrees, not range-checked: it is
-//!   only carried for round trips).
+//! - `phi_i`: empty or `nan` means none (as NaN does in an npz); otherwise a finite angle in
+//!   [-360, 360] degrees, as phi (kept as written: it is only carried for round trips).
+//! - A nonzero number below the f64 range (`1e-400`) is an error, as one above it (`1e400`)
+//!   is for a value or an angle: read as 0 it would silently make an invalid sample.
 //! - The value/sigma/phi_i rules are [`super::check_measured`], shared with the npz reader.
 //! - `channel`: any non-empty text (trimmed; an empty cell is an error); channels are
 //!   numbered in order of first appearance.
@@ -50,8 +52,8 @@
 //! line breaks and values may not contain line breaks (an error, not a silent edit).
 
 use super::{
-    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_rows, read_phi,
-    split_lines, Field, LoadOptions, Origin, Profile, Sample,
+    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_rows, escaped,
+    parse_number, read_phi, split_lines, Field, Layout, LoadOptions, Origin, Profile, Sample,
 };
 use crate::error::{Error, Result};
 use std::path::Path;
@@ -110,7 +112,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
                     "column 1".into(),
                     format!(
                         "the file declares the separator '{}' (Excel's sep= line); the separator must be a comma",
-                        String::from_utf8_lossy(t)
+                        escaped(&String::from_utf8_lossy(t))
                     ),
                 ));
             }
@@ -223,9 +225,9 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
             if t.is_empty() {
                 return Ok(None);
             }
-            t.parse::<f64>()
+            parse_number(t)
                 .map(Some)
-                .map_err(|_| perr(line, label(i), format!("'{t}' is not a number")))
+                .map_err(|m| perr(line, label(i), m))
         };
         let angle = |i: usize| -> Result<f64> {
             number(i)?.ok_or_else(|| perr(line, label(i), "missing angle".into()))
@@ -239,13 +241,14 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
         let phi = read_phi(&names[cols.phi], phi_as_written, opts)
             .map_err(|m| perr(line, label(cols.phi), m))?;
         let value = number(cols.value)?.unwrap_or(f64::NAN);
-        // CSV's spellings of "none": an empty cell, and `nan` for sigma.
+        // CSV's spellings of "none": an empty cell, and `nan` for sigma and phi_i (as
+        // an npz's NaN).
         let sigma = match cols.sigma {
             Some(i) => number(i)?.filter(|s| !s.is_nan()),
             None => None,
         };
         let phi_i = match cols.phi_i {
-            Some(i) => number(i)?.map(|p| p + 0.0),
+            Some(i) => number(i)?.filter(|p| !p.is_nan()).map(|p| p + 0.0),
             None => None,
         };
         check_measured(value, sigma, phi_i).map_err(|(field, msg)| {
@@ -313,6 +316,9 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
             metadata,
             source: Some(path.to_path_buf()),
             files: vec![path.to_path_buf()],
+            layouts: vec![Layout::Rows {
+                value_column: label(cols.value),
+            }],
         },
         notes,
     ))
@@ -360,7 +366,7 @@ impl Columns {
                     format!("column '{want}'"),
                     format!(
                         "required column '{want}' is missing from the header (found: {}){hint}",
-                        names.join(", ")
+                        escaped(&names.join(", "))
                     ),
                 )
             })
@@ -755,5 +761,109 @@ mod tests {
         let (back, _) = p(&text).unwrap();
         assert_eq!(back.samples, pr.samples);
         assert_eq!(back.channels, pr.channels);
+    }
+
+    /// phi_i: `nan` means none, as an empty cell and an npz's NaN do (it was "must be a
+    /// finite angle"); a value is an angle within [-360, 360] like phi (1e9 read).
+    #[test]
+    fn phi_i_nan_is_none_and_range_checked() {
+        let (pr, _) =
+            p("theta_i,theta_r,phi,value,phi_i\n0,0,0,1,\n0,0,1,1,NaN\n0,0,2,1,-360\n").unwrap();
+        let got: Vec<_> = pr.samples.iter().map(|s| s.phi_i).collect();
+        assert_eq!(got, vec![None, None, Some(-360.0)]);
+        for bad in ["1e9", "-5000", "360.5"] {
+            let e = p(&format!("theta_i,theta_r,phi,value,phi_i\n0,0,0,1,{bad}\n"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("t.csv:2: column 5 (phi_i): phi_i = ")
+                    && e.contains("out of range [-360, 360]"),
+                "{e}"
+            );
+        }
+        let e = p("theta_i,theta_r,phi,value,phi_i\n0,0,0,1,inf\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("column 5 (phi_i): phi_i must be a finite angle"),
+            "{e}"
+        );
+    }
+
+    /// A cell holding an invisible character is quoted with it escaped (a mid-line BOM
+    /// made "'0' is not a number", a NUL went to the terminal raw); the header list too.
+    #[test]
+    fn echoed_cells_escape_invisible_characters() {
+        let e = p("theta_i,theta_r,phi,value\n\u{feff}0,0,0,1\n")
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "t.csv:2: column 1 (theta_i): '\\u{feff}0' is not a number"
+        );
+        let e = p("theta_i,theta_r,phi,value\n0,0,0,1\0\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.ends_with("column 4 (value): '1\\0' is not a number"),
+            "{e}"
+        );
+        let e = p("theta_i,theta_r,\x07phi,value\n0,0,0,1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("(found: theta_i, theta_r, \\u{7}phi, value)"),
+            "{e}"
+        );
+        // Printable text, quotes and non-ASCII letters are shown as they are.
+        let e = p("theta_i,theta_r,phi,value\n0,0,0,\"'5°'\"\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.ends_with("''5°'' is not a number"), "{e}");
+    }
+
+    /// A value below the f64 range (1e-400 reads as 0) is an error naming line and column,
+    /// as 1e400 is; it was silently an invalid sample.
+    #[test]
+    fn underflowing_value_is_an_error() {
+        let e = p("theta_i,theta_r,phi,value\n0,0,0,1\n0,0,5,1e-400\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:3: column 4 (value): '1e-400' is below the f64 range"),
+            "{e}"
+        );
+        let e = p("theta_i,theta_r,phi,value,sigma\n0,0,0,1,-2.5E-500\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("t.csv:2: column 5 (sigma): '-2.5E-500'"),
+            "{e}"
+        );
+        let (pr, _) = p("theta_i,theta_r,phi,value\n0,0,0,0e-500\n0,0,1,4.9e-324\n").unwrap();
+        assert_eq!(pr.samples[0].value, 0.0);
+        assert!(pr.samples[1].value > 0.0);
+    }
+
+    /// Two no-signal markers for one direction (NaN at a sweep's 0, -1 at its 360; or 0
+    /// and empty) are one invalid sample: collapsed with the note, not a conflict. A
+    /// marker against a real value still is one.
+    #[test]
+    fn two_no_signal_markers_collapse() {
+        let (pr, notes) =
+            p("theta_i,theta_r,phi,value\n0,0,0,nan\n0,0,5,0\n0,0,360,-1\n0,0,5,\n").unwrap();
+        assert_eq!(pr.samples.len(), 2);
+        assert!(pr.samples[0].value.is_nan() && pr.samples[1].value == 0.0);
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].starts_with("2 identical duplicate row(s) collapsed")
+                && notes[0]
+                    .contains("2 of them not identical but two no-signal values, e.g. NaN and -1"),
+            "{notes:?}"
+        );
+        let e = p("theta_i,theta_r,phi,value\n0,0,0,nan\n0,0,360,2\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("different value (NaN vs 2)"), "{e}");
     }
 }

@@ -9,8 +9,8 @@
 //! Entry points: [`load`] / [`load_full`] pick the reader by extension ([`csv`], [`npz`]
 //! for `.npz` and lone `.npy`, [`yan`] for `.txt`/`.dat`), [`save`] writes `.csv` or `.npz`
 //! atomically, [`load_dir`] reads and [`merge`]s a species folder (skipping, with a note,
-//! a `.txt`/`.dat` that is not a Yan-2015 profile, e.g. `notes.txt`). [`summary`] computes what
-//! `furfit inspect` prints.
+//! a `.txt`/`.dat` that is not a Yan-2015 profile, e.g. `notes.txt`: [`looks_like_yan`]).
+//! [`summary`] computes what `furfit inspect` prints.
 //!
 //! Choices shared by every reader (each documented again in its module):
 //! - angles are normalised once: `-0` -> `0`, and any finite phi in [-360, 360] (files
@@ -22,9 +22,13 @@
 //!   repeat that differs is an error naming both places (and, when the two were written
 //!   with different phi that wrap alike, e.g. a sweep's 0 and 360, saying so:
 //!   [`wrap_conflict`]);
-//! - invalid values (NaN, `<= 0`) are kept as samples, never dropped;
-//! - a file whose every angle lies within +-3.2 (not all 0) gets a warning note: the values
-//!   look like radians, but files hold degrees ([`radians_warning`]).
+//! - invalid values (NaN, `<= 0`) are kept as samples, never dropped; two of them for one
+//!   direction (NaN and -1 at a sweep's two ends) are one invalid sample, collapsed;
+//! - a file whose every angle lies within +-3.2 (not all 0), or whose thetas lie within
+//!   +-pi/2 and phi within +-2 pi, gets a warning note: the values look like radians, but
+//!   files hold degrees ([`radians_warning`]);
+//! - text echoed from a file in a message is [`escaped`] (a BOM, a NUL), and a number
+//!   below the f64 range (`1e-400`) is an error like one above it ([`parse_number`]).
 
 use crate::error::{Error, Num, Result};
 use std::collections::HashMap;
@@ -93,10 +97,12 @@ impl PartialEq for Sample {
     }
 }
 
-/// Where a sample was read: an index into [`Profile::files`] and the line of a text file
-/// (0 for a cell of a `.npy`/`.npz` grid or a sample made in memory), so an error found
-/// after loading (a conflict between two files of a folder, `--weighted` without a sigma)
-/// can still name the file and line.
+/// Where a sample was read: an index into [`Profile::files`] and a place in that file, so
+/// an error found after loading (a conflict between two files of a folder, `--weighted`
+/// without a sigma) can still name it. `line` is the line of a text row, or for a cell of
+/// a `.npy`/`.npz` grid 1 + the cell's row-major index in `value` (the file's
+/// [`Layout::Grid`] gives the shape to name it by), so a sample stays as small as it was;
+/// 0 for a sample made in memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Origin {
     pub file: u32,
@@ -112,15 +118,79 @@ impl Origin {
             line: u32::try_from(line).unwrap_or(0),
         }
     }
+
+    /// The cell of row-major index `flat` in the `value` array of the profile's first file
+    /// (a grid: [`Layout::Grid`]); an index past `u32::MAX - 1` (beyond [`MAX_READ_CELLS`])
+    /// is not named.
+    pub fn at_cell(flat: usize) -> Origin {
+        Origin::at_line(flat.saturating_add(1))
+    }
 }
 
-/// [`Profile::origin_of`] given the profile's files.
-fn origin_text(files: &[PathBuf], o: Origin) -> Option<String> {
+/// How messages name a place in one of [`Profile::files`] ([`Profile::layouts`]).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum Layout {
+    /// Not known (a profile made in memory): a place is `FILE line N`, or `FILE`.
+    #[default]
+    Unknown,
+    /// A text file (CSV, Yan-2015): [`Origin::line`] is a row's line; `value_column`
+    /// labels its value column as the file's own errors do (`column 4 (value)`).
+    Rows { value_column: String },
+    /// A `.npz` / lone `.npy` grid whose `value` array has this shape: [`Origin::line`] is
+    /// 1 + the cell's row-major index.
+    Grid { shape: Vec<usize> },
+}
+
+impl Layout {
+    /// The index `[i, j, k(, c)]` of grid cell `o` (by its shape), if `o` is one.
+    fn cell(&self, o: Origin) -> Option<Vec<usize>> {
+        let Layout::Grid { shape } = self else {
+            return None;
+        };
+        let mut flat = (o.line as usize).checked_sub(1)?;
+        let mut ix = vec![0; shape.len()];
+        for (k, &n) in shape.iter().enumerate().rev() {
+            if n == 0 {
+                return None;
+            }
+            ix[k] = flat % n;
+            flat /= n;
+        }
+        (flat == 0).then_some(ix)
+    }
+}
+
+/// [`Profile::origin_of`] given the profile's files and their layouts.
+fn origin_text(files: &[PathBuf], layouts: &[Layout], o: Origin) -> Option<String> {
     let file = files.get(o.file as usize)?.display();
+    let layout = layouts.get(o.file as usize).unwrap_or(&Layout::Unknown);
+    if let Layout::Grid { .. } = layout {
+        return Some(match layout.cell(o) {
+            Some(ix) => format!("{file} index {ix:?}"),
+            None => file.to_string(),
+        });
+    }
     Some(match o.line {
         0 => file.to_string(),
         n => format!("{file} line {n}"),
     })
+}
+
+/// Where a duplicate's copy sits, as a single file's own duplicate error names it:
+/// `FILE:LINE: column N (value)` for a text row, `FILE: array 'value' index [i, j, k]` for
+/// a grid cell; [`origin_text`] when the layout is unknown.
+fn place_text(files: &[PathBuf], layouts: &[Layout], o: Origin) -> Option<String> {
+    let file = files.get(o.file as usize)?.display();
+    match layouts.get(o.file as usize) {
+        Some(Layout::Rows { value_column }) if o.line > 0 => {
+            Some(format!("{file}:{}: {value_column}", o.line))
+        }
+        Some(l @ Layout::Grid { .. }) => l
+            .cell(o)
+            .map(|ix| format!("{file}: array 'value' index {ix:?}")),
+        _ => None,
+    }
+    .or_else(|| origin_text(files, layouts, o))
 }
 
 impl Sample {
@@ -167,6 +237,9 @@ pub struct Profile {
     /// The files its samples were read from ([`Sample::origin`] indexes them); empty for
     /// a profile made in memory.
     pub files: Vec<PathBuf>,
+    /// How messages name a place in each of `files` (same order; a missing entry is
+    /// [`Layout::Unknown`]).
+    pub layouts: Vec<Layout>,
 }
 
 impl Profile {
@@ -180,10 +253,10 @@ impl Profile {
         self.samples.len() - self.n_valid()
     }
 
-    /// Where `s` was read, as messages name it: `FILE line N` for a text row, `FILE` for a
-    /// grid cell, `None` for a sample made in memory.
+    /// Where `s` was read, as messages name it: `FILE line N` for a text row,
+    /// `FILE index [i, j, k]` for a grid cell, `None` for a sample made in memory.
     pub fn origin_of(&self, s: &Sample) -> Option<String> {
-        origin_text(&self.files, s.origin)
+        origin_text(&self.files, &self.layouts, s.origin)
     }
 
     /// Number of channels (at least 1).
@@ -214,6 +287,16 @@ impl Profile {
             .iter()
             .any(|(k, v)| says_synthetic(k, v) == Some(true))
     }
+
+    /// Is the profile explicitly labelled measured: a `synthetic: false` entry (any
+    /// spelling [`says_synthetic`] reads as false) and nothing saying synthetic?
+    pub fn is_labelled_measured(&self) -> bool {
+        !self.is_synthetic()
+            && self
+                .metadata
+                .iter()
+                .any(|(k, v)| says_synthetic(k, v) == Some(false))
+    }
 }
 
 /// What a metadata entry says of the data's origin (shared by profile headers and a
@@ -243,9 +326,9 @@ pub fn says_synthetic(key: &str, value: &str) -> Option<bool> {
 pub(crate) fn check_synthetic_label(key: &str, value: &str) -> std::result::Result<(), String> {
     if key.trim().eq_ignore_ascii_case("synthetic") && says_synthetic(key, value).is_none() {
         return Err(format!(
-            "'{}' is not a value of 'synthetic' that furfit reads (true, yes, 1 or false, \
+            "{} is not a value of 'synthetic' that furfit reads (true, yes, 1 or false, \
              no, 0, in any case, and nothing else after it)",
-            value.trim()
+            quoted(value.trim())
         ));
     }
     Ok(())
@@ -346,9 +429,37 @@ pub struct LoadOptions {
     pub flip_phi: bool,
     /// Negate every file's theta_r.
     pub flip_theta_r: bool,
+    /// `theta_i` is (also) the axis of a lone `.npy` read in the same run, so a Yan-2015
+    /// file with its own `# theta_i:` line keeps its line and ignores `theta_i` (with a
+    /// note when they differ), where it is otherwise an error (the file and the option
+    /// disagree). Set by [`LoadOptions::for_inputs`]; not an option of its own.
+    pub theta_i_for_npy: bool,
 }
 
 impl LoadOptions {
+    /// These options for a run reading `inputs` (files and species folders):
+    /// [`LoadOptions::theta_i_for_npy`] is set when one of them is, or a folder holds, a
+    /// lone `.npy`. Every caller that loads inputs together derives it alike (`inspect`,
+    /// `fit`, and `report` re-reading a fit's data), so none records it.
+    pub fn for_inputs(&self, inputs: &[PathBuf]) -> LoadOptions {
+        let npy = |p: &Path| Format::from_path(p).ok() == Some(Format::Npy);
+        let has_npy = inputs.iter().any(|p| {
+            if p.is_dir() {
+                // An unreadable folder is reported by its load.
+                std::fs::read_dir(p).is_ok_and(|rd| {
+                    rd.flatten()
+                        .any(|e| is_profile_file(&e.path()) && npy(&e.path()))
+                })
+            } else {
+                npy(p)
+            }
+        });
+        LoadOptions {
+            theta_i_for_npy: has_npy,
+            ..self.clone()
+        }
+    }
+
     /// Refuse an axis option that none of the loaded files' `formats` reads: `theta_i`
     /// is read by a lone `.npy` and a Yan-2015 file, `theta_r` and `phi` only by a lone
     /// `.npy`. A CSV or npz carries its own angles, so such an option would be recorded as
@@ -516,6 +627,7 @@ fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let format = Format::from_path(path)?;
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if matches!(format, Format::Csv | Format::Yan) {
+        check_not_binary(&bytes, path)?;
         check_not_utf16(&bytes, path)?;
     }
     let (mut profile, notes) = match format {
@@ -541,6 +653,62 @@ fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     })
 }
 
+/// A text profile that is a NumPy file under a text name (an `.npz` renamed `.csv`) would
+/// otherwise read as a header of zip bytes: its signature names it.
+fn check_not_binary(bytes: &[u8], path: &Path) -> Result<()> {
+    let what = if bytes.starts_with(b"PK\x03\x04") {
+        "a zip/npz archive; a NumPy grid is read when named .npz"
+    } else if bytes.starts_with(b"\x93NUMPY") {
+        "a NumPy .npy array; a lone array is read when named .npy"
+    } else {
+        return Ok(());
+    };
+    Err(Error::file(
+        path,
+        format!("binary file (looks like {what}), not a text profile"),
+    ))
+}
+
+/// `t` (text from a file) with control characters, a byte-order mark and other invisible
+/// characters escaped as Rust writes them (`\0`, `\u{feff}`), so a message echoing it
+/// shows what the file holds (a mid-line BOM made `'0' is not a number` look absurd).
+pub(crate) fn escaped(t: &str) -> String {
+    let mut out = String::with_capacity(t.len());
+    for c in t.chars() {
+        match c {
+            // Printable, and escape_debug would backslash them.
+            '\'' | '"' | '\\' => out.push(c),
+            _ => out.extend(c.escape_debug()),
+        }
+    }
+    out
+}
+
+/// `t` from a file as messages quote it: `'...'`, [`escaped`].
+pub(crate) fn quoted(t: &str) -> String {
+    format!("'{}'", escaped(t))
+}
+
+/// A number as a text file writes it (trimmed): Rust's f64 syntax, `nan` and `inf` in any
+/// case included. `Err` is a message for the caller to place: not a number, or a nonzero
+/// number below the f64 range (`1e-400`), which would read as 0 (a silently invalid
+/// value, a zero sigma); its twin above the range (`1e400`) reads as infinite and each
+/// field's check refuses it.
+pub(crate) fn parse_number(t: &str) -> std::result::Result<f64, String> {
+    let v: f64 = t
+        .parse()
+        .map_err(|_| format!("{} is not a number", quoted(t)))?;
+    let mantissa = t.split(['e', 'E']).next().unwrap_or("");
+    if v == 0.0 && mantissa.bytes().any(|b| (b'1'..=b'9').contains(&b)) {
+        return Err(format!(
+            "{} is below the f64 range (about 5e-324) and would read as 0; write 0 if it \
+             is a zero",
+            quoted(t)
+        ));
+    }
+    Ok(v)
+}
+
 /// Text profiles are UTF-8 (or ASCII). Excel's "Unicode Text" export is UTF-16, which
 /// would otherwise read as garbled header names; its byte-order mark names it.
 fn check_not_utf16(bytes: &[u8], path: &Path) -> Result<()> {
@@ -562,25 +730,44 @@ fn check_not_utf16(bytes: &[u8], path: &Path) -> Result<()> {
 /// Largest |angle| of a profile whose angles look like radians: pi, plus slack for
 /// rounded exports.
 const RADIANS_LIMIT: f64 = 3.2;
+/// Slack on pi/2 and 2 pi for [`radians_warning`]'s second test (rounded exports).
+const RADIANS_SLACK: f64 = 0.01;
 
-/// A warning (a loader note, not an error) when every `theta_i`, `theta_r` and `phi` of
-/// `profile` lies within +-3.2 and not all are 0: files hold degrees (DATA.md), a real
-/// goniometer sweep spans far more than 3.2 deg, and radians read as degrees load
-/// silently and fit to absurd parameters.
+/// A warning (a loader note, not an error) when `profile`'s angles look like radians:
+/// files hold degrees (DATA.md), a real goniometer sweep spans far more than a few degrees,
+/// and radians read as degrees load silently and fit to absurd parameters. Either every
+/// `theta_i`, `theta_r` and `phi` lies within +-3.2 and not all are 0, or every theta lies
+/// within +-pi/2 and every phi within +-2 pi (azimuths written 0..2 pi, the usual radian
+/// form), 0.01 of slack each, over at least two directions.
 pub fn radians_warning(profile: &Profile) -> Option<String> {
-    let mut largest = 0.0f64;
+    let (mut theta, mut phi) = (0.0f64, 0.0f64);
+    let mut first: Option<(f64, f64, f64)> = None;
+    let mut two_directions = false;
     for s in &profile.samples {
-        for a in [s.theta_i, s.theta_r, s.phi] {
-            if a.is_nan() || a.abs() > RADIANS_LIMIT {
-                return None;
-            }
-            largest = largest.max(a.abs());
+        if [s.theta_i, s.theta_r, s.phi].iter().any(|a| a.is_nan()) {
+            return None;
         }
+        theta = theta.max(s.theta_i.abs()).max(s.theta_r.abs());
+        phi = phi.max(s.phi.abs());
+        let here = (s.theta_i, s.theta_r, s.phi);
+        two_directions |= *first.get_or_insert(here) != here;
     }
-    (largest > 0.0).then(|| {
-        format!(
+    let largest = theta.max(phi);
+    if largest > 0.0 && largest <= RADIANS_LIMIT {
+        return Some(format!(
             "warning: every theta_i, theta_r and phi lies within +-{RADIANS_LIMIT} (largest |angle| {largest}): \
              the values look like radians, but files hold degrees (DATA.md); convert them (x 180/pi) before fitting"
+        ));
+    }
+    let (theta_max, phi_max) = (
+        std::f64::consts::FRAC_PI_2 + RADIANS_SLACK,
+        std::f64::consts::TAU + RADIANS_SLACK,
+    );
+    (two_directions && theta <= theta_max && phi <= phi_max).then(|| {
+        format!(
+            "warning: every theta_i and theta_r lies within +-pi/2 and every phi within +-2 pi \
+             (largest |theta| {theta}, largest |phi| {phi}): the values look like radians, but \
+             files hold degrees (DATA.md); convert them (x 180/pi) before fitting"
         )
     })
 }
@@ -631,23 +818,48 @@ pub fn is_profile_file(path: &Path) -> bool {
     path.is_file() && Format::from_path(path).is_ok()
 }
 
-/// Is this text meant as a Yan-2015 profile? Its first line that is neither blank nor a
-/// `#` comment starts with a number or `?` (the phi of a data row). A folder's
-/// `.txt`/`.dat` can be prose (`notes.txt`), which is skipped, not an error; a profile
-/// with a typo in its first row (`0 10 1,5`, `0, 10, 1`, a fourth column) still starts
-/// with a number, so it is read and its error reported, never silently left out.
+/// Is this text meant as a Yan-2015 profile? It has a `# theta_i:` line (anywhere), or its
+/// first line that is neither blank nor a `#` comment starts with a number or `?` (the phi
+/// of a data row) or names two columns (`phi`, `theta`, `value`, also with a suffix such
+/// as `theta_r` or `phi(deg)`: the column-name line labs export). A folder's `.txt`/`.dat`
+/// can be prose (`notes.txt`), which is skipped, not an error; a profile with a typo in
+/// its first row (`0 10 1,5`, `0, 10, 1`, a fourth column) or a header the reader does not
+/// take ([`yan`] skips only `phi theta value`) still counts, so it is read and its error
+/// reported, never silently left out.
 pub fn looks_like_yan(bytes: &[u8]) -> bool {
+    let names_a_column = |f: &str| {
+        let f = f.trim_matches(['"', '\'']).to_ascii_lowercase();
+        ["phi", "theta", "value"].iter().any(|n| {
+            f.strip_prefix(n)
+                .is_some_and(|rest| !rest.starts_with(|c: char| c.is_ascii_alphabetic()))
+        })
+    };
+    let mut prose = false;
     for raw in split_lines(bytes) {
         let text = String::from_utf8_lossy(raw);
-        let t = text.trim().trim_start_matches('\u{feff}');
-        if t.is_empty() || t.starts_with('#') {
+        let t = text.trim().trim_start_matches('\u{feff}').trim();
+        if let Some(c) = t.strip_prefix('#') {
+            if yan::theta_i_comment(c).is_some() {
+                return true;
+            }
             continue;
         }
-        let first = t
+        if t.is_empty() || prose {
+            continue;
+        }
+        let fields: Vec<&str> = t
             .split(|c: char| c.is_whitespace() || c == ',' || c == ';')
-            .next()
-            .unwrap_or("");
-        return first == "?" || first.parse::<f64>().is_ok();
+            .filter(|f| !f.is_empty())
+            .collect();
+        let first = fields.first().copied().unwrap_or("");
+        if first == "?"
+            || first.parse::<f64>().is_ok()
+            || fields.iter().filter(|f| names_a_column(f)).count() >= 2
+        {
+            return true;
+        }
+        // Prose: still a profile if a `# theta_i:` line follows.
+        prose = true;
     }
     false
 }
@@ -763,6 +975,9 @@ fn merge_with(
     }
     for (k, part) in parts.into_iter().enumerate() {
         let file_base = out.files.len() as u32;
+        let mut layouts = part.layouts;
+        layouts.resize(part.files.len(), Layout::Unknown);
+        out.layouts.extend(layouts);
         out.files.extend(part.files);
         let mut map = Vec::new();
         if part.channels.is_empty() {
@@ -798,12 +1013,13 @@ fn merge_with(
     }
     // The dedupe holds the samples; a conflict names its two rows from a copy of the origins.
     let origins: Vec<Origin> = out.samples.iter().map(|s| s.origin).collect();
-    let files = out.files.clone();
+    let (files, layouts) = (out.files.clone(), out.layouts.clone());
     let collapsed = dedupe(&mut out.samples, &out.channels, |c| {
         let (a, b) = (origin[c.first], origin[c.repeat]);
         let hint = hint(a, b).map(|h| format!("; {h}")).unwrap_or_default();
+        // Each copy named as its own file's duplicate error would name it.
         let name = |i: usize, part: usize| {
-            origin_text(&files, origins[i]).unwrap_or_else(|| sources[part].clone())
+            place_text(&files, &layouts, origins[i]).unwrap_or_else(|| sources[part].clone())
         };
         Error::Invalid(format!(
             "{}: {}; the first copy is in {}{hint}",
@@ -829,9 +1045,16 @@ pub fn merge_loaded(parts: Vec<Loaded>, opts: &LoadOptions) -> Result<(Profile, 
         let t = opts.theta_i.as_deref()?;
         (all_yan[a] && all_yan[b]).then(|| {
             let t = t.iter().map(f64::to_string).collect::<Vec<_>>().join(",");
+            // Beside a lone .npy, files with their own line keep it.
+            let which = if opts.theta_i_for_npy {
+                " without a '# theta_i:' line"
+            } else {
+                ""
+            };
             format!(
-                "--theta-i {t} applies to every Yan-2015 file (each file of a folder too), so \
-                 they all read as theta_i {t}; give each file its own '# theta_i: <deg>' line"
+                "--theta-i {t} applies to every Yan-2015 file{which} (each file of a folder \
+                 too), so they all read as theta_i {t}; give each file its own \
+                 '# theta_i: <deg>' line"
             )
         })
     };
@@ -921,7 +1144,8 @@ impl Field {
 /// - `value`: NaN or `<= 0` is an *invalid* sample (DATA.md: no usable signal), kept;
 ///   infinite is an error — no detector reports it, so it is corruption, not a gap;
 /// - `sigma`, if given: finite and `>= 0`;
-/// - `phi_i`, if given: finite (not range-checked: only carried for round trips).
+/// - `phi_i`, if given: a finite angle in [-360, 360], as a phi is (DATA.md: an angle out
+///   of range is an error), kept as written (only carried for round trips).
 ///
 /// Returns the field at fault and a message for the caller to place (file, line and
 /// column, or array and cell).
@@ -945,12 +1169,7 @@ pub(crate) fn check_measured(
         }
     }
     if let Some(p) = phi_i {
-        if !p.is_finite() {
-            return Err((
-                Field::PhiI,
-                format!("phi_i must be a finite angle, found {p}"),
-            ));
-        }
+        check_angle("phi_i", p, PHI_LIMIT).map_err(|m| (Field::PhiI, m))?;
     }
     Ok(())
 }
@@ -976,6 +1195,13 @@ fn same_opt(a: Option<f64>, b: Option<f64>) -> bool {
         (Some(x), Some(y)) => same_f64(x, y),
         _ => false,
     }
+}
+
+/// Do two copies of one direction agree on the value? Equal (NaN equal to NaN), or both
+/// no-signal markers (NaN, `<= 0`): a sweep's 0 and 360 may mark one gap as NaN and -1,
+/// and no value of either enters a fit, so they are one invalid sample, not a conflict.
+fn same_value(a: &Sample, b: &Sample) -> bool {
+    same_f64(a.value, b.value) || (!a.is_valid() && !b.is_valid())
 }
 
 /// Do two samples agree in every field (NaN equal to NaN)?
@@ -1029,7 +1255,7 @@ pub(crate) fn dedupe_notes<F>(
 where
     F: Fn(Conflict) -> Error,
 {
-    let pairs = dedupe_pairs(samples, channels, conflict)?;
+    let (pairs, markers) = dedupe_pairs(samples, channels, conflict)?;
     if pairs.is_empty() {
         return Ok(Vec::new());
     }
@@ -1037,7 +1263,7 @@ where
         .iter()
         .filter(|(i, j)| raw_phi.get(*i) != raw_phi.get(*j))
         .collect();
-    let why = match wrapped.first() {
+    let mut why = match wrapped.first() {
         Some((i, j)) => format!(
             " ({} of them the same direction written as two phi, e.g. {} and {}: wrapped alike)",
             wrapped.len(),
@@ -1046,6 +1272,17 @@ where
         ),
         None => String::new(),
     };
+    // Two different no-signal markers (NaN and -1) collapse too ([`same_value`]): said, so
+    // the kept one's spelling is no surprise.
+    if let Some((a, b)) = markers.first() {
+        why.push_str(&format!(
+            " ({} of them not identical but two no-signal values, e.g. {} and {}: one invalid \
+             sample, the first kept)",
+            markers.len(),
+            Num(*a),
+            Num(*b)
+        ));
+    }
     Ok(vec![format!(
         "{} {what} collapsed into their first occurrence{why}",
         pairs.len()
@@ -1095,7 +1332,8 @@ fn opt_text(v: Option<f64>) -> String {
 }
 
 /// Remove identical duplicate samples (same `theta_i, theta_r, phi, channel` and the same
-/// value, sigma and phi_i), keeping the first; returns how many were removed. A repeat
+/// value, or two no-signal values ([`same_value`]), sigma and phi_i), keeping the first;
+/// returns how many were removed. A repeat
 /// with any different field is an error built by `conflict` from the [`Conflict`] (indices
 /// into the original `samples`); `channels` are the names of the samples' channel indices.
 pub(crate) fn dedupe<F>(
@@ -1106,21 +1344,25 @@ pub(crate) fn dedupe<F>(
 where
     F: Fn(Conflict) -> Error,
 {
-    Ok(dedupe_pairs(samples, channels, conflict)?.len())
+    Ok(dedupe_pairs(samples, channels, conflict)?.0.len())
 }
 
-/// [`dedupe`], returning the `(kept, removed)` index pairs (into the original `samples`).
+/// [`dedupe`], returning the `(kept, removed)` index pairs (into the original `samples`)
+/// and the two values of each pair of different no-signal markers collapsed
+/// ([`same_value`]).
+#[allow(clippy::type_complexity)]
 fn dedupe_pairs<F>(
     samples: &mut Vec<Sample>,
     channels: &[String],
     conflict: F,
-) -> Result<Vec<(usize, usize)>>
+) -> Result<(Vec<(usize, usize)>, Vec<(f64, f64)>)>
 where
     F: Fn(Conflict) -> Error,
 {
     let mut seen: HashMap<(u64, u64, u64, usize), usize> = HashMap::with_capacity(samples.len());
     let mut drop = vec![false; samples.len()];
     let mut pairs = Vec::new();
+    let mut markers = Vec::new();
     for (j, s) in samples.iter().enumerate() {
         let key = (
             (s.theta_i + 0.0).to_bits(),
@@ -1134,7 +1376,7 @@ where
             }
             Some(&i) => {
                 let a = &samples[i];
-                let diff = if !same_f64(a.value, s.value) {
+                let diff = if !same_value(a, s) {
                     Some(format!("value ({} vs {})", Num(a.value), Num(s.value)))
                 } else if !same_opt(a.sigma, s.sigma) {
                     Some(format!(
@@ -1171,6 +1413,9 @@ where
                         phi: s.phi,
                     }));
                 }
+                if !same_f64(a.value, s.value) {
+                    markers.push((a.value, s.value));
+                }
                 drop[j] = true;
                 pairs.push((i, j));
             }
@@ -1184,7 +1429,7 @@ where
             keep
         });
     }
-    Ok(pairs)
+    Ok((pairs, markers))
 }
 
 #[cfg(test)]
@@ -1355,9 +1600,10 @@ mod tests {
         };
         let e = load_dir(d, &opts).unwrap_err().to_string();
         assert!(
-            e.contains("f20.txt line 1: duplicate sample (theta_i 30, theta_r 10, phi 0) with")
-                && e.contains("first copy is in")
-                && e.contains("f0.txt line 1;")
+            e.contains(
+                "f20.txt:1: column 3 (value): duplicate sample (theta_i 30, theta_r 10, phi 0) with"
+            ) && e.contains("first copy is in")
+                && e.contains("f0.txt:1: column 3 (value);")
                 && e.contains("--theta-i 30 applies to every Yan-2015 file"),
             "{e}"
         );
@@ -1553,13 +1799,159 @@ mod tests {
         for s in [-5.0, inf, -inf, nan] {
             assert_eq!(field(1.0, Some(s), None), Field::Sigma, "sigma {s}");
         }
-        for p in [inf, nan] {
+        // phi_i is an angle: out of range is an error like phi's (1e9 was accepted).
+        for p in [inf, nan, 1e9, -360.5] {
             assert_eq!(field(1.0, None, Some(p)), Field::PhiI, "phi_i {p}");
         }
+        assert_eq!(check_measured(1.0, None, Some(360.0)), Ok(()));
         assert!(check_channel_name("650nm").is_ok());
         assert!(check_channel_name("").is_err());
         assert!(check_channel_name("  ").is_err());
         let (_, msg) = check_measured(1.0, Some(-5.0), None).unwrap_err();
         assert!(msg.contains("sigma must be finite and >= 0"), "{msg}");
+    }
+
+    /// A species folder's Yan file with a column-name line and/or a `# theta_i:` line is a
+    /// profile: read (the `phi theta value` header skipped) or, with a header the reader
+    /// does not take, an error naming file, line and column; it was skipped with a note,
+    /// silently dropping its data from the fit.
+    #[test]
+    fn folder_reads_yan_files_with_a_column_name_line() {
+        assert!(looks_like_yan(b"# theta_i: 0\nphi theta value\n0 10 1\n"));
+        assert!(looks_like_yan(b"Phi(deg)\tTheta(deg)\tValue\n0 10 1\n"));
+        // Prose first, but a theta_i line further down.
+        assert!(looks_like_yan(b"Fox, fiber 3.\n# theta_i: 20\n"));
+        assert!(!looks_like_yan(b"The phi sweep was noisy.\n0 10 1\n"));
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(d.join("ti0.txt"), "# theta_i: 0\nphi theta value\n0 10 1\n").unwrap();
+        std::fs::write(d.join("ti20.txt"), "# theta_i: 20\n0 10 2\n").unwrap();
+        std::fs::write(d.join("notes.txt"), "Fox fiber 3, combed.\n").unwrap();
+        let l = load_dir(d, &LoadOptions::default()).unwrap();
+        assert_eq!(l.profile.samples.len(), 2);
+        assert_eq!(l.files.len(), 2, "{:?}", l.files);
+        assert_eq!(l.notes, vec!["skipped notes.txt: not a Yan-2015 profile"]);
+        // A header in another order: the folder's load fails on it, naming the place.
+        std::fs::write(d.join("ti0.txt"), "# theta_i: 0\ntheta phi value\n0 10 1\n").unwrap();
+        let e = load_dir(d, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("ti0.txt:2: column 1: column-name line"), "{e}");
+        // Prose with a theta_i line is read, and its error reported.
+        std::fs::write(d.join("ti0.txt"), "Fiber 3\n# theta_i: 0\n0 10 1\n").unwrap();
+        let e = load_dir(d, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("ti0.txt:1: column 3: expected 3 fields"), "{e}");
+    }
+
+    /// Radians with phi written 0..2 pi (phi up to 6.28 > 3.2) got no warning.
+    #[test]
+    fn radians_with_phi_to_two_pi_warn() {
+        let prof = |s: Vec<Sample>| Profile {
+            samples: s,
+            ..Default::default()
+        };
+        let w =
+            radians_warning(&prof(vec![at(0.0, -1.2, 0.0), at(0.52, 1.2, 6.02)])).expect("radians");
+        assert!(
+            w.contains("within +-pi/2 and every phi within +-2 pi")
+                && w.contains("largest |theta| 1.2, largest |phi| 6.02)")
+                && w.contains("look like radians"),
+            "{w}"
+        );
+        // At the slack's edge, still; beyond it (a theta of 2 deg, a phi of 7), not.
+        assert!(radians_warning(&prof(vec![at(0.0, 1.58, 0.0), at(0.0, 0.0, -6.29)])).is_some());
+        assert!(radians_warning(&prof(vec![at(0.0, 2.0, 0.0), at(0.0, 0.0, 6.0)])).is_none());
+        assert!(radians_warning(&prof(vec![at(0.0, 1.0, 0.0), at(0.0, 0.0, 7.0)])).is_none());
+        // One direction is no sweep to judge.
+        assert!(radians_warning(&prof(vec![at(0.5, 1.0, 6.0), at(0.5, 1.0, 6.0)])).is_none());
+    }
+
+    /// A clash between two files names each copy as a single file's own duplicate error
+    /// does: `FILE:LINE: column N (value)` for a CSV or Yan row, `FILE: array 'value' index
+    /// [i, j, k]` for a grid cell (it said `FILE line N`, and only `FILE` for a cell).
+    #[test]
+    fn clash_across_files_names_column_and_cell_of_both_copies() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let grid = |name: &str, v: f64| {
+            let mut p = Profile::default();
+            for (k, phi) in [0.0, 10.0, 20.0].into_iter().enumerate() {
+                p.samples
+                    .push(Sample::new(30.0, -10.0, phi, 1.0 + k as f64));
+                p.samples.push(Sample::new(30.0, 5.0, phi, v + k as f64));
+            }
+            save(&d.join(name), &p).unwrap();
+        };
+        grid("a.npz", 1.0);
+        grid("b.npz", 2.0);
+        let e = load_dir(d, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(
+                "b.npz: array 'value' index [0, 1, 0]: duplicate sample (theta_i 30, theta_r 5, \
+                 phi 0) with a different value (1 vs 2); the first copy is in "
+            ) && e.ends_with("a.npz: array 'value' index [0, 1, 0]"),
+            "{e}"
+        );
+        std::fs::remove_file(d.join("b.npz")).unwrap();
+        std::fs::write(
+            d.join("c.csv"),
+            "# x\nvalue,phi,theta_r,theta_i\n3,20,5,30\n9,10,5,30\n",
+        )
+        .unwrap();
+        let e = load_dir(d, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(
+                "c.csv:4: column 1 (value): duplicate sample (theta_i 30, theta_r 5, phi 10)"
+            ) && e.ends_with("a.npz: array 'value' index [0, 1, 1]"),
+            "{e}"
+        );
+        // A grid cell elsewhere (a --weighted message) is named by its index too.
+        let l = load_full(&d.join("a.npz"), &LoadOptions::default()).unwrap();
+        let name = l.profile.origin_of(&l.profile.samples[5]).unwrap();
+        assert!(name.ends_with("a.npz index [0, 1, 2]"), "{name}");
+        let g = Layout::Grid {
+            shape: vec![2, 3, 4, 2],
+        };
+        assert_eq!(g.cell(Origin::at_cell(47)), Some(vec![1, 2, 3, 1]));
+        assert_eq!(g.cell(Origin::at_cell(48)), None);
+        assert_eq!(g.cell(Origin::default()), None);
+    }
+
+    /// An npz renamed .csv (or .txt) is named as binary: its zip bytes were echoed as the
+    /// "header".
+    #[test]
+    fn zip_or_npy_under_a_text_name_is_named_binary() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let mut p = Profile::default();
+        p.samples.push(Sample::new(0.0, 10.0, 0.0, 1.0));
+        let npz = npz::to_bytes(&p).unwrap();
+        for name in ["fake.csv", "fake.txt"] {
+            std::fs::write(d.join(name), &npz).unwrap();
+            let e = load(&d.join(name), &LoadOptions::default())
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.ends_with(&format!(
+                    "{name}: binary file (looks like a zip/npz archive; a NumPy grid is read \
+                     when named .npz), not a text profile"
+                )),
+                "{e}"
+            );
+        }
+        std::fs::write(d.join("v.csv"), b"\x93NUMPY\x01\x00").unwrap();
+        let e = load(&d.join("v.csv"), &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("binary file (looks like a NumPy .npy array"),
+            "{e}"
+        );
     }
 }

@@ -10,16 +10,19 @@
 //! | `value` | float64 | `[I, R, P]` or `[I, R, P, C]` | intensity; NaN = missing (required) |
 //! | `present` | uint8 (or bool) | same as `value` | 1 = a sample exists at this cell, 0 = none (optional) |
 //! | `sigma` | float64 | same as `value` | standard error; NaN = none (optional) |
-//! | `phi_i` | float64 | same as `value` | absolute incident azimuth; NaN = none (optional) |
-//! | `meta_json` | uint8 | `[n]` | UTF-8 JSON `{"metadata": [[key, value], ...], "channels": [name, ...]}` (optional) |
+//! | `phi_i` | float64 | same as `value` | absolute incident azimuth, degrees in [-360, 360]; NaN = none (optional) |
+//! | `meta_json` | uint8 | `[n]` | UTF-8 JSON `{"metadata": [[key, value], ...], "channels": [name, ...]}` (optional; the text's bytes, `np.frombuffer(s.encode(), np.uint8)`) |
 //!
-//! float32 arrays are accepted too and widened to float64; the three axes may also be any
-//! integer dtype (NumPy's `np.array([0, 15, 30])` is int64), converted to float64.
+//! float32 arrays are accepted too and widened to float64; a float32 axis is read as the
+//! shortest decimal that names each element (`np.float32(0.1)` as 0.1, not
+//! 0.10000000149011612), the grid the file was written for, so it matches a CSV of the same
+//! angles instead of doubling every direction. The three axes may also be any integer dtype
+//! (NumPy's `np.array([0, 15, 30])` is int64), converted to float64.
 //!
 //! A cell is a sample when `present` is 1 (any value but 0 and 1 is an error naming the
 //! first such cell's index); without `present`, when `value` is not NaN. A sample's value, sigma and phi_i (NaN decoded as "none" for the latter two) obey
 //! the CSV reader's rules ([`super::check_measured`]): an infinite `value`, a negative or
-//! infinite `sigma` or an infinite `phi_i` is an error naming the array and the cell's
+//! infinite `sigma` or a `phi_i` outside [-360, 360] is an error naming the array and the cell's
 //! index; only cells that are samples are checked. The `present` mask is what lets a sparse CSV profile, including its invalid NaN
 //! samples, round trip exactly: the writer always writes it, and stores invalid values as
 //! they are (a negative value stays negative, NaN stays NaN). Channel names come from
@@ -54,8 +57,8 @@
 //! the command line) and their lengths must match the array's shape.
 
 use super::{
-    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_notes, read_phi,
-    wrap_conflict, LoadOptions, Profile, Sample, MAX_READ_CELLS,
+    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_notes, quoted,
+    read_phi, wrap_conflict, Layout, LoadOptions, Origin, Profile, Sample, MAX_READ_CELLS,
 };
 use crate::error::{Error, Result};
 use ndarray::{ArrayD, Dimension, IxDyn};
@@ -85,8 +88,27 @@ impl NpyHeader {
     }
 }
 
-/// Parse and sanity-check an `.npy` header against the data that follows it.
+/// Parse and sanity-check an `.npy` header against the data that follows it; a dtype
+/// that is not float, integer or bool is an error.
 fn npy_header(bytes: &[u8]) -> std::result::Result<NpyHeader, String> {
+    npy_header_with(bytes, |h| {
+        if matches!(h.kind().0, 'f' | 'i' | 'u' | 'b') {
+            Ok(())
+        } else {
+            Err(format!(
+                "unsupported dtype '{}' (profile arrays are float, integer or bool)",
+                h.descr
+            ))
+        }
+    })
+}
+
+/// [`npy_header`] with the dtype checked by `dtype` (before the sizes, which a string or
+/// object dtype would fail with a less telling message).
+fn npy_header_with(
+    bytes: &[u8],
+    dtype: impl Fn(&NpyHeader) -> std::result::Result<(), String>,
+) -> std::result::Result<NpyHeader, String> {
     const MAGIC: &[u8] = b"\x93NUMPY";
     let n = bytes.len().min(MAGIC.len());
     if bytes[..n] != MAGIC[..n] {
@@ -141,13 +163,8 @@ fn npy_header(bytes: &[u8]) -> std::result::Result<NpyHeader, String> {
         );
     }
     let h = NpyHeader { descr, shape };
-    let (kind, size) = h.kind();
-    if !matches!(kind, 'f' | 'i' | 'u' | 'b') {
-        return Err(format!(
-            "unsupported dtype '{}' (profile arrays are float, integer or bool)",
-            h.descr
-        ));
-    }
+    dtype(&h)?;
+    let size = h.kind().1;
     // Checked on the header, before anything is decoded or allocated.
     let cells = h.shape.iter().try_fold(1usize, |n, &d| n.checked_mul(d));
     if cells.is_none_or(|n| n > MAX_READ_CELLS) {
@@ -196,8 +213,16 @@ fn read_float(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
     }
 }
 
-/// Decode an axis array: float (as [`read_float`]) or any integer type, since
-/// `np.array([0, 15, 30])` is int64 and whole-degree grids are common.
+/// A float32 angle as the decimal it was written for: the shortest decimal that reads back
+/// as `v` (Rust's `Display`), read as f64. `0.1f32` is 0.10000000149011612 widened, a
+/// direction no CSV of the same grid names; this gives 0.1.
+fn f32_angle(v: f32) -> f64 {
+    // Display of a finite f32 always reads back; NaN and inf are refused by the range check.
+    format!("{v}").parse().unwrap_or(f64::from(v))
+}
+
+/// Decode an axis array: float (as [`read_float`], a float32 axis by [`f32_angle`]) or any
+/// integer type, since `np.array([0, 15, 30])` is int64 and whole-degree grids are common.
 fn read_axis(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
     let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
     let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
@@ -215,7 +240,8 @@ fn read_axis(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
         ('u', 8) => Ok(ArrayD::<u64>::read_npy(bytes)
             .map_err(npy)?
             .mapv(|v| v as f64)),
-        ('f', 8) | ('f', 4) => read_float(bytes, path, name),
+        ('f', 4) => Ok(ArrayD::<f32>::read_npy(bytes).map_err(npy)?.mapv(f32_angle)),
+        ('f', 8) => read_float(bytes, path, name),
         _ => Err(arr_err(
             path,
             name,
@@ -240,6 +266,20 @@ fn read_bytes_array(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<u8>>
             format!("wrong dtype '{}': expected uint8 (or bool)", h.descr),
         )),
     }
+}
+
+/// Decode `meta_json`: the UTF-8 bytes of a JSON text, as uint8 (or bool, as
+/// [`read_bytes_array`]). A NumPy string (`np.array(s)`, the natural thing to write) or
+/// another integer type is refused with the one spelling that works.
+fn read_meta_json(bytes: &[u8], path: &Path) -> Result<ArrayD<u8>> {
+    const HOW: &str = "meta_json must be the UTF-8 bytes of a JSON text as a uint8 array, \
+                       e.g. np.frombuffer(s.encode(), np.uint8)";
+    npy_header_with(bytes, |h| match h.kind() {
+        ('u', 1) | ('b', 1) => Ok(()),
+        _ => Err(format!("dtype '{}': {HOW}", h.descr)),
+    })
+    .map_err(|m| arr_err(path, "meta_json", m))?;
+    read_bytes_array(bytes, path, "meta_json")
 }
 
 /// The raw bytes of array `name` (`name.npy` or `name`) in the archive, if present.
@@ -352,7 +392,7 @@ pub fn parse_npz_with(
     };
     let meta = match entry(&mut zip, path, "meta_json")? {
         Some(b) => {
-            let raw = read_bytes_array(&b, path, "meta_json")?;
+            let raw = read_meta_json(&b, path)?;
             if raw.ndim() != 1 {
                 return Err(arr_err(path, "meta_json", "must be 1-D"));
             }
@@ -544,7 +584,7 @@ fn grid_to_profile(
             return Err(arr_err(
                 path,
                 "meta_json",
-                format!("channels[{k}] '{name}' repeats channels[{j}]"),
+                format!("channels[{k}] {} repeats channels[{j}]", quoted(name)),
             ));
         }
     }
@@ -620,7 +660,8 @@ fn grid_to_profile(
                         sigma,
                         channel: c,
                         phi_i,
-                        origin: Default::default(),
+                        // Row-major over `value` (a 3-D one has nc = 1, c = 0).
+                        origin: Origin::at_cell(((i * lens[1] + r) * lens[2] + p) * nc + c),
                     });
                     cells.push([i, r, p, c]);
                 }
@@ -664,6 +705,7 @@ fn grid_to_profile(
             metadata: meta.metadata,
             source: Some(path.to_path_buf()),
             files: vec![path.to_path_buf()],
+            layouts: vec![Layout::Grid { shape }],
         },
         notes,
     ))
@@ -1071,5 +1113,76 @@ mod tests {
         };
         let e = parse_npy(&w, path, &bad).unwrap_err().to_string();
         assert!(e.contains("'value'") && e.contains("wrong shape"), "{e}");
+    }
+
+    /// A float32 axis reads as the decimals it was written for (0.1f32 widened is
+    /// 0.10000000149011612): the same grid in a CSV is then the same directions, so the two
+    /// merge into one sample per direction, not two, and a different value is a conflict.
+    #[test]
+    fn float32_axes_read_as_their_shortest_decimal() {
+        let mut w = NpzWriter::new(Cursor::new(Vec::new()));
+        w.add_array("theta_i", &ndarray::arr1(&[0.1f32, 30.0]))
+            .unwrap();
+        w.add_array("theta_r", &ndarray::arr1(&[-59.9f32, 60.1]))
+            .unwrap();
+        w.add_array("phi", &ndarray::arr1(&[-0.3f32, 179.9]))
+            .unwrap();
+        let v = ArrayD::from_shape_vec(IxDyn(&[2, 2, 2]), (1..=8).map(f64::from).collect());
+        w.add_array("value", &v.unwrap()).unwrap();
+        let bytes = w.finish().unwrap().into_inner();
+        let (p, _) = parse_npz(&bytes, Path::new("f.npz")).unwrap();
+        let s = &p.samples[7];
+        assert_eq!((s.theta_i, s.theta_r, s.phi), (30.0, 60.1, 179.9));
+        let s = &p.samples[0];
+        assert_eq!((s.theta_i, s.theta_r, s.phi), (0.1, -59.9, -0.3));
+        // The same grid as a lab writes it, in decimals.
+        let mut csv = String::from("theta_i,theta_r,phi,value\n");
+        let mut v = 0;
+        for ti in ["0.1", "30"] {
+            for tr in ["-59.9", "60.1"] {
+                for ph in ["-0.3", "179.9"] {
+                    v += 1;
+                    csv.push_str(&format!("{ti},{tr},{ph},{v}\n"));
+                }
+            }
+        }
+        let (c, _) = super::super::csv::parse(csv.as_bytes(), Path::new("f.csv")).unwrap();
+        let (m, collapsed) = super::super::merge(vec![p, c]).unwrap();
+        assert_eq!((m.samples.len(), collapsed), (8, 8));
+        // Values are data, not a grid: widened exactly.
+        let mut w = NpzWriter::new(Cursor::new(Vec::new()));
+        w.add_array("theta_i", &ndarray::arr1(&[0.0])).unwrap();
+        w.add_array("theta_r", &ndarray::arr1(&[0.0])).unwrap();
+        w.add_array("phi", &ndarray::arr1(&[0.0])).unwrap();
+        w.add_array("value", &ArrayD::from_elem(IxDyn(&[1, 1, 1]), 0.1f32))
+            .unwrap();
+        let (p, _) = parse_npz(&w.finish().unwrap().into_inner(), Path::new("v.npz")).unwrap();
+        assert_eq!(p.samples[0].value, f64::from(0.1f32));
+    }
+
+    /// meta_json written as a NumPy string (`np.array(s)`) or another integer type says
+    /// how to write it (it said "profile arrays are float, integer or bool" / "expected
+    /// uint8 (or bool)").
+    #[test]
+    fn meta_json_of_the_wrong_dtype_says_how_to_write_it() {
+        let how = "meta_json must be the UTF-8 bytes of a JSON text as a uint8 array, e.g. \
+                   np.frombuffer(s.encode(), np.uint8)";
+        // A 0-d '<U2' array: 2 UCS-4 characters, 8 bytes.
+        let mut text = npy_header_bytes("{'descr': '<U2', 'fortran_order': False, 'shape': (), }");
+        text.extend([b'{', 0, 0, 0, b'}', 0, 0, 0]);
+        let e = read_meta_json(&text, Path::new("m.npz"))
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, format!("m.npz: array 'meta_json': dtype '<U2': {how}"));
+        let mut int8 =
+            npy_header_bytes("{'descr': '|i1', 'fortran_order': False, 'shape': (2,), }");
+        int8.extend(b"{}");
+        let e = read_meta_json(&int8, Path::new("m.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.ends_with(&format!("dtype '|i1': {how}")), "{e}");
+        let mut ok = npy_header_bytes("{'descr': '|u1', 'fortran_order': False, 'shape': (2,), }");
+        ok.extend(b"{}");
+        assert_eq!(read_meta_json(&ok, Path::new("m.npz")).unwrap().len(), 2);
     }
 }

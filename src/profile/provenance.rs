@@ -51,6 +51,25 @@ fn folder_says_synthetic(dir: &Path) -> Result<Option<bool>> {
     })
 }
 
+/// Where the data read from `dir` (a species folder, or a file's folder) are labelled
+/// measured, if they are: `synthetic: false` in the data, or in the folder's
+/// `metadata.json`, and nothing saying synthetic. Reports say "labelled measured" then,
+/// not "no synthetic label". Loading already checked the metadata file, so one that no
+/// longer reads counts as no label.
+pub fn measured_label(profile: &Profile, dir: &Path) -> Option<String> {
+    if profile.is_synthetic() {
+        None
+    } else if profile.is_labelled_measured() {
+        Some("synthetic: false".into())
+    } else if folder_says_synthetic(dir).ok().flatten() == Some(false) {
+        Some(format!(
+            "synthetic: false in its folder's {FOLDER_METADATA}"
+        ))
+    } else {
+        None
+    }
+}
+
 /// Apply the label of `dir`'s `metadata.json` to `profile` (loaded from that folder) and
 /// return the notes it warrants. A metadata file that does not read is an error, also for
 /// a file named inside the folder: it may be what labels the data synthetic, and a
@@ -137,5 +156,27 @@ mod tests {
         write("{\"synthetic\": tru}");
         let e = apply_folder_label(&mut profile(&[]), dir).unwrap_err();
         assert!(e.to_string().contains(":1:"), "no line in: {e}");
+    }
+
+    /// An explicit `synthetic: false`, in the data or the folder's metadata.json, is a
+    /// label: reports say "labelled measured", not "no synthetic label".
+    #[test]
+    fn explicit_false_is_a_measured_label() {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path();
+        assert_eq!(measured_label(&profile(&[]), dir), None);
+        let no = profile(&[("Synthetic", "No")]);
+        assert_eq!(
+            measured_label(&no, dir).as_deref(),
+            Some("synthetic: false")
+        );
+        // A source saying synthetic outweighs it.
+        let both = profile(&[("synthetic", "false"), ("source", "simulated")]);
+        assert_eq!(measured_label(&both, dir), None);
+        std::fs::write(dir.join(FOLDER_METADATA), r#"{"synthetic": false}"#).unwrap();
+        assert_eq!(
+            measured_label(&profile(&[]), dir).as_deref(),
+            Some("synthetic: false in its folder's metadata.json")
+        );
     }
 }

@@ -23,6 +23,11 @@ pub struct AxisStats {
     /// Whether every difference but near-duplicates is `step` (so it is the axis's step, not
     /// only the most common one); true with fewer than three distinct values.
     pub even: bool,
+    /// The smallest and largest difference (as `step`, near-duplicates aside), and whether
+    /// `step` occurs more than once: when no step repeats (0, 10, 25, 45), "most common"
+    /// means nothing and the range says more.
+    pub step_range: Option<(f64, f64)>,
+    pub step_repeats: bool,
     /// Pairs of consecutive distinct values closer than 5e-10 deg (e.g. 20 and
     /// 20.000000000000004, float noise of a computed grid), and the first such pair.
     pub near_duplicates: usize,
@@ -88,6 +93,11 @@ impl AxisStats {
             step: best.map(|(s, _)| s as f64 / STEPS_PER_DEG),
             // Sorted: all equal when the first equals the last.
             even: steps.first() == steps.last(),
+            step_range: steps
+                .first()
+                .zip(steps.last())
+                .map(|(a, b)| (*a as f64 / STEPS_PER_DEG, *b as f64 / STEPS_PER_DEG)),
+            step_repeats: best.is_some_and(|(_, n)| n > 1),
             near_duplicates,
             near_pair,
         })
@@ -152,10 +162,28 @@ mod tests {
         assert!(!a.even);
         let even = AxisStats::of(&v[..5], |x| x.phi).unwrap();
         assert!(even.even, "float noise is not unevenness");
+        assert!(a.step_repeats);
         let one = AxisStats::of(&v[..1], |x| x.phi).unwrap();
         assert_eq!(one.step, None);
         assert!(one.even);
         assert!(AxisStats::of(&[], |x| x.phi).is_none());
+    }
+
+    /// When no step repeats (0, 10, 25, 45) the stats say so and give the range of steps
+    /// (inspect printed "most common step 10 deg" for steps of 10, 15 and 20, once each).
+    #[test]
+    fn steps_that_never_repeat_give_their_range() {
+        let v: Vec<Sample> = [0.0, 10.0, 25.0, 45.0].into_iter().map(s).collect();
+        let a = AxisStats::of(&v, |x| x.phi).unwrap();
+        assert!(!a.even && !a.step_repeats, "{a:?}");
+        let (lo, hi) = a.step_range.unwrap();
+        assert!(
+            (lo - 10.0).abs() < 1e-12 && (hi - 20.0).abs() < 1e-12,
+            "{a:?}"
+        );
+        // Two values: one step, which is the axis's step.
+        let a = AxisStats::of(&v[..2], |x| x.phi).unwrap();
+        assert!(a.even && !a.step_repeats, "{a:?}");
     }
 
     /// Values closer than the step resolution are near-duplicates, not a step (20 and

@@ -6,11 +6,19 @@
 //!   `value` is a number or `?` for a missing measurement (read as NaN: an *invalid* sample,
 //!   kept and counted, as DATA.md asks for missing values); `nan` is accepted as well.
 //! - `#` starts a comment line. A comment of the form `# key: value` is metadata (kept in
-//!   file order), except `# theta_i: <deg>`, which gives the file's incident angle.
+//!   file order), except `# theta_i: <deg>`, which gives the file's incident angle. A
+//!   comment line need not be UTF-8 (comments are not data; as in CSV, its text is read
+//!   with replacement characters); a data line must be.
+//! - The first line that is neither blank nor a comment may be the column-name line labs
+//!   export, `phi theta value` (those three names in that order, any case): it is skipped.
+//!   Any other non-numeric first line is an error, named like a bad row.
 //! - Blank lines are ignored. Lines end in `\n`, `\r\n` or a lone `\r` (old Mac /
 //!   instrument exports); line numbers count any of them.
 //! - The incident angle comes from the `# theta_i:` line or from [`LoadOptions::theta_i`]
 //!   (exactly one value). If both are given they must agree; if neither is, it is an error.
+//!   When `theta_i` is also the axis of a lone `.npy` read in the same run
+//!   ([`LoadOptions::theta_i_for_npy`]), a file with its own line keeps it and ignores the
+//!   option (with a note when they differ): the option cannot be meant for it.
 //!
 //! # Angle convention (an assumption, stated here because the files do not carry it)
 //! The files give `phi` and `theta` in degrees. We read `theta` as `theta_r` with MODEL.md's
@@ -34,13 +42,22 @@
 //! data rows is an error.
 
 use super::{
-    check_angle, convert_theta_r, dedupe_rows, read_phi, split_lines, LoadOptions, Origin, Profile,
-    Sample,
+    check_angle, convert_theta_r, dedupe_rows, parse_number, quoted, read_phi, split_lines, Layout,
+    LoadOptions, Origin, Profile, Sample,
 };
 use crate::error::{Error, Num, Result};
 use std::path::Path;
 
 const NAMES: [&str; 3] = ["phi", "theta", "value"];
+
+/// The value of a `# theta_i: <deg>` comment (`c` is the text after `#`), trimmed; `None`
+/// for any other comment.
+pub(crate) fn theta_i_comment(c: &str) -> Option<&str> {
+    let (key, val) = c.split_once(':')?;
+    key.trim()
+        .eq_ignore_ascii_case("theta_i")
+        .then_some(val.trim())
+}
 
 /// Parse a Yan-2015 text file; `path` is used in error messages.
 pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, Vec<String>)> {
@@ -57,10 +74,18 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     let mut samples = Vec::new();
     // Per sample: its line and its phi as written (for a wrap's duplicate message).
     let mut raw_phi = Vec::new();
+    // Until the first data (or column-name) line, which alone may name the columns.
+    let mut before_data = true;
     for (k, raw) in split_lines(bytes).enumerate() {
         let line = k + 1;
-        let text = std::str::from_utf8(raw)
-            .map_err(|_| perr(line, "column 1".into(), "not valid UTF-8".into()))?;
+        let text = match std::str::from_utf8(raw) {
+            Ok(t) => std::borrow::Cow::Borrowed(t),
+            // Comments are not data: a Latin-1 note is read as CSV reads it.
+            Err(_) if is_comment(raw) => String::from_utf8_lossy(raw),
+            Err(_) => {
+                return Err(perr(line, "column 1".into(), "not valid UTF-8".into()));
+            }
+        };
         let t = text.trim().trim_start_matches('\u{feff}');
         if t.is_empty() {
             continue;
@@ -71,9 +96,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                 let val = val.trim();
                 if key.eq_ignore_ascii_case("theta_i") {
                     let col = "theta_i comment".to_string();
-                    let v: f64 = val
-                        .parse()
-                        .map_err(|_| perr(line, col.clone(), format!("'{val}' is not a number")))?;
+                    let v = parse_number(val).map_err(|m| perr(line, col.clone(), m))?;
                     let v =
                         check_angle("theta_i", v, 90.0).map_err(|m| perr(line, col.clone(), m))?;
                     if let Some((old, l0)) = file_theta_i {
@@ -103,6 +126,33 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             continue;
         }
         let fields: Vec<&str> = t.split_whitespace().collect();
+        if std::mem::take(&mut before_data) {
+            if fields.len() == NAMES.len()
+                && fields
+                    .iter()
+                    .zip(NAMES)
+                    .all(|(f, n)| f.eq_ignore_ascii_case(n))
+            {
+                continue;
+            }
+            // Another column-name line: say what is read, not that 'theta' is no number.
+            let named = |f: &&str| NAMES.iter().any(|n| f.eq_ignore_ascii_case(n));
+            if fields
+                .first()
+                .is_some_and(|f| f.parse::<f64>().is_err() && *f != "?")
+                && fields.iter().any(named)
+            {
+                return Err(perr(
+                    line,
+                    "column 1".into(),
+                    format!(
+                        "column-name line {}: a Yan-2015 file may name its columns only as \
+                         'phi theta value' (in that order), or not at all",
+                        quoted(t)
+                    ),
+                ));
+            }
+        }
         if fields.len() < 3 && t.contains(',') {
             return Err(perr(
                 line,
@@ -123,9 +173,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             ));
         }
         let num = |i: usize| -> Result<f64> {
-            fields[i]
-                .parse::<f64>()
-                .map_err(|_| perr(line, label(i), format!("'{}' is not a number", fields[i])))
+            parse_number(fields[i]).map_err(|m| perr(line, label(i), m))
         };
         let raw = num(0)?;
         let phi = read_phi("phi", raw, opts).map_err(|m| perr(line, label(0), m))?;
@@ -150,18 +198,37 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
         samples.push(s);
         raw_phi.push(raw);
     }
-    let opt_theta_i = match &opts.theta_i {
-        None => None,
-        Some(v) if v.len() == 1 => Some(
+    let mut notes = Vec::new();
+    let opt_theta_i = match (&opts.theta_i, file_theta_i) {
+        // Beside a lone .npy the option is its axis; this file says its own angle.
+        (Some(v), Some((f, l))) if opts.theta_i_for_npy => {
+            if v.as_slice() != [f] {
+                let v: Vec<String> = v.iter().map(|x| Num(*x).to_string()).collect();
+                notes.push(format!(
+                    "--theta-i {} (the lone .npy's axis) ignored: line {l} gives this file's \
+                     theta_i, {}",
+                    v.join(","),
+                    Num(f)
+                ));
+            }
+            None
+        }
+        (None, _) => None,
+        (Some(v), _) if v.len() == 1 => Some(
             check_angle("--theta-i", v[0], 90.0)
                 .map_err(|m| Error::Invalid(format!("{}: {m}", path.display())))?,
         ),
-        Some(v) => {
+        (Some(v), _) => {
+            let fix = if opts.theta_i_for_npy {
+                " (the lone .npy's axis); give this file its own '# theta_i: <deg>' line"
+            } else {
+                ""
+            };
             return Err(Error::Invalid(format!(
-                "{}: a Yan-2015 file holds one incident angle; --theta-i gave {} values",
+                "{}: a Yan-2015 file holds one incident angle; --theta-i gave {} values{fix}",
                 path.display(),
                 v.len()
-            )))
+            )));
         }
     };
     // Before the incident angle: a file without data says so, not that theta_i is missing.
@@ -192,7 +259,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     for s in &mut samples {
         s.theta_i = theta_i;
     }
-    let mut notes = dedupe_rows(
+    notes.extend(dedupe_rows(
         &mut samples,
         &[],
         &raw_phi,
@@ -200,7 +267,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
         opts,
         &label(0),
         &label(2),
-    )?;
+    )?);
     notes.extend(label_notes);
     Ok((
         Profile {
@@ -209,9 +276,21 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             metadata,
             source: Some(path.to_path_buf()),
             files: vec![path.to_path_buf()],
+            layouts: vec![Layout::Rows {
+                value_column: label(2),
+            }],
         },
         notes,
     ))
+}
+
+/// Is `raw` a `#` comment line (blanks and a byte-order mark before the `#`)?
+fn is_comment(raw: &[u8]) -> bool {
+    let t = raw.trim_ascii_start();
+    t.strip_prefix("\u{feff}".as_bytes())
+        .unwrap_or(t)
+        .trim_ascii_start()
+        .starts_with(b"#")
 }
 
 #[cfg(test)]
@@ -337,5 +416,116 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("1e300") && e.len() < 200, "{e}");
+    }
+
+    /// The column-name line labs export (`phi theta value`, any case) is skipped as a
+    /// header before the data (it was "'phi' is not a number"); any other column-name line,
+    /// or that line among the data, is an error naming line and column.
+    #[test]
+    fn column_name_line_is_a_header() {
+        let o = LoadOptions::default();
+        let (pr, notes) = p("# theta_i: 0\nPhi  THETA\tvalue\n0 10 1\n5 10 2\n", &o).unwrap();
+        assert_eq!(pr.samples.len(), 2);
+        assert!(notes.is_empty(), "{notes:?}");
+        // Before any comment too, and with a BOM.
+        let (pr, _) = p("\u{feff}phi theta value\n# theta_i: 0\n0 10 1\n", &o).unwrap();
+        assert_eq!(pr.samples.len(), 1);
+        let e = p("# theta_i: 0\ntheta phi value\n0 10 1\n", &o)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("y.txt:2: column 1: column-name line 'theta phi value'")
+                && e.contains("'phi theta value'"),
+            "{e}"
+        );
+        let e = p("# theta_i: 0\n0 10 1\nphi theta value\n", &o)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("y.txt:3: column 1 (phi): 'phi' is not a number"),
+            "{e}"
+        );
+    }
+
+    /// A comment line that is not UTF-8 is read with replacement characters, as CSV reads
+    /// it (it was an error); a data line that is not UTF-8 is still one.
+    #[test]
+    fn non_utf8_comment_is_accepted_but_not_data() {
+        let o = LoadOptions::default();
+        let (pr, _) = parse(
+            b"# theta_i: 30\n# op: M\xfcller\n  # \xff\n0 10 1\n",
+            Path::new("y.txt"),
+            &o,
+        )
+        .unwrap();
+        assert_eq!(pr.samples.len(), 1);
+        assert_eq!(pr.meta("op"), Some("M\u{fffd}ller"));
+        let e = parse(b"# theta_i: 30\n0 10 1\xff\n", Path::new("y.txt"), &o)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("y.txt:2: column 1: not valid UTF-8"), "{e}");
+    }
+
+    /// Beside a lone .npy (`theta_i_for_npy`), --theta-i is the .npy's axis: a file with
+    /// its own `# theta_i:` keeps it, with a note when they differ (it was an error, even
+    /// for one value, so the two could not be read together); a file without the line
+    /// still takes a single value, and several are an error saying what to do. Without a
+    /// .npy a disagreement stays an error.
+    #[test]
+    fn theta_i_meant_for_a_lone_npy_leaves_headed_files_alone() {
+        let npy = |t: &[f64]| LoadOptions {
+            theta_i: Some(t.to_vec()),
+            theta_i_for_npy: true,
+            ..Default::default()
+        };
+        let (pr, notes) = p("# theta_i: 30\n0 10 1\n", &npy(&[0.0, 30.0])).unwrap();
+        assert_eq!(pr.samples[0].theta_i, 30.0);
+        assert_eq!(
+            notes,
+            vec!["--theta-i 0,30 (the lone .npy's axis) ignored: line 1 gives this file's theta_i, 30"]
+        );
+        let (pr, notes) = p("# theta_i: 30\n0 10 1\n", &npy(&[45.0])).unwrap();
+        assert_eq!((pr.samples[0].theta_i, notes.len()), (30.0, 1));
+        let (_, notes) = p("# theta_i: 30\n0 10 1\n", &npy(&[30.0])).unwrap();
+        assert!(notes.is_empty(), "{notes:?}");
+        let (pr, _) = p("0 10 1\n", &npy(&[45.0])).unwrap();
+        assert_eq!(pr.samples[0].theta_i, 45.0);
+        let e = p("0 10 1\n", &npy(&[0.0, 30.0])).unwrap_err().to_string();
+        assert!(
+            e.contains("--theta-i gave 2 values (the lone .npy's axis); give this file its own"),
+            "{e}"
+        );
+        let alone = LoadOptions {
+            theta_i_for_npy: false,
+            ..npy(&[45.0])
+        };
+        let e = p("# theta_i: 30\n0 10 1\n", &alone)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the file says theta_i 30 but --theta-i is 45"),
+            "{e}"
+        );
+    }
+
+    /// A number below the f64 range reads as 0; it is an error naming line and column, as
+    /// one above the range is (a value of 1e-400 was silently an invalid sample).
+    #[test]
+    fn underflowing_numbers_are_errors() {
+        let o = LoadOptions::default();
+        let e = p("# theta_i: 30\n0 10 1e-400\n", &o)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("y.txt:2: column 3 (value): '1e-400' is below the f64 range"),
+            "{e}"
+        );
+        let e = p("# theta_i: 1e-999\n0 10 1\n", &o)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("y.txt:1: theta_i comment: '1e-999'"), "{e}");
+        // Zero spelled any way, and the smallest subnormal, still read.
+        let (pr, _) = p("# theta_i: 0e-400\n0 10 0.0e-999\n5 10 5e-324\n", &o).unwrap();
+        assert_eq!((pr.samples[0].value, pr.samples[1].value), (0.0, 5e-324));
     }
 }

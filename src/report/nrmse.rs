@@ -725,6 +725,10 @@ fn write_planned(
                     data: what.unwrap_or_else(|| {
                         if prof.is_synthetic() {
                             "synthetic (labelled so in the data)".into()
+                        } else if let Some(label) =
+                            crate::profile::provenance::measured_label(&prof, &d)
+                        {
+                            format!("labelled measured ({label})")
                         } else {
                             "no synthetic label in the data or its folder's metadata.json".into()
                         }
