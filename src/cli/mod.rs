@@ -304,6 +304,7 @@ pub mod inspect;
 pub mod render;
 pub mod render_convergence;
 pub mod report;
+pub mod se_calibration;
 pub mod simulate;
 pub mod stability;
 pub mod synth;
@@ -339,6 +340,8 @@ pub enum Command {
     Report(report::Args),
     /// Virtual goniometer: Monte Carlo ray tracing through a 3-D fiber -> synthetic profile.
     Simulate(Box<simulate::Args>),
+    /// Standard-error calibration: replicated noisy fits against their standard errors; writes reports/se_calibration.{md,csv}.
+    SeCalibration(se_calibration::Args),
 }
 
 /// The smallest `--tol`: at 1e-9 the cat preset's refinement already hits its split limit
@@ -359,6 +362,7 @@ pub fn main() -> std::process::ExitCode {
         Command::Simulate(a) => simulate::run(*a),
         Command::Render(a) => render::run(*a),
         Command::RenderConvergence(a) => render_convergence::run(a),
+        Command::SeCalibration(a) => se_calibration::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -6,6 +6,7 @@ pub mod fit_time;
 pub mod model_vs_sim;
 pub mod nrmse;
 pub mod plot;
+pub mod se_calibration;
 pub mod stability;
 
 /// `x` to `digits` significant digits (at least 1): plain decimals for magnitudes in

@@ -1,0 +1,28 @@
+//! `furfit se-calibration`: do the fit's standard errors match the spread of its estimates?
+
+use std::path::PathBuf;
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Output directory for se_calibration.{md,csv}.
+    #[arg(long, default_value = "reports")]
+    pub out: PathBuf,
+    /// Noisy replicates per noise model (each a full fit of 3720 samples, ~2 s).
+    #[arg(long, default_value_t = 40)]
+    pub reps: usize,
+    /// Replace existing output files that furfit did not write (or that changed since).
+    #[arg(long)]
+    pub force: bool,
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    crate::io::probe_writable(&a.out)?;
+    let paths = ["se_calibration.md", "se_calibration.csv"].map(|n| a.out.join(n));
+    crate::io::check_replaceable(&paths, a.force)?;
+    let written = crate::report::se_calibration::run(&a.out, a.reps, &mut |l| eprintln!("{l}"))?;
+    crate::io::record_outputs(&paths)?;
+    for p in written {
+        outln!("wrote {}", p.display());
+    }
+    Ok(())
+}
