@@ -348,7 +348,7 @@ pub fn probe_writable(dir: &Path) -> Result<()> {
 }
 
 /// The ledger furfit keeps in each directory that `render`, `render-convergence`,
-/// `report`, `stability` and `bench-model` write into: the files it wrote there, each with
+/// `report`, `stability`, `se-calibration` and `bench-model` write into: the files it wrote there, each with
 /// the SHA-256 of the bytes written. Those commands replace an existing file only when the
 /// ledger lists it with its current content ([`check_replaceable`]), so a user's own file
 /// of the same name (or a furfit output the user edited since) is never lost silently.

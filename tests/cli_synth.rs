@@ -151,38 +151,19 @@ fn synth_rejects_bad_input() {
     std::fs::remove_file(&out).unwrap();
     // A phi grid a profile file could not hold, and grid values as written (0.3, not
     // 0.30000000000000004).
-    let st = furfit()
-        .args([
-            "synth",
-            "--params",
-            "cat",
-            "--theta-i",
-            "0",
-            "--theta-r",
-            "0",
-        ])
-        .args(["--phi", "0:720:10", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
+    let grid_synth = |theta_r: &str, phi: &str| {
+        furfit()
+            .args(["synth", "--params", "cat", "--theta-i", "0"])
+            .args(["--theta-r", theta_r, "--phi", phi, "--out"])
+            .arg(&out)
+            .output()
+            .unwrap()
+    };
+    let st = grid_synth("0", "0:720:10");
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(err.contains("outside [-360, 360]"), "{err}");
     assert!(!out.exists());
-    let st = furfit()
-        .args([
-            "synth",
-            "--params",
-            "cat",
-            "--theta-i",
-            "0",
-            "--theta-r",
-            "0:0.5:0.1",
-        ])
-        .args(["--phi", "0", "--out"])
-        .arg(&out)
-        .output()
-        .unwrap();
-    assert!(st.status.success());
+    assert!(grid_synth("0:0.5:0.1", "0").status.success());
     let text = std::fs::read_to_string(&out).unwrap();
     assert!(
         text.contains(",0.3,") && !text.contains("0000000"),

@@ -343,8 +343,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 // Noise-free data the model reproduces (a synth round trip): the standard
                 // errors are ~0, so a step measured in them is rounding over rounding.
                 outln!(
-                    "  note: the residuals are at rounding level (RMS {:.1e} in log space): the model reproduces the data exactly, and the standard errors (about 0) say nothing",
-                    o.uncertainty.s2.sqrt()
+                    "  note: the residuals are at rounding level (NRMSE {:.1e}): the model reproduces the data exactly, and the standard errors (about 0) say nothing",
+                    o.nrmse
                 );
             } else if o.uncertainty.step_se > opts.step_se.unwrap_or(f64::INFINITY) {
                 outln!(
@@ -481,7 +481,7 @@ fn se_lines(unc: &crate::fit::uncertainty::Uncertainty) -> Vec<String> {
             r.rows,
             r.bandwidth.iter().flatten().max().copied().unwrap_or(0)
         ),
-        None => "standard errors (independent residuals; too few (theta_i, theta_r) rows for the sweep-robust ones):".into(),
+        None => "standard errors (independent residuals; the sweep-robust ones need at least 4 (theta_i, theta_r) rows per free parameter and 2 samples per row on average):".into(),
     });
     out.push(format!("  {}", cells.join(", ")));
     out

@@ -32,7 +32,8 @@ pub fn species_name(p: &Path) -> String {
         d.file_name()
             .map(|n| n.to_owned())
             .or_else(|| d.canonicalize().ok()?.file_name().map(|n| n.to_owned()))
-            .map(|n| n.to_string_lossy().into_owned())
+            .map(|n| n.to_string_lossy().trim_matches('.').to_string())
+            .filter(|n| !n.is_empty())
     };
     if p.is_dir() {
         if let Some(n) = folder_name(p) {
@@ -362,6 +363,11 @@ mod tests {
         assert_eq!(species_name(Path::new("/nowhere/red-fox.csv")), "red-fox");
         assert_eq!(species_name(Path::new("/nowhere/..csv")), "profile");
         assert_eq!(species_name(Path::new("/nowhere/.fox.csv")), "fox");
+        // A folder's name too: `.fox/` would write a hidden `.fox.json`.
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().join(".fox");
+        std::fs::create_dir(&d).unwrap();
+        assert_eq!(species_name(&d), "fox");
     }
 
     /// The inputs loaded together decide what --theta-i is: beside a lone .npy it is the

@@ -49,7 +49,7 @@ fn num(x: f64) -> Value {
 }
 
 /// What `uncertainty.robust` says of its method.
-pub const ROBUST_METHOD: &str = "diagonal of the sandwich H^+ Omega H^+ (H = J^T J with the same held parameters): each row of samples sharing (theta_i, theta_r) adds its score J^T r whole, so residuals may be correlated along phi, and rows of one theta_i up to `bandwidth` steps apart in theta_r add their Bartlett-weighted cross products (Newey-West, lags per parameter by Andrews' AR(1) plug-in rule), times G/(G-1) for G rows; still linearised, and model error is a bias no standard error covers";
+pub const ROBUST_METHOD: &str = "per-parameter diagonal of the sandwich H^+ Omega H^+ (H = J^T J with the same held parameters): each row of samples sharing (theta_i, theta_r) adds its score J^T r whole, so residuals may be correlated along phi, and rows of one theta_i up to `bandwidth` steps apart in theta_r add their Bartlett-weighted cross products (Newey-West, lags per parameter by Andrews' AR(1) plug-in rule), times G/(G-1) for G rows; rows of different theta_i, and rows far apart in theta_r, are still taken as independent; still linearised, and model error is a bias no standard error covers";
 
 /// `uncertainty.robust` of a fit file: the sweep-correlation-robust standard errors, or
 /// null with too few rows.

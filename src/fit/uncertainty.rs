@@ -15,8 +15,9 @@ use super::reparam;
 use crate::params::{ParamId, N_PARAMS};
 use nalgebra::{DMatrix, DVector};
 
-/// Residual RMS (log space) below which a fit reproduces its data to rounding: noise-free
-/// data of the model itself, whose standard errors are ~0 and mean nothing.
+/// Residual RMS below which a fit reproduces its data to rounding (`sqrt(s^2)` of the
+/// solver's residuals: log differences over the data's log range, as in the NRMSE):
+/// noise-free data of the model itself, whose standard errors are ~0 and mean nothing.
 pub const ROUNDING_RMS: f64 = 1e-9;
 
 /// SE(u) above which a parameter counts as unconstrained.
@@ -406,8 +407,11 @@ pub fn estimate(
 /// data, times `G / (G - 1)` for `G` rows. This is the diagonal of the sandwich
 /// `H^+ Omega H^+` with a Newey-West `Omega` over rows. The independent-residual estimate
 /// [`estimate`] understates the spread when the misfit is smooth in angle (model error, a
-/// drifting lamp, a twisted fiber); this one assumes independence only between rows far
-/// apart. Like [`estimate`] it is local, and model error is a bias it does not cover.
+/// drifting lamp, a twisted fiber); this one still assumes rows of different `theta_i`,
+/// and rows far apart in `theta_r`, independent (and neighbours in `theta_r` to be
+/// neighbours in acquisition). Each parameter gets its own bandwidth, so these are
+/// per-parameter variances, not one joint covariance. Like [`estimate`] it is local, and
+/// model error is a bias it does not cover.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Robust {
     /// File-unit standard error per parameter (`None` where [`estimate`] has none).
@@ -417,8 +421,9 @@ pub struct Robust {
     /// Per parameter, the lags in `theta_r` (rows of one `theta_i`) whose cross products
     /// are kept ([`long_run_variance`]).
     pub bandwidth: [Option<usize>; N_PARAMS],
-    /// Lag-1 autocorrelation of the residuals along `phi` within rows (pooled): near 0 for
-    /// independent noise, near 1 for a smooth misfit.
+    /// Lag-1 autocorrelation of consecutive residuals in `phi` within rows (pooled; across
+    /// any gap a floor or a missing sample leaves): near 0 for independent noise, near 1
+    /// for a smooth misfit.
     pub phi_lag1: f64,
 }
 
@@ -432,9 +437,9 @@ pub const ROBUST_MIN_ROWS_PER_PARAM: usize = 4;
 /// lags within sequences, Bartlett weights `w_l = 1 - l / (L + 1)` (Newey-West: never
 /// negative), and the lag count `L`: Andrews' (1991) automatic bandwidth with an AR(1)
 /// plug-in, `1.1447 (alpha T)^(1/3)`, `alpha = 4 rho^2 / ((1 - rho)^2 (1 + rho)^2)` for
-/// sequences of `T` rows and lag-1 autocorrelation `rho` (clamped to 0.97), at most
-/// `T - 1`: rows strongly correlated in `theta_r` (a smooth misfit) get many lags,
-/// independent ones none.
+/// sequences of `T` rows on average and lag-1 autocorrelation `rho` (clamped to 0.97), at
+/// most one less than the longest sequence: rows strongly correlated in `theta_r` (a
+/// smooth misfit) get many lags, independent ones none. A non-finite series gives NaN.
 ///
 /// Not prewhitened (Andrews & Monahan 1992): that brought a row effect correlated at 0.5
 /// from 17 % low to 1 % in this module's tests, but on the shipped fits, whose misfit is model error
@@ -448,6 +453,9 @@ fn long_run_variance(z: &[f64], seqs: &[std::ops::Range<usize>]) -> (f64, usize)
             .sum()
     };
     let c0: f64 = z.iter().map(|v| v * v).sum();
+    if !c0.is_finite() {
+        return (f64::NAN, 0);
+    }
     if c0 <= 0.0 {
         return (0.0, 0);
     }
@@ -460,13 +468,14 @@ fn long_run_variance(z: &[f64], seqs: &[std::ops::Range<usize>]) -> (f64, usize)
     for l in 1..=lags {
         v += 2.0 * (1.0 - l as f64 / (lags as f64 + 1.0)) * pairs(l);
     }
-    (v.max(0.0), lags)
+    (if v.is_nan() { v } else { v.max(0.0) }, lags)
 }
 
 /// The sweep-correlation-robust standard errors ([`Robust`]) from the Jacobian `jac`
 /// (n x p), residuals `r` and the samples' angles `pts` (`(theta_i, theta_r, phi)`, one per
 /// residual), consistent with `unc` (same held parameters and singular directions). `None`
-/// when there are fewer than [`ROBUST_MIN_ROWS_PER_PARAM`] rows per free coordinate.
+/// when there are fewer than [`ROBUST_MIN_ROWS_PER_PARAM`] rows per free coordinate, or
+/// fewer than two samples per row on average (no sweeps to speak of).
 pub fn robust(
     layout: &ParamLayout,
     u: &DVector<f64>,
@@ -538,7 +547,9 @@ fn sweep_robust_var(
         prev = Some(i);
     }
     let g = rows.len();
-    if g < ROBUST_MIN_ROWS_PER_PARAM * p {
+    // Rows of a single sample (angles logged with encoder jitter, or no phi sweeps) are no
+    // sweep structure: the estimate would fall back to about the independent one unsaid.
+    if g < ROBUST_MIN_ROWS_PER_PARAM * p || 2 * g > pts.len() {
         return None;
     }
     // Sequences of rows sharing theta_i (already in theta_r order).
@@ -717,6 +728,30 @@ mod tests {
                 "column {j}: robust SE / spread {rr:?}"
             );
         }
+    }
+
+    /// Rows of one sample each (angles logged with jitter) are no sweep structure: no robust
+    /// estimate rather than one that quietly equals the independent one (review M2); and
+    /// a non-finite influence series gives NaN, not a standard error of 0.
+    #[test]
+    fn robust_needs_rows_of_several_samples_and_stays_nan_on_nan() {
+        let n = 200;
+        let pts: Vec<(f64, f64, f64)> = (0..n)
+            .map(|i| (0.0, i as f64 * 0.1 + 1e-7 * (i % 3) as f64, 0.0))
+            .collect();
+        let jac = DMatrix::from_fn(n, 2, |i, j| ((i * (j + 1)) as f64 * 0.37).sin());
+        let r = DVector::from_fn(n, |i, _| ((i * 7) as f64).cos());
+        assert!(sweep_robust_var(&jac, &r, &pts, &[false; 2]).is_none());
+        // The same samples in 20 rows of 10: an estimate.
+        let rows: Vec<(f64, f64, f64)> = (0..n)
+            .map(|i| (0.0, (i / 10) as f64, (i % 10) as f64))
+            .collect();
+        assert!(sweep_robust_var(&jac, &r, &rows, &[false; 2]).is_some());
+        let z = [1.0, f64::NAN, 2.0];
+        let whole = 0..z.len();
+        assert!(long_run_variance(&z, std::slice::from_ref(&whole))
+            .0
+            .is_nan());
     }
 
     /// Independent noise: both estimates match the spread (400 replicates: the spread

@@ -185,9 +185,17 @@ fn place_text(files: &[PathBuf], layouts: &[Layout], o: Origin) -> Option<String
         Some(Layout::Rows { value_column }) if o.line > 0 => {
             Some(format!("{file}:{}: {value_column}", o.line))
         }
-        Some(l @ Layout::Grid { .. }) => l
-            .cell(o)
-            .map(|ix| format!("{file}: array 'value' index {ix:?}")),
+        Some(l @ Layout::Grid { .. }) => l.cell(o).map(|ix| {
+            // A lone .npy is one unnamed array; an .npz names its `value` array.
+            let lone = files[o.file as usize]
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("npy"));
+            if lone {
+                format!("{file}: index {ix:?}")
+            } else {
+                format!("{file}: array 'value' index {ix:?}")
+            }
+        }),
         _ => None,
     }
     .or_else(|| origin_text(files, layouts, o))
@@ -854,7 +862,9 @@ pub fn looks_like_yan(bytes: &[u8]) -> bool {
         let first = fields.first().copied().unwrap_or("");
         if first == "?"
             || first.parse::<f64>().is_ok()
-            || fields.iter().filter(|f| names_a_column(f)).count() >= 2
+            // A column-name line: two to four fields, every one a column name (a notes
+            // line that mentions phi and theta in a sentence is prose).
+            || ((2..=4).contains(&fields.len()) && fields.iter().all(|f| names_a_column(f)))
         {
             return true;
         }
@@ -1822,6 +1832,8 @@ mod tests {
         // Prose first, but a theta_i line further down.
         assert!(looks_like_yan(b"Fox, fiber 3.\n# theta_i: 20\n"));
         assert!(!looks_like_yan(b"The phi sweep was noisy.\n0 10 1\n"));
+        // A notes line naming two columns in a sentence is prose (review M7).
+        assert!(!looks_like_yan(b"phi and theta were swapped\n0 10 1\n"));
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         std::fs::write(d.join("ti0.txt"), "# theta_i: 0\nphi theta value\n0 10 1\n").unwrap();
@@ -1921,6 +1933,25 @@ mod tests {
         assert_eq!(g.cell(Origin::at_cell(47)), Some(vec![1, 2, 3, 1]));
         assert_eq!(g.cell(Origin::at_cell(48)), None);
         assert_eq!(g.cell(Origin::default()), None);
+        // A lone .npy is one unnamed array: its cells are named by index alone.
+        let files = [PathBuf::from("v.npy"), PathBuf::from("w.npz")];
+        let layouts = [
+            Layout::Grid {
+                shape: vec![2, 1, 1],
+            },
+            Layout::Grid {
+                shape: vec![2, 1, 1],
+            },
+        ];
+        let at = |file| Origin { file, line: 2 };
+        assert_eq!(
+            place_text(&files, &layouts, at(0)).unwrap(),
+            "v.npy: index [1, 0, 0]"
+        );
+        assert_eq!(
+            place_text(&files, &layouts, at(1)).unwrap(),
+            "w.npz: array 'value' index [1, 0, 0]"
+        );
     }
 
     /// An npz renamed .csv (or .txt) is named as binary: its zip bytes were echoed as the

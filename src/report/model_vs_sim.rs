@@ -225,7 +225,8 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
          directions (equally good fits can differ by more than one SE there). \
          \"robust SE\" (`uncertainty.robust` of the fit) allows residuals correlated along \
          phi and between neighbouring theta_r rows (a row-clustered Newey-West sandwich), \
-         so it is the one to read for the spread of equally good fits. Neither covers the \
+         so it is the one to read when residuals are correlated; it is local too, and says \
+         nothing of shallow valleys or other optima. Neither covers the \
          model's error, which is a bias: fitted - true can exceed both by far, as the \
          count below shows.\n",
         data_clause(entries),

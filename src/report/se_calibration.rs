@@ -68,7 +68,9 @@ fn grid() -> (Vec<f64>, Vec<f64>, Vec<f64>) {
 pub struct Row {
     pub noise: &'static str,
     pub param: ParamId,
-    /// Replicates where the parameter had a standard error (not flagged unconstrained).
+    /// Replicates where the parameter was not flagged unconstrained (flagged ones, e.g.
+    /// `Wide` for a large standard error, have no usable one), so SD, mean SEs and
+    /// coverage are over these only.
     pub n: usize,
     /// Standard deviation of the estimates (file units).
     pub sd: f64,
@@ -139,8 +141,14 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
+/// The study's rows, and per noise model ([`NOISES`]) the replicates whose fit failed.
+pub struct Study {
+    pub rows: Vec<Row>,
+    pub failed: [usize; NOISES.len()],
+}
+
 /// Run `reps` replicates per noise model; `log` gets a line per replicate.
-pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Vec<Row>> {
+pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
     let truth = FurParams::preset("red-fox").expect("shipped preset");
     let t = truth.to_file_units();
     let (ti, tr, phi) = grid();
@@ -160,17 +168,26 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Vec<Row>> {
         .map(|s| (s.theta_i, s.theta_r, s.phi))
         .collect();
     let mut rows = Vec::new();
+    let mut failed = [0usize; NOISES.len()];
     for (c, nz) in NOISES.iter().enumerate() {
         let mut runs: Vec<[Estimate; N_PARAMS]> = Vec::new();
         for rep in 0..reps {
-            let mut rng = Xoshiro256PlusPlus::seed_from_u64(1000 * c as u64 + rep as u64);
+            let mut rng = Xoshiro256PlusPlus::seed_from_u64(((c as u64) << 32) | rep as u64);
             let e = noise_for(&angles, nz, &mut rng);
             let mut prof = base.clone();
             for (s, e) in prof.samples.iter_mut().zip(&e) {
                 s.value *= e.exp();
             }
             let data = channel_data(&prof, 0, false, crate::fit::DEFAULT_FLOOR)?;
-            let fit = fit_data(&data, &FitOptions::default(), None)?;
+            // A failed replicate is counted, not fatal: minutes of others stay.
+            let fit = match fit_data(&data, &FitOptions::default(), None) {
+                Ok(f) => f,
+                Err(e) => {
+                    log(&format!("{}: replicate {} failed: {e}", nz.name, rep + 1));
+                    failed[c] += 1;
+                    continue;
+                }
+            };
             let f = fit.params.to_file_units();
             let unc = &fit.uncertainty;
             let rb = unc.robust.as_ref().map(|r| r.se);
@@ -233,11 +250,12 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Vec<Row>> {
             });
         }
     }
-    Ok(rows)
+    Ok(Study { rows, failed })
 }
 
-/// `se_calibration.md` for the study's rows.
-pub fn markdown(rows: &[Row], reps: usize, secs: f64) -> String {
+/// `se_calibration.md` for the study.
+pub fn markdown(study: &Study, reps: usize, secs: f64) -> String {
+    let rows = &study.rows;
     let (ti, tr, phi) = grid();
     let mut s = String::new();
     let _ = writeln!(
@@ -252,8 +270,11 @@ pub fn markdown(rows: &[Row], reps: usize, secs: f64) -> String {
          replicates far out: another basin, a curved valley); SE and robust SE \
          are the fits' mean independent-residual and sweep-robust standard errors; cover is \
          the share of replicates whose +-1.96 SE covers the truth (95 % if calibrated; with \
-         {reps} replicates a share is known to about +-{:.0} points). Parameters flagged \
-         unconstrained in a replicate are left out of its row (n).\n",
+         {reps} replicates a share is known to about +-{:.0} points, less well where n is \
+         smaller). A replicate where a parameter is flagged unconstrained (on a bound, no \
+         information, or an SE spanning most of its range) is left out of that parameter's \
+         row: n counts the others, so rows with n below {reps} describe the better-determined \
+         replicates only.\n",
         crate::TOOL_VERSION,
         ti.len(),
         tr.len(),
@@ -262,33 +283,46 @@ pub fn markdown(rows: &[Row], reps: usize, secs: f64) -> String {
         ti.len() * tr.len(),
         100.0 * 2.0 * (0.95 * 0.05 / reps as f64).sqrt(),
     );
-    for nz in NOISES {
+    for (c, nz) in NOISES.iter().enumerate() {
+        let failed = match study.failed[c] {
+            0 => String::new(),
+            k => format!(" {k} of {reps} replicates failed to fit and are left out."),
+        };
         let _ = writeln!(
             s,
-            "## Noise: {}\n\nlog-space noise per sample: {} x AR(1) along phi (rho {}) + {} x row effect, AR(1) in theta_r (rho {}) + {} x independent.\n\n\
+            "## Noise: {}\n\nlog-space noise per sample: {} x AR(1) along phi (rho {}) + {} x row effect, AR(1) in theta_r (rho {}) + {} x independent.{failed}\n\n\
              | parameter | n | SD | MAD-SD | SE | SE / SD | cover | robust SE | robust / SD | robust / MAD-SD | cover |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
             nz.name, nz.sd_phi, nz.rho_phi, nz.sd_row, nz.rho_row, nz.sd_white
         );
         for r in rows.iter().filter(|r| r.noise == nz.name) {
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {:.2} | {:.0}% | {} | {:.2} | {:.2} | {:.0}% |",
+                "| {} | {} | {} | {} | {} | {} | {:.0}% | {} | {} | {} | {:.0}% |",
                 r.param.spec().name,
                 r.n,
                 super::sig(r.sd, 2),
                 super::sig(r.sd_mad, 2),
                 super::sig(r.mean_se, 2),
-                r.mean_se / r.sd,
+                ratio(r.mean_se, r.sd),
                 100.0 * r.cover,
                 super::sig(r.mean_se_robust, 2),
-                r.mean_se_robust / r.sd,
-                r.mean_se_robust / r.sd_mad,
+                ratio(r.mean_se_robust, r.sd),
+                ratio(r.mean_se_robust, r.sd_mad),
                 100.0 * r.cover_robust
             );
         }
         s.push('\n');
     }
     s
+}
+
+/// `a / b` to two decimals, `-` when `b` is zero (estimates all equal).
+fn ratio(a: f64, b: f64) -> String {
+    if b > 0.0 && (a / b).is_finite() {
+        format!("{:.2}", a / b)
+    } else {
+        "-".into()
+    }
 }
 
 /// `se_calibration.csv` for the study's rows.
@@ -320,11 +354,11 @@ pub fn run(out: &Path, reps: usize, log: &mut dyn FnMut(&str)) -> Result<Vec<Pat
         )));
     }
     let t = std::time::Instant::now();
-    let rows = study(reps, log)?;
-    let md = markdown(&rows, reps, t.elapsed().as_secs_f64());
+    let st = study(reps, log)?;
+    let md = markdown(&st, reps, t.elapsed().as_secs_f64());
     let files = vec![
         (out.join("se_calibration.md"), md.into_bytes()),
-        (out.join("se_calibration.csv"), csv(&rows).into_bytes()),
+        (out.join("se_calibration.csv"), csv(&st.rows).into_bytes()),
     ];
     crate::io::write_atomic_all(&files)?;
     Ok(files.into_iter().map(|(p, _)| p).collect())
