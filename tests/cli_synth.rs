@@ -147,6 +147,12 @@ fn synth_rejects_bad_input() {
     assert_eq!(st.status.code(), Some(1));
     let err = String::from_utf8_lossy(&st.stderr);
     assert!(err.contains("--tol must be in [1e-8, 1)"), "{err}");
+    // Out of range the other way: no talk of the split limit.
+    let err = String::from_utf8_lossy(&synth("cat", &["--tol", "1"]).stderr).into_owned();
+    assert!(
+        err.contains("got 1") && !err.contains("split limit"),
+        "{err}"
+    );
     assert!(synth("cat", &["--tol", "1e-8"]).status.success());
     std::fs::remove_file(&out).unwrap();
     // A phi grid a profile file could not hold, and grid values as written (0.3, not

@@ -343,8 +343,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 // Noise-free data the model reproduces (a synth round trip): the standard
                 // errors are ~0, so a step measured in them is rounding over rounding.
                 outln!(
-                    "  note: the residuals are at rounding level (NRMSE {:.1e}): the model reproduces the data exactly, and the standard errors (about 0) say nothing",
-                    o.nrmse
+                    "  note: the residuals are at rounding level (NRMSE {:.1e}%): the model reproduces the data exactly, and the standard errors (about 0) say nothing",
+                    100.0 * o.nrmse
                 );
             } else if o.uncertainty.step_se > opts.step_se.unwrap_or(f64::INFINITY) {
                 outln!(

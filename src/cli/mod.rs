@@ -228,12 +228,19 @@ impl FarArgs {
                     .parse()
                     .with_context(|| format!("--tol '{t}' is not a number"))?;
                 if !(MIN_TOL..1.0).contains(&v) {
+                    let why = if v > 0.0 && v < MIN_TOL {
+                        format!(
+                            " (below {} the refinement runs into its split limit and slows a \
+                             hundredfold without reaching it)",
+                            crate::error::Num(MIN_TOL)
+                        )
+                    } else {
+                        String::new()
+                    };
                     anyhow::bail!(
-                        "--tol must be in [{}, 1) or 'none', got {} (below {} the refinement \
-                         runs into its split limit and slows a hundredfold without reaching it)",
+                        "--tol must be in [{}, 1) or 'none', got {}{why}",
                         crate::error::Num(MIN_TOL),
-                        crate::error::Num(v),
-                        crate::error::Num(MIN_TOL)
+                        crate::error::Num(v)
                     );
                 }
                 Some(v)

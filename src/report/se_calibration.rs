@@ -311,6 +311,18 @@ pub fn markdown(study: &Study, reps: usize, secs: f64) -> String {
                 100.0 * r.cover_robust
             );
         }
+        let missing: Vec<&str> = ParamId::ALL
+            .iter()
+            .filter(|id| !rows.iter().any(|r| r.noise == nz.name && r.param == **id))
+            .map(|id| id.spec().name)
+            .collect();
+        if !missing.is_empty() {
+            let _ = writeln!(
+                s,
+                "\nNot shown: {} (flagged unconstrained, or failed, in all but at most one replicate).",
+                missing.join(", ")
+            );
+        }
         s.push('\n');
     }
     s
@@ -346,13 +358,19 @@ pub fn csv(rows: &[Row]) -> String {
     s
 }
 
-/// Run the study and write `se_calibration.{md,csv}` into `out` (together, atomically).
-pub fn run(out: &Path, reps: usize, log: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>> {
+/// A spread needs two replicates.
+pub fn check_reps(reps: usize) -> Result<()> {
     if reps < 2 {
         return Err(Error::Invalid(format!(
             "--reps must be at least 2, got {reps}"
         )));
     }
+    Ok(())
+}
+
+/// Run the study and write `se_calibration.{md,csv}` into `out` (together, atomically).
+pub fn run(out: &Path, reps: usize, log: &mut dyn FnMut(&str)) -> Result<Vec<PathBuf>> {
+    check_reps(reps)?;
     let t = std::time::Instant::now();
     let st = study(reps, log)?;
     let md = markdown(&st, reps, t.elapsed().as_secs_f64());
@@ -397,6 +415,35 @@ mod tests {
         assert!(
             (lag / var - want_lag / want).abs() < 0.05,
             "{lag} {want_lag}"
+        );
+    }
+
+    /// The table says which replicates failed and prints no ratio over a zero spread
+    /// (all estimates equal), instead of inf or NaN.
+    #[test]
+    fn markdown_counts_failures_and_survives_a_zero_spread() {
+        let row = Row {
+            noise: NOISES[0].name,
+            param: ParamId::Eta,
+            n: 2,
+            sd: 0.0,
+            sd_mad: 0.0,
+            mean_se: 0.01,
+            mean_se_robust: 0.02,
+            cover: 1.0,
+            cover_robust: 1.0,
+        };
+        let st = Study {
+            rows: vec![row],
+            failed: [1, 0],
+        };
+        let md = markdown(&st, 3, 1.0);
+        assert!(md.contains("1 of 3 replicates failed to fit"), "{md}");
+        assert!(md.contains("Not shown: kappa, alpha,"), "{md}");
+        let line = md.lines().find(|l| l.starts_with("| eta |")).unwrap();
+        assert!(
+            line.contains("| - |") && !line.contains("inf") && !line.contains("NaN"),
+            "{line}"
         );
     }
 }
