@@ -484,5 +484,13 @@ fn se_lines(unc: &crate::fit::uncertainty::Uncertainty) -> Vec<String> {
         None => "standard errors (independent residuals; the sweep-robust ones need at least 4 (theta_i, theta_r) rows per free parameter and 2 samples per row on average):".into(),
     });
     out.push(format!("  {}", cells.join(", ")));
+    if let Some(r) = rb.filter(|r| !r.spans_most.is_empty()) {
+        let names: Vec<&str> = r.spans_most.iter().map(|id| id.spec().name).collect();
+        out.push(format!(
+            "note: by the sweep-robust errors {} also span most of {} range (the unconstrained flags follow the independent-residual ones)",
+            names.join(", "),
+            if names.len() == 1 { "its" } else { "their" }
+        ));
+    }
     out
 }

@@ -72,6 +72,9 @@ fn robust_json(rb: Option<&super::uncertainty::Robust>) -> Value {
             .map(|id| (id.spec().name.to_string(), json!(rb.bandwidth[id.index()])))
             .collect::<Map<String, Value>>(),
         "phi_lag1_autocorrelation": num(rb.phi_lag1),
+        // Not flagged unconstrained (the flags follow the independent-residual errors), yet
+        // their robust error spans most of their range.
+        "spans_most_of_range": rb.spans_most.iter().map(|id| id.spec().name).collect::<Vec<_>>(),
         "method": ROBUST_METHOD,
     })
 }

@@ -425,6 +425,10 @@ pub struct Robust {
     /// any gap a floor or a missing sample leaves): near 0 for independent noise, near 1
     /// for a smooth misfit.
     pub phi_lag1: f64,
+    /// Parameters not flagged unconstrained whose robust `u +- SE(u)` spans most of their
+    /// range ([`reparam::spans_most`]): the flags follow the independent-residual
+    /// errors, so these are named apart.
+    pub spans_most: Vec<ParamId>,
 }
 
 /// Fewest rows per free coordinate for [`robust`]: a long-run variance over few rows is
@@ -498,12 +502,31 @@ pub fn robust(
             bandwidth[id.index()] = Some(lags[j]);
         }
     }
+    let spans_most = robust_spans_most(&free, u, &var, unc);
     Some(Robust {
         se,
         rows,
         bandwidth,
         phi_lag1,
+        spans_most,
     })
+}
+
+/// The free parameters (`free`, at `u`, robust variances `var` in `u`) that `unc` gives a
+/// standard error and does not flag, whose robust `u +- SE(u)` spans most of their range.
+fn robust_spans_most(
+    free: &[ParamId],
+    u: &DVector<f64>,
+    var: &[f64],
+    unc: &Uncertainty,
+) -> Vec<ParamId> {
+    free.iter()
+        .enumerate()
+        .filter(|(_, id)| unc.se[id.index()].is_some())
+        .filter(|(_, id)| !unc.unconstrained.iter().any(|(p, _)| p == *id))
+        .filter(|(j, id)| reparam::spans_most(**id, u[*j], var[*j].sqrt()))
+        .map(|(_, id)| *id)
+        .collect()
 }
 
 /// The variances of [`robust`] in the solver's coordinates, with the columns flagged in
@@ -767,5 +790,39 @@ mod tests {
             );
             assert!((0.85..1.15).contains(&rr[j]), "column {j}: robust {rr:?}");
         }
+    }
+
+    /// A parameter whose robust error spans most of its range is named unless it is
+    /// already flagged; one with a narrow robust error, or without a standard error, is
+    /// not (the flags follow the independent-residual errors).
+    #[test]
+    fn robust_spans_most_names_only_unflagged_wide_parameters() {
+        let free = vec![
+            ParamId::SigmaCA,
+            ParamId::SigmaMS,
+            ParamId::SigmaMA,
+            ParamId::Eta,
+        ];
+        let mut unc = Uncertainty {
+            se: [None; N_PARAMS],
+            unconstrained: vec![(ParamId::SigmaMA, Why::Wide)],
+            free: free.clone(),
+            correlation: DMatrix::zeros(4, 4),
+            s2: 1.0,
+            step_se: 0.0,
+            robust: None,
+        };
+        for id in &free {
+            unc.se[id.index()] = Some(0.1);
+        }
+        unc.se[ParamId::Eta.index()] = None;
+        let u = DVector::zeros(4);
+        // Exp maps span most above SE(u) = 2: sigma_c_a at 3 does, sigma_m_s at 1 does
+        // not, sigma_m_a at 3 is flagged already, eta has no standard error.
+        let var = [9.0, 1.0, 9.0, 100.0];
+        assert_eq!(
+            robust_spans_most(&free, &u, &var, &unc),
+            vec![ParamId::SigmaCA]
+        );
     }
 }
