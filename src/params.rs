@@ -388,6 +388,19 @@ impl FurParams {
             };
             return Ok((p, k));
         }
+        // A fit file that lost its `params` (hand-edited, truncated by a tool) would
+        // otherwise be read as a parameter file and blamed on its first other key.
+        if ["uncertainty", "solver", "nrmse", "trace"]
+            .iter()
+            .any(|k| obj.contains_key(*k))
+        {
+            return Err(Error::Param {
+                key: "params".into(),
+                msg: "missing: this looks like a fit file (it has fit keys such as \
+                      uncertainty or solver) but has no `params` object"
+                    .into(),
+            });
+        }
         let mut vals = [f64::NAN; N_PARAMS];
         let mut seen = [false; N_PARAMS];
         let mut exposure = 1.0;
@@ -746,5 +759,9 @@ mod tests {
         let fit = serde_json::json!({"params": v, "exposure": 2.5});
         let (_, k) = FurParams::from_json_value(&fit).unwrap();
         assert_eq!(k, 2.5);
+        // A fit file without its `params`: named as that, not as an unknown key.
+        let gutted = serde_json::json!({"exposure": 2.5, "correlation": {}, "uncertainty": {}});
+        let e = FurParams::from_json_value(&gutted).unwrap_err().to_string();
+        assert!(e.contains("'params'") && e.contains("fit file"), "{e}");
     }
 }

@@ -172,6 +172,12 @@ fn fit_then_report_end_to_end_and_deterministic() {
     let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
     // The data was synthesized with the same far field: NRMSE at truth is ~0.
     assert!(mvs.contains("| mouse |"), "{mvs}");
+    // The figure never calls synthetic data "measured" (panels, legend, title).
+    let svg = std::fs::read_to_string(root.join("reports/fig11_mouse.svg")).unwrap();
+    assert!(
+        !svg.contains("measured") && svg.contains("synthetic data, theta_i"),
+        "fig11 wording"
+    );
 }
 
 #[test]
@@ -1501,4 +1507,49 @@ fn exact_round_trip_notes_rounding_and_records_robust_errors() {
     assert!(rb["standard_error"]["eta"].as_f64().is_some(), "{rb}");
     assert!(rb["bandwidth"]["eta"].as_u64().is_some(), "{rb}");
     assert!(rb["method"].as_str().unwrap().contains("Newey-West"));
+}
+
+/// After a species' data change, `report` draws no figure of it: the earlier run's
+/// figure is removed (it would stand for data it no longer shows), `nrmse.md` says its
+/// column was not checked against its data, and the run exits 1. A run refused for its
+/// inputs (no fit files) leaves no empty output folder.
+#[test]
+fn report_removes_a_stale_figure_and_makes_no_folder_for_refused_inputs() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    fit(root, "mouse", "fits/mouse.json", "7");
+    let report = || {
+        furfit()
+            .current_dir(root)
+            .args(["report"])
+            .output()
+            .unwrap()
+    };
+    assert!(report().status.success());
+    let fig = root.join("reports/fig11_mouse.png");
+    assert!(fig.exists());
+    let data = root.join("measurements/mouse/profile.csv");
+    let text = std::fs::read_to_string(&data).unwrap();
+    // One value changed: the recorded SHA-256 no longer matches.
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let last = lines.len() - 1;
+    lines[last] = lines[last].replacen(",0.", ",0.9", 1);
+    std::fs::write(&data, lines.join("\n") + "\n").unwrap();
+    let o = report();
+    assert_eq!(o.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("removed") && err.contains("fig11_mouse.png"), "{err}");
+    assert!(!fig.exists() && !root.join("reports/fig11_mouse.svg").exists());
+    let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
+    assert!(md.contains("Not checked against their data") && md.contains("- mouse:"), "{md}");
+    // No fit files: refused before the output folder is made.
+    std::fs::create_dir(root.join("nofits")).unwrap();
+    let o = furfit()
+        .current_dir(root)
+        .args(["report", "--fits", "nofits", "--out", "fresh"])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(!root.join("fresh").exists());
 }

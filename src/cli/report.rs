@@ -19,6 +19,8 @@ pub struct Args {
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    // The fits first: a refused run leaves no empty --out folder behind.
+    crate::report::nrmse::read_fits(&a.fits)?;
     crate::io::probe_writable(&a.out)?;
     let sum = crate::report::nrmse::write_fit_reports(&a.fits, &a.measurements, &a.out, a.force)?;
     for p in &sum.written {
@@ -26,6 +28,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     for (s, why) in &sum.skipped {
         eprintln!("skipped {s}: {why}");
+    }
+    for p in &sum.removed {
+        eprintln!(
+            "removed {} (an earlier report's figure of data that no longer match)",
+            p.display()
+        );
     }
     if !sum.skipped.is_empty() {
         // The other reports are written, but a missing plot or row must not pass as

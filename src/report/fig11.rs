@@ -215,9 +215,20 @@ fn heat<DB: DrawingBackend>(
     Ok(())
 }
 
+/// What the figure calls the profile the fit was made to: never "measured" for
+/// simulated data (the project's rule: synthetic data is always labelled so).
+fn data_word(synthetic: bool) -> &'static str {
+    if synthetic {
+        "synthetic data"
+    } else {
+        "data"
+    }
+}
+
 fn lobe_panel<DB: DrawingBackend>(
     area: &Area<'_, DB>,
     sl: &Slice,
+    word: &str,
 ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     let tr = *sl
         .theta_r
@@ -289,7 +300,7 @@ fn lobe_panel<DB: DrawingBackend>(
             .filter(|(_, m, _)| m.is_finite() && m.log10() >= lo)
             .map(|(p, m, _)| Circle::new((*p, m.log10()), 2, BLACK.filled())),
     )?
-    .label("measured")
+    .label(word)
     .legend(|(x, y)| Circle::new((x + 7, y), 2, BLACK.filled()));
     ch.configure_series_labels()
         .position(SeriesLabelPosition::LowerLeft)
@@ -308,10 +319,11 @@ fn draw<DB: DrawingBackend>(
     synthetic: bool,
 ) -> std::result::Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
     root.fill(&WHITE)?;
+    let word = data_word(synthetic);
     let (top, body) = root.split_vertically(40);
     top.draw(&Text::new(
         format!(
-            "{species}: measured | fitted | ln(fit/measured), one log10 scale for both profiles; NRMSE {:.2}% ({})",
+            "{species}: {word} | fitted | ln(fit/data), one log10 scale for both profiles; NRMSE {:.2}% ({})",
             100.0 * nrmse,
             if synthetic {
                 "SYNTHETIC data"
@@ -350,7 +362,7 @@ fn draw<DB: DrawingBackend>(
         let logc = |v: f64| viridis((v - lo) / span);
         heat(
             &rows[4 * r],
-            &format!("measured, {t}"),
+            &format!("{word}, {t}"),
             sl,
             &|m, _| m.log10(),
             &logc,
@@ -364,12 +376,12 @@ fn draw<DB: DrawingBackend>(
         )?;
         heat(
             &rows[4 * r + 2],
-            &format!("ln(fit/meas), scale +/-{rmax:.2}, {t}"),
+            &format!("ln(fit/data), scale +/-{rmax:.2}, {t}"),
             sl,
             &|m, l| l.iter().sum::<f64>().ln() - m.ln(),
             &|v| diverging(v / rmax),
         )?;
-        lobe_panel(&rows[4 * r + 3], sl)?;
+        lobe_panel(&rows[4 * r + 3], sl, word)?;
     }
     root.present()?;
     Ok(())

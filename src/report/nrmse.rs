@@ -586,9 +586,22 @@ pub fn csv(fits: &[FitFile]) -> String {
     s
 }
 
-/// Write `nrmse.md` and `nrmse.csv` into `out`.
-pub fn write(fits: &[FitFile], out: &Path) -> Result<()> {
-    crate::io::write_output(&out.join("nrmse.md"), markdown(fits).as_bytes())?;
+/// Write `nrmse.md` and `nrmse.csv` into `out`; `unverified` lists `(fit label, why)` for
+/// fits whose data could not be read back as the fit recorded it (changed or missing):
+/// their columns are the fit files' own figures, and `nrmse.md` says so.
+pub fn write(fits: &[FitFile], unverified: &[(String, String)], out: &Path) -> Result<()> {
+    let mut md = markdown(fits);
+    if !unverified.is_empty() {
+        md.push_str(
+            "\n## Not checked against their data\n\nThese columns are the fit files' own \
+             figures: the data they were fitted to could not be read back as recorded, so \
+             no figure was drawn for them (refit, or restore the data):\n\n",
+        );
+        for (label, why) in unverified {
+            md.push_str(&format!("- {label}: {why}\n"));
+        }
+    }
+    crate::io::write_output(&out.join("nrmse.md"), md.as_bytes())?;
     crate::io::write_output(&out.join("nrmse.csv"), csv(fits).as_bytes())
 }
 
@@ -598,6 +611,9 @@ pub struct ReportSummary {
     pub written: Vec<PathBuf>,
     /// `(species, reason)` for figures or entries that could not be made.
     pub skipped: Vec<(String, String)>,
+    /// An earlier run's figures of a fit whose figure could not be made now (removed, so
+    /// no stale figure stands beside the new reports).
+    pub removed: Vec<PathBuf>,
 }
 
 /// The entry point of the fit reports: `nrmse.{md,csv}`, `fig11_<species>.{png,svg}`,
@@ -651,7 +667,12 @@ fn write_planned(
         }
     }
     let fits = fits.as_slice();
-    write(fits, out)?;
+    let unverified: Vec<(String, String)> = fits
+        .iter()
+        .zip(&data)
+        .filter_map(|(f, d)| d.as_ref().err().map(|e| (f.label(), e.to_string())))
+        .collect();
+    write(fits, &unverified, out)?;
     sum.written
         .extend(["nrmse.md", "nrmse.csv"].map(|n| out.join(n)));
     fit_time::write(fits, out)?;
@@ -660,7 +681,16 @@ fn write_planned(
     for (f, d) in fits.iter().zip(data) {
         match d.and_then(|p| fig11::write(f, &p, out)) {
             Ok(paths) => sum.written.extend(paths),
-            Err(e) => sum.skipped.push((f.label(), format!("fig11: {e}"))),
+            Err(e) => {
+                // An earlier run's figure of this fit would stand for data it no longer
+                // shows: remove it (the ledger check at the start let this run replace it).
+                for p in fig11::outputs(f, out) {
+                    if p.is_file() && std::fs::remove_file(&p).is_ok() {
+                        sum.removed.push(p);
+                    }
+                }
+                sum.skipped.push((f.label(), format!("fig11: {e}")));
+            }
         }
     }
     // Model vs simulation: every species folder with true parameters.
