@@ -524,3 +524,137 @@ fn render_names_channels_it_cannot_colour_from() {
         stderr(&o)
     );
 }
+
+/// `--cam-elev` is bounded to [-90, 90] (past the pole the camera flipped over without a
+/// word); `--light-dir` keeps its direction however large or small its components (they
+/// used to overflow or underflow when normalised) and refuses zero.
+#[test]
+fn camera_elevation_and_light_direction_are_checked() {
+    let dir = tempfile::tempdir().unwrap();
+    for v in ["91", "-90.5", "1e9", "nan", "inf"] {
+        let o = render(dir.path(), &[&format!("--cam-elev={v}")]);
+        refused(&o, "--cam-elev");
+        assert!(stderr(&o).contains("-90..=90"), "{}", stderr(&o));
+    }
+    let o = render(dir.path(), &["--light-dir=0,0,0"]);
+    refused(&o, "--light-dir");
+    assert!(!dir.path().join("r.png").exists());
+    let pixels = |name: &str, extra: &[&str]| {
+        let out = dir.path().join(name);
+        let o = render(
+            dir.path(),
+            &[extra, &["--out", out.to_str().unwrap()]].concat(),
+        );
+        assert!(o.status.success(), "{}", stderr(&o));
+        image::open(&out).unwrap().to_rgb8().into_raw()
+    };
+    assert_eq!(
+        pixels("big.png", &["--light-dir", "1e200,1e200,0"]),
+        pixels("ref.png", &["--light-dir", "1,1,0"])
+    );
+    assert_eq!(
+        pixels("tiny.png", &["--light-dir", "1e-320,0,0"]),
+        pixels("ref1.png", &["--light-dir", "1,0,0"])
+    );
+    // The bounds themselves render.
+    pixels("top.png", &["--cam-elev", "90"]);
+    pixels("bottom.png", &["--cam-elev=-90"]);
+}
+
+/// A lobe named twice is refused, as a mode named twice in render-convergence --modes is;
+/// a directory given as --fit is called one.
+#[test]
+fn repeated_lobes_and_a_fit_directory_are_refused_clearly() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = render(dir.path(), &["--lobes", "R,R"]);
+    refused(&o, "--lobes");
+    assert!(stderr(&o).contains("R given twice"), "{}", stderr(&o));
+    let o = render(dir.path(), &["--lobes", "TT,trt,TRT"]);
+    refused(&o, "TRT given twice");
+    let d = dir.path().to_str().unwrap();
+    let out = dir.path().join("f.png");
+    let o = furfit(&["render", "--fit", d, "--out", out.to_str().unwrap()]);
+    refused(&o, "--fit");
+    assert!(stderr(&o).contains("is a directory"), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("no such"), "{}", stderr(&o));
+    assert!(!out.exists() && !dir.path().join("r.png").exists());
+}
+
+/// With --no-aovs, files with the AOV names are noted as not part of the render; only
+/// the ones furfit wrote (in the ledger, unchanged) are called an earlier render's. A
+/// user's own file was called "from an earlier render".
+#[test]
+fn stale_aov_note_claims_only_furfits_own_files() {
+    let tmp = tempfile::tempdir().unwrap();
+    let d = tmp.path();
+    let mine = d.join("mine_TT.png");
+    std::fs::write(&mine, "hi").unwrap();
+    let out = d.join("mine.png");
+    let o = render(d, &["--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(!e.contains("earlier render"), "{e}");
+    assert!(
+        e.contains("mine_TT.png has an AOV's name but is not part of this render"),
+        "{e}"
+    );
+    assert_eq!(std::fs::read(&mine).unwrap(), b"hi");
+    // furfit's own AOVs, then a --no-aovs render: those are an earlier render's.
+    let out = d.join("own.png");
+    let mut args = vec!["render", "--params", "red-fox", "--lobes", "TT"];
+    args.extend_from_slice(&SMALLEST);
+    args.extend_from_slice(&["--out", out.to_str().unwrap()]);
+    assert!(furfit(&args).status.success());
+    let o = render(d, &["--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("from an earlier render are not part of this one and no longer match"),
+        "{e}"
+    );
+    assert!(!e.contains("AOV's name"), "{e}");
+}
+
+/// The same render gives the same EXR bytes (the header's attributes came out in a
+/// different order from run to run), and the EXR header keeps a non-Latin-1 path in the
+/// recorded command as UTF-8 (it became `??`); its comments say the pixels are linear.
+#[test]
+fn exr_is_deterministic_utf8_and_says_it_is_linear() {
+    let tmp = tempfile::tempdir().unwrap();
+    let out = tmp
+        .path()
+        .join("\u{65e5}\u{672c} dir")
+        .join("fox \u{fc}.png");
+    let exr = out.with_extension("exr");
+    let mut runs = Vec::new();
+    for _ in 0..3 {
+        let o = render(tmp.path(), &["--out", out.to_str().unwrap(), "--seed", "3"]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        runs.push(std::fs::read(&exr).unwrap());
+    }
+    assert!(runs.iter().all(|r| *r == runs[0]), "EXR bytes differ");
+    let meta = exr::meta::MetaData::read_from_file(&exr, false).unwrap();
+    let layer = &meta.headers[0].own_attributes;
+    let utf8 = |t: &exr::meta::attribute::Text| String::from_utf8(t.as_slice().to_vec());
+    let source = layer
+        .other
+        .get(&exr::meta::attribute::Text::from("furfitSource"))
+        .unwrap();
+    let exr::meta::attribute::AttributeValue::Text(source) = source else {
+        panic!("{source:?}")
+    };
+    let source = utf8(source).expect("UTF-8");
+    assert!(
+        source.contains("\u{65e5}\u{672c} dir/fox \u{fc}.png"),
+        "{source}"
+    );
+    let comments = utf8(layer.comments.as_ref().unwrap()).unwrap();
+    assert!(
+        comments.contains("linear scene radiance") && !comments.contains("sRGB"),
+        "{comments}"
+    );
+    // The PNG keeps its tone map and exposure.
+    let png = png_text(&out);
+    let d = &png.iter().find(|(k, _)| k == "Description").unwrap().1;
+    assert!(d.contains("ACES tone map, sRGB, exposure 0 EV"), "{d}");
+}

@@ -34,7 +34,7 @@ pub struct Args {
     /// Image size WxH (or WXH), each side 1..=8192 and at most 4096 x 4096 pixels in all.
     #[arg(long, default_value = "512x512")]
     pub size: String,
-    /// Lobes to render: R,TT,TRT,TTs,TRTs or all.
+    /// Lobes to render: a list of R, TT, TRT, TTs, TRTs (each at most once), or all.
     #[arg(long, default_value = "all")]
     pub lobes: String,
     /// Seed of the path tracer's random numbers (same seed, same image).
@@ -50,7 +50,8 @@ pub struct Args {
     /// units long).
     #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
     pub cam_dist: f64,
-    /// Camera elevation in degrees.
+    /// Camera elevation in degrees above the horizontal, -90..=90 (90 = straight down from
+    /// above).
     #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
     pub cam_elev: f64,
     /// Camera azimuth in degrees about the vertical.
@@ -59,7 +60,8 @@ pub struct Args {
     /// Vertical field of view in degrees.
     #[arg(long, default_value_t = 26.0, allow_negative_numbers = true)]
     pub fov: f64,
-    /// Direction toward the key light, x,y,z.
+    /// Direction toward the key light, x,y,z: any finite, non-zero vector (only its
+    /// direction is used).
     #[arg(long, default_value = "-0.5,0.6,0.62", allow_hyphen_values = true)]
     pub light_dir: String,
     /// Key light irradiance, 0..=1e6 (0 = no key light).
@@ -125,10 +127,7 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
     if a.fits_dir.is_some() && !a.all {
         bail!("--fits-dir is only read with --all (give --all, or drop --fits-dir)");
     }
-    let ld = parse_list("light-dir", &a.light_dir)?;
-    if ld.len() != 3 || ld.iter().all(|v| *v == 0.0) {
-        bail!("--light-dir: expected a non-zero x,y,z");
-    }
+    let light_dir = light_direction(&parse_list("light-dir", &a.light_dir)?)?;
     let env = parse_list("env", &a.env)?;
     let radiance = |v: &f64| (0.0..=MAX_RADIANCE).contains(v);
     let env = match env.as_slice() {
@@ -179,8 +178,18 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
             crate::error::Num(a.fov)
         );
     }
-    if !(a.cam_elev.is_finite() && a.cam_azim.is_finite()) {
-        bail!("--cam-elev and --cam-azim must be finite");
+    // Past 90 degrees the camera would go over the pole and see the lock upside down.
+    if !(-90.0..=90.0).contains(&a.cam_elev) {
+        bail!(
+            "--cam-elev must be in -90..=90 degrees, got {}",
+            crate::error::Num(a.cam_elev)
+        );
+    }
+    if !a.cam_azim.is_finite() {
+        bail!(
+            "--cam-azim must be finite, got {}",
+            crate::error::Num(a.cam_azim)
+        );
     }
     let png = a
         .out
@@ -209,7 +218,7 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
         seed: a.seed,
         threads: a.threads,
         mode: Mode::parse(&a.mode).context("--mode")?,
-        lobes: LobeSet::parse(&a.lobes)?,
+        lobes: LobeSet::parse(&a.lobes).context("--lobes")?,
         max_depth: a.max_depth,
         footprint_scale,
         env,
@@ -222,12 +231,23 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
     s.camera.elev_deg = a.cam_elev;
     s.camera.azim_deg = a.cam_azim;
     s.camera.fov_deg = a.fov;
-    s.light = (a.light_intensity > 0.0).then(|| DirectionalLight {
-        dir: V3::new(ld[0], ld[1], ld[2]).normalized(),
+    s.light = (a.light_intensity > 0.0).then_some(DirectionalLight {
+        dir: light_dir,
         irradiance: [a.light_intensity; 3],
     });
     s.strand.fibers = a.fibers;
     Ok(s)
+}
+
+/// The unit vector along `--light-dir` `v` (finite, as parsed). Scaled by its largest
+/// component first: squaring 1e200 overflows and squaring 1e-320 underflows, and either
+/// used to give another direction without a word.
+fn light_direction(v: &[f64]) -> anyhow::Result<V3> {
+    let m = v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    if v.len() != 3 || !v.iter().all(|x| x.is_finite()) || m == 0.0 {
+        bail!("--light-dir: expected a finite, non-zero x,y,z");
+    }
+    Ok(V3::new(v[0] / m, v[1] / m, v[2] / m).normalized())
 }
 
 /// One-line warnings for options `a` gives that the render `s` does not read.
@@ -327,6 +347,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .collect::<anyhow::Result<_>>()?
     } else {
         if let Some(f) = &a.fit {
+            if Path::new(f).is_dir() {
+                bail!("--fit {f}: is a directory, not a fit file (--all --fits-dir DIR renders every fit in one)");
+            }
             if !Path::new(f).is_file() {
                 bail!("--fit {f}: no such fit file (a preset name goes with --params)");
             }
@@ -428,7 +451,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             r.rays_per_second() / 1e6
         );
         // What made the image travels with its PNGs (text chunks).
-        let text = |what: &str| -> Vec<(&'static str, String)> {
+        // The EXRs hold linear radiance: the tone map and exposure are the PNGs' only.
+        let text = |what: &str, linear: bool| -> Vec<(&'static str, String)> {
             vec![
                 ("Software", crate::TOOL_VERSION.to_string()),
                 ("Source", command.clone()),
@@ -436,7 +460,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     "Description",
                     format!(
                         "{what} rendered by furfit from {about}; mode {}, {}x{}, {} spp, \
-                         seed {}, lobes {}; colour: {}; ACES tone map, sRGB, exposure {} EV",
+                         seed {}, lobes {}; colour: {}; {}",
                         s.mode.name(),
                         s.width,
                         s.height,
@@ -448,7 +472,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                             .collect::<Vec<_>>()
                             .join(","),
                         s.tint,
-                        a.exposure
+                        if linear {
+                            "linear scene radiance (the ACES tone map and --exposure apply \
+                             to the PNGs only)"
+                                .to_string()
+                        } else {
+                            format!("ACES tone map, sRGB, exposure {} EV", a.exposure)
+                        }
                     ),
                 ),
                 ("Comment", format!("parameters {}", p.to_json_value())),
@@ -461,17 +491,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             .into_iter()
             .map(|(image, p)| {
                 let bytes = match image {
-                    Image::Png => output::png_bytes(&r.beauty, a.exposure, &text("image"), &p)?,
-                    Image::Exr => output::exr_bytes(&r.beauty, &text("linear image"), &p)?,
+                    Image::Png => {
+                        output::png_bytes(&r.beauty, a.exposure, &text("image", false), &p)?
+                    }
+                    Image::Exr => output::exr_bytes(&r.beauty, &text("linear image", true), &p)?,
                     Image::Aov(l) => output::png_bytes(
                         &r.lobes[l.index()],
                         a.exposure,
-                        &text(&format!("{} lobe AOV", l.name())),
+                        &text(&format!("{} lobe AOV", l.name()), false),
                         &p,
                     )?,
                     Image::AovExr(l) => output::exr_bytes(
                         &r.lobes[l.index()],
-                        &text(&format!("{} lobe linear AOV", l.name())),
+                        &text(&format!("{} lobe linear AOV", l.name()), true),
                         &p,
                     )?,
                 };
@@ -481,24 +513,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::io::write_atomic_all(&files)?;
         let written: Vec<PathBuf> = files.into_iter().map(|(p, _)| p).collect();
         crate::io::record_outputs(&written)?;
-        // AOVs of an earlier render of this name that this one did not write (--no-aovs,
-        // other --lobes) no longer match the beauty image: say so (they are left as they
-        // are; deleting is not this command's to do).
-        let stale: Vec<String> = Lobe::ALL
-            .into_iter()
-            .flat_map(|l| {
-                ["png", "exr"].map(|ext| with_suffix(out, &format!("_{}", l.name()), ext))
-            })
-            .filter(|p| p.exists() && !written.contains(p))
-            .map(|p| p.display().to_string())
-            .collect();
-        if !stale.is_empty() {
-            eprintln!(
-                "note: {} from an earlier render {} not part of this one and no longer match {}",
-                stale.join(", "),
-                if stale.len() == 1 { "is" } else { "are" },
-                out.display()
-            );
+        for n in stale_aov_notes(out, &written) {
+            eprintln!("note: {n}");
         }
         outln!("wrote {} (+ .exr)", out.display());
         if !a.no_aovs {
@@ -530,6 +546,45 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         outln!("wrote contact sheet {}", a.out.display());
     }
     Ok(())
+}
+
+/// Notes on files with the AOV names of `out` that this render did not write (`written`;
+/// --no-aovs, other --lobes): they are left as they are (deleting is not this command's
+/// to do), but do not go with the new image. Only a file the ledger lists unchanged is
+/// called furfit's earlier render; any other is just named as not part of this one.
+fn stale_aov_notes(out: &Path, written: &[PathBuf]) -> Vec<String> {
+    let (ours, others): (Vec<PathBuf>, Vec<PathBuf>) = Lobe::ALL
+        .into_iter()
+        .flat_map(|l| ["png", "exr"].map(|ext| with_suffix(out, &format!("_{}", l.name()), ext)))
+        .filter(|p| p.exists() && !written.contains(p))
+        .partition(|p| crate::io::check_replaceable(std::slice::from_ref(p), false).is_ok());
+    let list = |v: &[PathBuf]| {
+        v.iter()
+            .map(|p| p.display().to_string())
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let mut notes = Vec::new();
+    if !ours.is_empty() {
+        let one = ours.len() == 1;
+        notes.push(format!(
+            "{} from an earlier render {} not part of this one and no longer {} {}",
+            list(&ours),
+            if one { "is" } else { "are" },
+            if one { "matches" } else { "match" },
+            out.display()
+        ));
+    }
+    if !others.is_empty() {
+        notes.push(format!(
+            "{} {} an AOV's name but {} not part of this render (not a furfit output \
+             recorded in the ledger, or changed since)",
+            list(&others),
+            if others.len() == 1 { "has" } else { "have" },
+            if others.len() == 1 { "is" } else { "are" },
+        ));
+    }
+    notes
 }
 
 /// The parameters of a preset, parameter file or fit file, the colour of a fit file
@@ -567,4 +622,32 @@ fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, Stri
         format!("parameter file {spec} ({})", &channels[2..])
     };
     Ok((p, colour, about))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Components whose squares overflow (1e200) or underflow (1e-320) keep their
+    /// direction (they used to give another one); zero is refused naming the option.
+    #[test]
+    fn light_direction_survives_extreme_components() {
+        let close = |v: V3, w: [f64; 3]| {
+            (v.x - w[0]).abs() < 1e-15 && (v.y - w[1]).abs() < 1e-15 && (v.z - w[2]).abs() < 1e-15
+        };
+        let h = std::f64::consts::FRAC_1_SQRT_2;
+        for (v, want) in [
+            ([1e200, 1e200, 0.0], [h, h, 0.0]),
+            ([1e-320, 0.0, 0.0], [1.0, 0.0, 0.0]),
+            ([0.0, -f64::MAX, 0.0], [0.0, -1.0, 0.0]),
+            ([3.0, 0.0, 4.0], [0.6, 0.0, 0.8]),
+        ] {
+            let d = light_direction(&v).unwrap();
+            assert!(close(d, want), "{v:?}: {d:?}");
+        }
+        for v in [&[0.0, 0.0, -0.0][..], &[1.0, 0.0], &[f64::NAN, 1.0, 0.0]] {
+            let e = light_direction(v).unwrap_err().to_string();
+            assert!(e.contains("--light-dir"), "{e}");
+        }
+    }
 }

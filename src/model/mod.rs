@@ -116,7 +116,7 @@ impl LobeSet {
         Lobe::ALL.into_iter().filter(move |l| self.contains(*l))
     }
 
-    /// Parse `R,TT,TRT,TTs,TRTs` (or `all`).
+    /// Parse `R,TT,TRT,TTs,TRTs` (or `all`), each lobe at most once.
     pub fn parse(s: &str) -> crate::Result<LobeSet> {
         if s.trim().eq_ignore_ascii_case("all") {
             return Ok(LobeSet::ALL);
@@ -134,6 +134,14 @@ impl LobeSet {
                     part.trim()
                 ))
             })?;
+            // Refused like a repeated --modes entry: a repeat is most likely a typo for
+            // another lobe.
+            if set.contains(l) {
+                return Err(crate::Error::Invalid(format!(
+                    "lobes '{s}': {} given twice",
+                    l.name()
+                )));
+            }
             set = set.with(l);
         }
         Ok(set)

@@ -128,6 +128,9 @@ fn lobe_selection_picks_lobes() {
     assert_eq!(tt.get(Lobe::R), 0.0);
     assert_eq!(LobeSet::parse("R,trt").unwrap(), LobeSet(0b101));
     assert!(LobeSet::parse("R,XX").is_err());
+    // A repeat is refused, as a repeated --modes entry is (whatever the case).
+    let e = LobeSet::parse("R,TT,r").unwrap_err().to_string();
+    assert!(e.contains("R given twice"), "{e}");
 }
 
 #[test]
