@@ -1539,10 +1539,16 @@ fn report_removes_a_stale_figure_and_makes_no_folder_for_refused_inputs() {
     let o = report();
     assert_eq!(o.status.code(), Some(1));
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("removed") && err.contains("fig11_mouse.png"), "{err}");
+    assert!(
+        err.contains("removed") && err.contains("fig11_mouse.png"),
+        "{err}"
+    );
     assert!(!fig.exists() && !root.join("reports/fig11_mouse.svg").exists());
     let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
-    assert!(md.contains("Not checked against their data") && md.contains("- mouse:"), "{md}");
+    assert!(
+        md.contains("Not checked against their data") && md.contains("- mouse:"),
+        "{md}"
+    );
     // No fit files: refused before the output folder is made.
     std::fs::create_dir(root.join("nofits")).unwrap();
     let o = furfit()
