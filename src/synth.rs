@@ -142,6 +142,11 @@ impl GridPlan {
         self.groups.len()
     }
 
+    /// The slices: each distinct `|theta_d|` with its distinct `|phi|`.
+    pub fn groups(&self) -> &[(f64, Vec<f64>)] {
+        &self.groups
+    }
+
     pub fn len(&self) -> usize {
         self.points.len()
     }

@@ -307,6 +307,29 @@ fn step_se_with(
     }
 }
 
+/// `jac` with the columns flagged in `held` zeroed: the linearisation holds those
+/// parameters at their value (on a bound), for [`estimate`] and [`robust`] alike.
+fn hold_columns(jac: &DMatrix<f64>, held: &[bool]) -> DMatrix<f64> {
+    let mut j = jac.clone();
+    for (k, _) in held.iter().enumerate().filter(|(_, h)| **h) {
+        j.column_mut(k).fill(0.0);
+    }
+    j
+}
+
+/// Sample indices in sweep order: rows of `(theta_i, theta_r)` in that order, `phi`
+/// ascending within a row (`pts` as `(theta_i, theta_r, phi)`, any one unit).
+pub fn sweep_order(pts: &[(f64, f64, f64)]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..pts.len()).collect();
+    order.sort_by(|&a, &b| {
+        let (x, y) = (pts[a], pts[b]);
+        x.0.total_cmp(&y.0)
+            .then(x.1.total_cmp(&y.1))
+            .then(x.2.total_cmp(&y.2))
+    });
+    order
+}
+
 /// Uncertainty from the Jacobian `jac` (n x p, free parameters) and residuals `r` at `u`.
 pub fn estimate(
     layout: &ParamLayout,
@@ -339,10 +362,7 @@ pub fn estimate(
         .enumerate()
         .map(|(j, id)| reparam::at_bound(*id, u[j]))
         .collect();
-    let mut j_held = jac.clone();
-    for (j, _) in bound.iter().enumerate().filter(|(_, b)| **b) {
-        j_held.column_mut(j).fill(0.0);
-    }
+    let j_held = hold_columns(jac, &bound);
     let jtj = j_held.transpose() * &j_held;
     let (mut cov, null_load) = pseudo_inverse(&jtj);
     let step_se = step_se_with(
@@ -542,18 +562,8 @@ fn sweep_robust_var(
     if p == 0 || pts.len() != r.len() || jac.nrows() != r.len() || held.len() != p {
         return None;
     }
-    // Rows in (theta_i, theta_r) order; within each, samples in phi order.
-    let mut order: Vec<usize> = (0..pts.len()).collect();
-    order.sort_by(|&a, &b| {
-        let (x, y) = (pts[a], pts[b]);
-        x.0.total_cmp(&y.0)
-            .then(x.1.total_cmp(&y.1))
-            .then(x.2.total_cmp(&y.2))
-    });
-    let mut j_held = jac.clone();
-    for (j, _) in held.iter().enumerate().filter(|(_, h)| **h) {
-        j_held.column_mut(j).fill(0.0);
-    }
+    let order = sweep_order(pts);
+    let j_held = hold_columns(jac, held);
     // Per row: theta_i and the score.
     let mut rows: Vec<(f64, DVector<f64>)> = Vec::new();
     let (mut lag_num, mut lag_den) = (0.0, 0.0);
@@ -664,7 +674,7 @@ mod tests {
     /// mean independent-residual and sweep-robust standard errors over the spread of the
     /// estimates, and the mean lag-1 autocorrelation along `phi`.
     fn se_over_spread(rho_phi: f64, rho_row: f64, row_sd: f64) -> ([f64; 3], [f64; 3], f64) {
-        use rand::{Rng, SeedableRng};
+        use rand::SeedableRng;
         let mut pts = Vec::new();
         for ti in [0.0, 30.0] {
             for tr in 0..31 {
@@ -684,11 +694,7 @@ mod tests {
         });
         let xtx_inv = (x.transpose() * &x).try_inverse().expect("full rank");
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
-        let mut normal = || {
-            // Box-Muller: two uniforms to one standard normal.
-            let (a, b): (f64, f64) = (rng.random(), rng.random());
-            (-2.0 * (1.0 - a).ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-        };
+        let mut normal = || crate::simulate::trace::gauss(&mut rng);
         let reps = 400;
         let mut est = vec![[0.0; 3]; reps];
         let (mut se_iid, mut se_rob, mut lag1_mean) = ([0.0; 3], [0.0; 3], 0.0);

@@ -488,56 +488,45 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
                 rayon::current_num_threads(),
                 pts.len() as f64 / best
             ));
-            log(&slice_breakdown(&model, &pts, &opts));
+            log(&slice_breakdown(&model, &plan, &opts));
         }
     }
 }
 
-/// Where a grid synthesis spends its time, on one thread: per distinct `|theta_d|` slice
-/// of `pts`, the mean slice build (segmentation and fits) and evaluation at the grid's
-/// distinct `|phi|` (best of three passes over all slices), and the mean quadrature pieces
-/// and nodes per slice. At 1e7 samples/s on two cores the 4 x 61 x 181 grid allows about
-/// 85 us per slice on each.
-fn slice_breakdown(model: &FurModel, pts: &[(f64, f64, f64)], opts: &FarOptions) -> String {
+/// Where a grid synthesis spends its time, on one thread: per `|theta_d|` slice of
+/// `plan`, the mean slice build (segmentation and fits) and evaluation at its `|phi|`
+/// (best of three passes over all slices), and the mean quadrature pieces and nodes per
+/// slice. At 1e7 samples/s on two cores the 4 x 61 x 181 grid allows about 85 us per
+/// slice on each.
+fn slice_breakdown(model: &FurModel, plan: &crate::synth::GridPlan, opts: &FarOptions) -> String {
     use crate::model::far::FarSlice;
-    let mut tds: Vec<f64> = pts
-        .iter()
-        .map(|&(ti, tr, _)| crate::model::geometry::theta_d(ti, tr).abs())
-        .collect();
-    tds.sort_by(f64::total_cmp);
-    tds.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
-    let mut phis: Vec<f64> = pts
-        .iter()
-        .map(|p| crate::model::azimuthal::wrap_angle(p.2).abs())
-        .collect();
-    phis.sort_by(f64::total_cmp);
-    phis.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
+    let groups = plan.groups();
     let (mut build, mut eval) = (f64::INFINITY, f64::INFINITY);
     for _ in 0..3 {
         let (mut b, mut e) = (0.0, 0.0);
-        for &td in &tds {
-            let az = model.azimuthal(td);
+        for (td, phis) in groups {
+            let az = model.azimuthal(*td);
             let t = Instant::now();
             let slice = FarSlice::far(&az, LobeSet::ALL, opts);
             b += t.elapsed().as_secs_f64();
             let t = Instant::now();
-            black_box(slice.eval_grid(&phis));
+            black_box(slice.eval_grid(phis));
             e += t.elapsed().as_secs_f64();
         }
         build = build.min(b);
         eval = eval.min(e);
     }
     let (mut gl, mut nodes) = (0usize, 0usize);
-    for &td in &tds {
-        let s = FarSlice::far(&model.azimuthal(td), LobeSet::ALL, opts).stats();
+    for (td, _) in groups {
+        let s = FarSlice::far(&model.azimuthal(*td), LobeSet::ALL, opts).stats();
         gl += s.gl_segments;
         nodes += s.gl_nodes;
     }
-    let n = tds.len().max(1) as f64;
+    let n = groups.len().max(1) as f64;
+    let phis = groups.iter().map(|g| g.1.len()).max().unwrap_or(0);
     format!(
-        "  one thread, per slice ({} slices of {} phi): build {:.1} us, evaluation {:.1} us; quadrature pieces {:.1}, nodes {:.1}",
-        tds.len(),
-        phis.len(),
+        "  one thread, per slice ({} slices of up to {phis} phi): build {:.1} us, evaluation {:.1} us; quadrature pieces {:.1}, nodes {:.1}",
+        groups.len(),
         1e6 * build / n,
         1e6 * eval / n,
         gl as f64 / n,

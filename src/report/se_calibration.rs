@@ -16,7 +16,9 @@ use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::params::{FurParams, ParamId, N_PARAMS};
 use crate::synth::{synthesize, ModelKind};
-use rand::{Rng, SeedableRng};
+// Standard normal variates: the virtual goniometer's Box-Muller sampler.
+use crate::simulate::trace::gauss as normal;
+use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -84,22 +86,10 @@ pub struct Row {
     pub cover_robust: f64,
 }
 
-/// Standard normal by Box-Muller.
-fn normal(rng: &mut Xoshiro256PlusPlus) -> f64 {
-    let (a, b): (f64, f64) = (rng.random(), rng.random());
-    (-2.0 * (1.0 - a).ln()).sqrt() * (std::f64::consts::TAU * b).cos()
-}
-
 /// Log-space noise per sample of `samples` (degrees), rows in `(theta_i, theta_r)` order
 /// and `phi` ascending within a row, as the grid is generated.
 fn noise_for(samples: &[(f64, f64, f64)], nz: &Noise, rng: &mut Xoshiro256PlusPlus) -> Vec<f64> {
-    let mut order: Vec<usize> = (0..samples.len()).collect();
-    order.sort_by(|&a, &b| {
-        let (x, y) = (samples[a], samples[b]);
-        x.0.total_cmp(&y.0)
-            .then(x.1.total_cmp(&y.1))
-            .then(x.2.total_cmp(&y.2))
-    });
+    let order = crate::fit::uncertainty::sweep_order(samples);
     let mut out = vec![0.0; samples.len()];
     let (mut row, mut along) = (0.0, 0.0);
     let mut prev: Option<(f64, f64)> = None;

@@ -140,7 +140,7 @@ fn ellipse_normal(p: V3, ax: f64, ay: f64) -> V3 {
 
 /// A standard normal variate (Box-Muller; one of the pair is discarded for simplicity).
 #[inline]
-fn gauss(rng: &mut Xoshiro256PlusPlus) -> f64 {
+pub fn gauss(rng: &mut Xoshiro256PlusPlus) -> f64 {
     let u1: f64 = 1.0 - rng.random::<f64>();
     let u2: f64 = rng.random::<f64>();
     (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
