@@ -57,7 +57,9 @@
 
 use super::closed_form::{poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through};
 use super::FarOptions;
-use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian};
+use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian, Absorption};
+use crate::model::fresnel;
+use crate::model::geometry::PathGeometry;
 use crate::model::medulla::{CnProfile, CnRows};
 use crate::model::quadrature::GaussLegendre;
 use crate::model::{AzimuthalSlice, Lobe, LobeSet, LobeValues};
@@ -730,15 +732,8 @@ impl<'a> FarSlice<'a> {
         for p in 0..3 {
             n.phi[p] = azimuthal::phi_p(p, &geo);
             n.dphi[p] = 2.0 * p as f64 * cu / (az.eta_prime * ct) - 2.0;
-        }
-        n.pre[0] = f * cu;
-        n.pre[1] = (1.0 - f) * (1.0 - f) * cu;
-        n.pre[2] = (1.0 - f) * (1.0 - f) * f * cu;
-        for p in 1..3 {
-            let pf = p as f64;
-            n.lam[p] =
-                (-2.0 * pf * (geo.s_c * ab.sigma_c_a + geo.s_m * ab.sigma_m_t) * ab.inv_cos_d)
-                    .max(LAM_MIN);
+            n.pre[p] = Self::unsc_pre(p, f, cu);
+            n.lam[p] = Self::unsc_lam(p, &geo, ab);
         }
         if scattered && self.lobes.intersect(LobeSet::SCATTERED) != LobeSet::NONE {
             let meets = geo.meets_medulla();
@@ -765,6 +760,47 @@ impl<'a> FarSlice<'a> {
             }
         }
         n
+    }
+
+    /// The factor of unscattered lobe `p`'s `A_p cos u` outside its exponential
+    /// (seed Eqs. 13-14): `F cos u`, `(1 - F)^2 cos u`, `(1 - F)^2 F cos u`.
+    fn unsc_pre(p: usize, f: f64, cu: f64) -> f64 {
+        match p {
+            0 => f * cu,
+            1 => (1.0 - f) * (1.0 - f) * cu,
+            _ => (1.0 - f) * (1.0 - f) * f * cu,
+        }
+    }
+
+    /// The log of `T_c T_m` of unscattered lobe `p` (seed Eq. 14; 0 for R), clamped at
+    /// [`LAM_MIN`].
+    fn unsc_lam(p: usize, geo: &PathGeometry, ab: &Absorption) -> f64 {
+        if p == 0 {
+            return 0.0;
+        }
+        let pf = p as f64;
+        (-2.0 * pf * (geo.s_c * ab.sigma_c_a + geo.s_m * ab.sigma_m_t) * ab.inv_cos_d).max(LAM_MIN)
+    }
+
+    /// A Gauss-Legendre node of unscattered lobe `p` at `u`: `(Phi_p, pre, lam)` as
+    /// [`Self::node_with`] gives them, bit for bit. R (`Phi_0 = -2 gamma_i`, `A_0 = F`)
+    /// needs no refraction, so it skips the `asin` of `gamma_t`; the other lobes skip the
+    /// values of the lobes they do not need. A sixth of a slice's node evaluations are R's
+    /// quadrature nodes (human preset).
+    fn gl_node(&self, p: usize, u: f64) -> (f64, f64, f64) {
+        let az = &self.az;
+        if p == 0 {
+            let cu = u.sin_cos().1.max(0.0);
+            let f = fresnel::cuticle_reflectance(az.eta_prime, cu, az.model.params.l);
+            return (-2.0 * u, Self::unsc_pre(0, f, cu), 0.0);
+        }
+        let geo = az.geometry_at_gamma_i(u);
+        let f = az.cuticle(&geo);
+        (
+            azimuthal::phi_p(p, &geo),
+            Self::unsc_pre(p, f, geo.cos_gamma_i),
+            Self::unsc_lam(p, &geo, &az.absorption),
+        )
     }
 
     /// The exact unscattered integrand's `g = A cos u / |Phi'|` parts at a node.
@@ -1176,8 +1212,10 @@ impl<'a> FarSlice<'a> {
             .iter()
             .zip(&gl.weights)
             .map(|(x, w)| {
-                let n = self.node_with(c + r * x, false);
-                (n.phi[p], w * r * n.pre[p] * n.lam[p].exp())
+                let (phi, pre, lam) = self.gl_node(p, c + r * x);
+                // R's exponent is 0: skip the exponential (a factor 1, exact).
+                let a = w * r * pre;
+                (phi, if p == 0 { a } else { a * lam.exp() })
             })
             .collect()
     }
