@@ -11,15 +11,18 @@
 //! data's own, so there is no model error here: the question is only the errors' scale.
 
 use crate::error::{Error, Result};
-use crate::fit::{channel_data, fit_data, FitOptions};
+use crate::fit::problem::{FitData, LogResidualProblem};
+use crate::fit::{channel_data, fit_data, reparam, FitOptions, FitOutcome};
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::params::{FurParams, ParamId, N_PARAMS};
 use crate::synth::{synthesize, ModelKind};
 // Standard normal variates: the virtual goniometer's Box-Muller sampler.
 use crate::simulate::trace::gauss as normal;
+use nalgebra::DVector;
 use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
+use std::collections::HashMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -81,9 +84,13 @@ pub struct Row {
     pub sd_mad: f64,
     pub mean_se: f64,
     pub mean_se_robust: f64,
+    /// The robust estimator fed each replicate's own noise in place of its residuals
+    /// ([`noise_fed_robust`]).
+    pub mean_se_noise_fed: f64,
     /// Share of those replicates whose `+- 1.96 SE` interval covers the truth.
     pub cover: f64,
     pub cover_robust: f64,
+    pub cover_noise_fed: f64,
 }
 
 /// Log-space noise per sample of `samples` (degrees), rows in `(theta_i, theta_r)` order
@@ -114,9 +121,63 @@ fn noise_for(samples: &[(f64, f64, f64)], nz: &Noise, rng: &mut Xoshiro256PlusPl
     out
 }
 
-/// One replicate's estimate of a parameter (file units), its SE and robust SE (`None`
-/// where flagged unconstrained).
-type Estimate = (f64, Option<f64>, Option<f64>);
+/// One replicate's estimate of a parameter (file units), its SE, robust SE and
+/// noise-fed robust SE (`None` where flagged unconstrained).
+type Estimate = (f64, Option<f64>, Option<f64>, Option<f64>);
+
+/// A sample's angles (radians) as a map key.
+fn angle_key(&(a, b, c): &(f64, f64, f64)) -> [u64; 3] {
+    [a.to_bits(), b.to_bits(), c.to_bits()]
+}
+
+/// The residuals `data` would have at the true parameters given its log-space noise
+/// (keyed by [`angle_key`]): `-sqrt(w) (e - mean_w e) / range`, the exposure taking the
+/// weighted mean. `None` if a sample has no noise value.
+fn noise_residuals(data: &FitData, noise: &HashMap<[u64; 3], f64>) -> Option<DVector<f64>> {
+    let e: Vec<f64> = data
+        .points
+        .pts
+        .iter()
+        .map(|p| noise.get(&angle_key(p)).copied())
+        .collect::<Option<_>>()?;
+    let wsum: f64 = data.w.iter().sum();
+    let mean = e.iter().zip(&data.w).map(|(e, w)| e * w).sum::<f64>() / wsum;
+    Some(DVector::from_iterator(
+        e.len(),
+        e.iter()
+            .zip(&data.w)
+            .map(|(e, w)| -w.sqrt() * (e - mean) / data.range),
+    ))
+}
+
+/// The sweep-robust standard errors ([`crate::fit::uncertainty::robust`]) of `fit` with
+/// the replicate's own log-space noise (`noise`, keyed by the samples' angles in radians)
+/// in place of the fit's residuals: their noise part before the fit absorbed any of it
+/// (the exposure still takes the mean, and residuals are in units of the data's log
+/// range). Only a simulation knows the noise. The fitted residuals are orthogonal to the
+/// Jacobian, so the fit removes exactly the part of a smooth noise that looks like a
+/// parameter's effect, and a long-run variance from residuals comes out low; the gap
+/// between this and the residual-based SE measures that loss, and this one's own gap from
+/// the spread is the estimator's (a Bartlett window truncated within sweeps of a few
+/// tens of rows).
+fn noise_fed_robust(
+    data: &FitData,
+    fit: &FitOutcome,
+    noise: &HashMap<[u64; 3], f64>,
+) -> Option<[Option<f64>; N_PARAMS]> {
+    let opts = FitOptions::default();
+    let r = noise_residuals(data, noise)?;
+    let free = opts.layout.free();
+    let v = fit.params.to_file_units();
+    let u = DVector::from_iterator(
+        free.len(),
+        free.iter().map(|id| reparam::to_u(*id, v[id.index()])),
+    );
+    let jac = LogResidualProblem::new(data, opts.layout.clone(), opts.far).jacobian_at(&u);
+    let pts = &data.points.pts;
+    crate::fit::uncertainty::robust(&opts.layout, &u, &jac, &r, pts, &fit.uncertainty)
+        .map(|rb| rb.se)
+}
 
 /// The median (sorts `v`).
 fn median(v: &mut [f64]) -> f64 {
@@ -169,6 +230,12 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
                 s.value *= e.exp();
             }
             let data = channel_data(&prof, 0, false, crate::fit::DEFAULT_FLOOR)?;
+            let noise: HashMap<[u64; 3], f64> = prof
+                .samples
+                .iter()
+                .zip(&e)
+                .map(|(s, &e)| (angle_key(&s.angles_rad()), e))
+                .collect();
             // A failed replicate is counted, not fatal: minutes of others stay.
             let fit = match fit_data(&data, &FitOptions::default(), None) {
                 Ok(f) => f,
@@ -181,7 +248,8 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
             let f = fit.params.to_file_units();
             let unc = &fit.uncertainty;
             let rb = unc.robust.as_ref().map(|r| r.se);
-            let mut run = [(0.0, None, None); N_PARAMS];
+            let fed = noise_fed_robust(&data, &fit, &noise);
+            let mut run = [(0.0, None, None, None); N_PARAMS];
             for id in ParamId::ALL {
                 let k = id.index();
                 let flagged = unc.unconstrained.iter().any(|(p, _)| *p == id);
@@ -189,6 +257,7 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
                     f[k],
                     unc.se[k].filter(|_| !flagged),
                     rb.and_then(|r| r[k]).filter(|_| !flagged),
+                    fed.and_then(|r| r[k]).filter(|_| !flagged),
                 );
             }
             log(&format!(
@@ -205,7 +274,7 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
             let used: Vec<_> = runs
                 .iter()
                 .map(|r| r[k])
-                .filter(|(_, se, rse)| se.is_some() && rse.is_some())
+                .filter(|(_, se, rse, fed)| se.is_some() && rse.is_some() && fed.is_some())
                 .collect();
             let n = used.len();
             if n < 2 {
@@ -227,6 +296,7 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
                 sd_mad,
                 mean_se: used.iter().map(|u| u.1.unwrap_or(0.0)).sum::<f64>() / nf,
                 mean_se_robust: used.iter().map(|u| u.2.unwrap_or(0.0)).sum::<f64>() / nf,
+                mean_se_noise_fed: used.iter().map(|u| u.3.unwrap_or(0.0)).sum::<f64>() / nf,
                 cover: used
                     .iter()
                     .map(|u| covers(u.1.unwrap_or(0.0), u.0))
@@ -235,6 +305,11 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
                 cover_robust: used
                     .iter()
                     .map(|u| covers(u.2.unwrap_or(0.0), u.0))
+                    .sum::<f64>()
+                    / nf,
+                cover_noise_fed: used
+                    .iter()
+                    .map(|u| covers(u.3.unwrap_or(0.0), u.0))
                     .sum::<f64>()
                     / nf,
             });
@@ -264,7 +339,14 @@ pub fn markdown(study: &Study, reps: usize, secs: f64) -> String {
          smaller). A replicate where a parameter is flagged unconstrained (on a bound, no \
          information, or an SE spanning most of its range) is left out of that parameter's \
          row: n counts the others, so rows with n below {reps} describe the better-determined \
-         replicates only.\n",
+         replicates only.\n\n\
+         Noise-fed: the robust estimator given each replicate's own noise in place of the \
+         fit's residuals, which only a simulation can do. The fit removes the part of a \
+         smooth noise that looks like a parameter's effect (the residuals are orthogonal to \
+         the Jacobian), so a long-run variance from residuals comes out low: the gap between \
+         the robust and noise-fed columns is that loss, and what stays between the noise-fed \
+         SE and the spread is the estimator's own (a Bartlett window truncated within sweeps \
+         of {} rows).\n",
         crate::TOOL_VERSION,
         ti.len(),
         tr.len(),
@@ -272,6 +354,7 @@ pub fn markdown(study: &Study, reps: usize, secs: f64) -> String {
         ti.len() * tr.len() * phi.len(),
         ti.len() * tr.len(),
         100.0 * 2.0 * (0.95 * 0.05 / reps as f64).sqrt(),
+        tr.len(),
     );
     for (c, nz) in NOISES.iter().enumerate() {
         let failed = match study.failed[c] {
@@ -281,13 +364,13 @@ pub fn markdown(study: &Study, reps: usize, secs: f64) -> String {
         let _ = writeln!(
             s,
             "## Noise: {}\n\nlog-space noise per sample: {} x AR(1) along phi (rho {}) + {} x row effect, AR(1) in theta_r (rho {}) + {} x independent.{failed}\n\n\
-             | parameter | n | SD | MAD-SD | SE | SE / SD | cover | robust SE | robust / SD | robust / MAD-SD | cover |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
+             | parameter | n | SD | MAD-SD | SE | SE / SD | cover | robust SE | robust / SD | robust / MAD-SD | cover | noise-fed / SD | cover |\n|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
             nz.name, nz.sd_phi, nz.rho_phi, nz.sd_row, nz.rho_row, nz.sd_white
         );
         for r in rows.iter().filter(|r| r.noise == nz.name) {
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {} | {} | {:.0}% | {} | {} | {} | {:.0}% |",
+                "| {} | {} | {} | {} | {} | {} | {:.0}% | {} | {} | {} | {:.0}% | {} | {:.0}% |",
                 r.param.spec().name,
                 r.n,
                 super::sig(r.sd, 2),
@@ -298,7 +381,9 @@ pub fn markdown(study: &Study, reps: usize, secs: f64) -> String {
                 super::sig(r.mean_se_robust, 2),
                 ratio(r.mean_se_robust, r.sd),
                 ratio(r.mean_se_robust, r.sd_mad),
-                100.0 * r.cover_robust
+                100.0 * r.cover_robust,
+                ratio(r.mean_se_noise_fed, r.sd),
+                100.0 * r.cover_noise_fed
             );
         }
         let missing: Vec<&str> = ParamId::ALL
@@ -329,11 +414,11 @@ fn ratio(a: f64, b: f64) -> String {
 
 /// `se_calibration.csv` for the study's rows.
 pub fn csv(rows: &[Row]) -> String {
-    let mut s = String::from("noise,param,n,sd,sd_mad,mean_se,mean_se_robust,cover,cover_robust\n");
+    let mut s = String::from("noise,param,n,sd,sd_mad,mean_se,mean_se_robust,mean_se_noise_fed,cover,cover_robust,cover_noise_fed\n");
     for r in rows {
         let _ = writeln!(
             s,
-            "{},{},{},{:e},{:e},{:e},{:e},{},{}",
+            "{},{},{},{:e},{:e},{:e},{:e},{:e},{},{},{}",
             r.noise,
             r.param.spec().name,
             r.n,
@@ -341,8 +426,10 @@ pub fn csv(rows: &[Row]) -> String {
             r.sd_mad,
             r.mean_se,
             r.mean_se_robust,
+            r.mean_se_noise_fed,
             r.cover,
-            r.cover_robust
+            r.cover_robust,
+            r.cover_noise_fed
         );
     }
     s
@@ -411,6 +498,61 @@ mod tests {
     /// The table says which replicates failed and prints no ratio over a zero spread
     /// (all estimates equal), instead of inf or NaN.
     #[test]
+    fn noise_residuals_are_the_residuals_at_the_truth() {
+        // Residuals at the true parameters of a noisy profile are its noise alone, so the
+        // noise-fed residuals must equal them (keyed through channel_data's angle sort,
+        // centred by the exposure, scaled by the log range). 1e-12: the model values
+        // cancel in ln m - ln(m e^noise) to a few ulps of the logs (|ln m| < ~30).
+        let truth = FurParams::preset("red-fox").expect("preset");
+        let mut prof = synthesize(
+            &truth,
+            &[0.0, 30.0],
+            &[-40.0, 0.0, 20.0],
+            &[-170.0, -60.0, 0.0, 90.0],
+            ModelKind::Far,
+            LobeSet::ALL,
+            1.0,
+            &FarOptions::default(),
+        );
+        // Shuffle the file order, so that the map (not the order) must pair them.
+        prof.samples.reverse();
+        let mut rng = Xoshiro256PlusPlus::seed_from_u64(7);
+        let e: Vec<f64> = prof
+            .samples
+            .iter()
+            .map(|_| 0.1 * normal(&mut rng))
+            .collect();
+        for (s, e) in prof.samples.iter_mut().zip(&e) {
+            s.value *= e.exp();
+        }
+        let noise: HashMap<[u64; 3], f64> = prof
+            .samples
+            .iter()
+            .zip(&e)
+            .map(|(s, &e)| (angle_key(&s.angles_rad()), e))
+            .collect();
+        let data = channel_data(&prof, 0, false, crate::fit::DEFAULT_FLOOR).expect("data");
+        let fed = noise_residuals(&data, &noise).expect("every sample has noise");
+        let opts = FitOptions::default();
+        let v = truth.to_file_units();
+        let u: Vec<f64> = opts
+            .layout
+            .free()
+            .iter()
+            .map(|id| reparam::to_u(*id, v[id.index()]))
+            .collect();
+        let r = LogResidualProblem::new(&data, opts.layout.clone(), opts.far).residuals(&u);
+        assert_eq!(r.len(), fed.len());
+        for (a, b) in r.iter().zip(fed.iter()) {
+            assert!((a - b).abs() < 1e-12, "{a} vs {b}");
+        }
+        // A sample the map does not know gives none.
+        let mut short = noise.clone();
+        short.remove(&angle_key(&data.points.pts[0]));
+        assert!(noise_residuals(&data, &short).is_none());
+    }
+
+    #[test]
     fn markdown_counts_failures_and_survives_a_zero_spread() {
         let row = Row {
             noise: NOISES[0].name,
@@ -420,8 +562,10 @@ mod tests {
             sd_mad: 0.0,
             mean_se: 0.01,
             mean_se_robust: 0.02,
+            mean_se_noise_fed: 0.03,
             cover: 1.0,
             cover_robust: 1.0,
+            cover_noise_fed: 1.0,
         };
         let st = Study {
             rows: vec![row],
