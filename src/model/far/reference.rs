@@ -38,6 +38,11 @@ impl AzimuthalSlice<'_> {
         if edge < 1.0 {
             pts.push(edge.asin());
             pts.push(-edge.asin());
+            // The steep extinction layer inside the edge, as the far field meshes it.
+            for h in super::engine::medulla_layer_h(self) {
+                pts.push(h.asin());
+                pts.push(-h.asin());
+            }
         }
         if !lobe.is_scattered() {
             let p = lobe.p();
