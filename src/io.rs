@@ -4,6 +4,33 @@
 use crate::error::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+
+/// Temporaries being filled or awaiting their rename ([`write_temp`] to [`commit`]): what
+/// [`install_interrupt_cleanup`]'s handler removes.
+static IN_FLIGHT: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+fn in_flight() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
+    // A panic while holding the lock leaves the list usable.
+    IN_FLIGHT.lock().unwrap_or_else(|e| e.into_inner())
+}
+
+fn forget_temp(tmp: &Path) {
+    in_flight().retain(|p| p != tmp);
+}
+
+/// On SIGINT, SIGTERM or SIGHUP, remove the temporaries of writes in flight and exit with
+/// status 130, instead of leaving a hidden, half-written `.<name>.tmp-<pid>` beside the
+/// target (the target itself is never touched before the rename). The binary calls this
+/// once at start; an error (a handler already set) is ignored, the default action stays.
+pub fn install_interrupt_cleanup() {
+    let _ = ctrlc::set_handler(|| {
+        for p in in_flight().drain(..) {
+            let _ = std::fs::remove_file(p);
+        }
+        std::process::exit(130);
+    });
+}
 
 /// Write `bytes` to `path` atomically: write a temporary file in the same directory, flush
 /// and sync it, then rename it over `path` (rename is atomic on POSIX file systems).
@@ -51,6 +78,7 @@ fn write_all_with(
     let remove_all = |paths: &mut dyn Iterator<Item = &PathBuf>| {
         for p in paths {
             let _ = std::fs::remove_file(p);
+            forget_temp(p);
         }
     };
     for (path, bytes) in files {
@@ -99,6 +127,7 @@ fn write_all_with(
             remove_all(&mut temps[i..].iter().chain(backups[i..].iter().flatten()));
             return Err(Error::io(path, e));
         }
+        forget_temp(tmp);
     }
     remove_all(&mut backups.iter().flatten());
     Ok(())
@@ -177,6 +206,7 @@ where
         return Err(Error::file(path, "not a file path"));
     }
     let tmp = sibling(path, "tmp");
+    in_flight().push(tmp.clone());
     let result = (|| {
         let mut f = std::fs::File::create(&tmp)?;
         fill(&mut f)?;
@@ -186,6 +216,7 @@ where
     })();
     if let Err(e) = result {
         let _ = std::fs::remove_file(&tmp);
+        forget_temp(&tmp);
         return Err(Error::io(path, e));
     }
     Ok(tmp)
@@ -193,10 +224,12 @@ where
 
 /// Rename a temporary from [`write_temp`] over `path` (atomic on POSIX file systems).
 fn commit(tmp: &Path, path: &Path) -> Result<()> {
-    std::fs::rename(tmp, path).map_err(|e| {
+    let out = std::fs::rename(tmp, path).map_err(|e| {
         let _ = std::fs::remove_file(tmp);
         Error::io(path, e)
-    })
+    });
+    forget_temp(tmp);
+    out
 }
 
 /// `path` made absolute with symbolic links and `..` resolved as far as it exists (the

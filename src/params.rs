@@ -698,6 +698,22 @@ mod tests {
         }
     }
 
+    /// Parameter text is read correctly rounded (serde_json's `float_roundtrip`): the
+    /// default parser was an ulp off at times, so a fit's exposure changed on the way
+    /// into `synth`, and the largest double below 1 read as 1, outside kappa's `[0, 1)`.
+    #[test]
+    fn json_numbers_read_correctly_rounded() {
+        let text = r#"{"eta":1.55,"kappa":0.9999999999999999,"alpha":2,"beta_m":5,"beta_n":10,
+            "sigma_c_a":0.3,"sigma_m_s":3.2109876543210987,"sigma_m_a":0.2,"g":0.5,"l":1,
+            "exposure":1.3218498822254305}"#;
+        let v: Value = serde_json::from_str(text).unwrap();
+        let (p, k) = FurParams::from_json_value(&v).unwrap();
+        assert_eq!(p.kappa, 1.0 - f64::EPSILON / 2.0);
+        // Rust's own parser rounds correctly.
+        assert_eq!(p.sigma_m_s, "3.2109876543210987".parse::<f64>().unwrap());
+        assert_eq!(k, 1.3218498822254305);
+    }
+
     #[test]
     fn presets_load_and_are_in_bounds() {
         for p in PRESETS {

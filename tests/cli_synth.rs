@@ -671,3 +671,46 @@ fn synth_survives_absorption_near_the_f64_limit() {
         assert!((f - n).abs() <= 1e-4 * peak, "far {far:?} vs near {near:?}");
     }
 }
+
+/// SIGINT while `synth` writes its output: the hidden temporary beside the target is
+/// removed and the run exits with status 130; the target is not created. (Before, a
+/// half-written `.big.csv.tmp-<pid>` stayed until the next write to that path.)
+#[test]
+fn interrupt_removes_the_temporary() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("big.csv");
+    // ~2.6M samples: seconds of writing, so the temporary is seen well before the end.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_furfit"))
+        .args(["synth", "--params", "red-fox", "--theta-i", "0"])
+        .args(["--theta-r=-90:90:0.5", "--phi=-180:180:0.05", "--out"])
+        .arg(&out)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let temp = || {
+        std::fs::read_dir(dir.path())
+            .unwrap()
+            .flatten()
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .find(|n| n.starts_with(".big.csv.tmp-"))
+    };
+    let start = std::time::Instant::now();
+    while temp().is_none() {
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "synth finished before its temporary was seen"
+        );
+        assert!(start.elapsed().as_secs() < 120, "no temporary after 120 s");
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    let killed = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    let status = child.wait().unwrap();
+    assert_eq!(status.code(), Some(130), "{status:?}");
+    assert_eq!(temp(), None, "the temporary was left behind");
+    assert!(!out.exists());
+}

@@ -358,6 +358,7 @@ pub const MIN_TOL: f64 = 1e-8;
 /// Parse the command line, run, print errors; the exit code says whether it worked.
 pub fn main() -> std::process::ExitCode {
     let cli = Cli::parse();
+    crate::io::install_interrupt_cleanup();
     let result = match cli.command {
         Command::Inspect(a) => inspect::run(a),
         Command::Tables(a) => tables::run(a),
