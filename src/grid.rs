@@ -78,7 +78,8 @@ pub fn parse_phi_grid(what: &str, text: &str) -> Result<Vec<f64>> {
     // back is refused here.
     if let Some(v) = raw.iter().find(|v| v.abs() > 360.0) {
         return Err(Error::Invalid(format!(
-            "{what} '{text}': {v} is outside [-360, 360] deg"
+            "{what} '{text}': {} is outside [-360, 360] deg",
+            crate::error::Num(*v)
         )));
     }
     let mut out: Vec<f64> = raw.into_iter().map(wrap_deg).collect();
@@ -125,6 +126,24 @@ pub fn check_grid_size(theta_i: usize, theta_r: usize, phi: usize, channels: usi
         )));
     }
     Ok(())
+}
+
+/// A note when a grid of at least three values reaches out to pi/2, pi or 2 pi (to 0.01)
+/// and no further: the bounds of a grid written in radians (`-3.14:3.14:0.01`), which
+/// furfit would take as a few degrees. Grids are degrees; a real sweep that happens to
+/// end at 3.14 degrees gets a harmless note.
+pub fn radians_note(what: &str, values: &[f64]) -> Option<String> {
+    use std::f64::consts::{FRAC_PI_2, PI, TAU};
+    let largest = values.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let radian_bound = [FRAC_PI_2, PI, TAU]
+        .iter()
+        .any(|b| (largest - b).abs() <= 0.01);
+    (values.len() >= 3 && radian_bound).then(|| {
+        format!(
+            "note: {what} reaches only {} degrees, a bound of radians (pi/2, pi, 2 pi); grids are in degrees",
+            crate::error::Num(largest)
+        )
+    })
 }
 
 /// Wrap degrees to (-180, 180], as the profile loaders wrap a file's phi
@@ -178,6 +197,19 @@ mod tests {
     fn phi_grid_merges_the_same_direction() {
         let g = parse_phi_grid("x", "-180:180:90").unwrap();
         assert_eq!(g, vec![-90.0, 0.0, 90.0, 180.0]);
+    }
+
+    #[test]
+    fn radian_bounds_get_a_note() {
+        let g = parse_phi_grid("--phi", "-3.14:3.14:0.01").unwrap();
+        let n = radians_note("--phi", &g).expect("a note");
+        assert!(n.contains("--phi reaches only 3.14 degrees"), "{n}");
+        assert!(radians_note("--phi", &parse_grid("p", "0:6.28:0.02").unwrap()).is_some());
+        assert!(radians_note("--theta-r", &parse_grid("t", "-1.57,0,1.57").unwrap()).is_some());
+        // Degrees as a sweep has them, and a single value, get none.
+        assert!(radians_note("--phi", &parse_grid("p", "-180:180:2").unwrap()).is_none());
+        assert!(radians_note("--phi", &parse_grid("p", "0:3:1").unwrap()).is_none());
+        assert!(radians_note("--phi", &[std::f64::consts::PI]).is_none());
     }
 
     #[test]

@@ -289,7 +289,14 @@ pub fn parse_json(text: &str, path: &Path) -> Result<serde_json::Value> {
             line: e.line(),
             // serde_json counts columns from 1 but reports 0 at the start of a line.
             column: format!("column {}", e.column().max(1)),
-            msg: format!("invalid JSON: {e}"),
+            msg: if text.trim().is_empty() {
+                "empty file, expected a JSON object".into()
+            } else {
+                // serde_json ends its message with the place, which the error leads with.
+                let m = e.to_string();
+                let place = format!(" at line {} column {}", e.line(), e.column());
+                format!("invalid JSON: {}", m.strip_suffix(&place).unwrap_or(&m))
+            },
         })
 }
 
@@ -674,6 +681,22 @@ mod tests {
             real.join("new/../new2/f.json")
         );
         assert_eq!(resolve_path(&dir.path().join(".")), real);
+    }
+
+    /// JSON errors give the place once, up front, and call an empty file empty.
+    #[test]
+    fn json_errors_name_the_place_once() {
+        let p = Path::new("p.json");
+        let e = parse_json("", p).unwrap_err().to_string();
+        assert_eq!(e, "p.json:1: column 1: empty file, expected a JSON object");
+        let e = parse_json("{\"eta\": 1.5,\n \"kappa\": }", p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("p.json:2: column 11: invalid JSON: expected value"),
+            "{e}"
+        );
+        assert!(!e.contains("at line"), "{e}");
     }
 
     /// A byte-order mark (as Windows Notepad saves JSON) is not a syntax error.

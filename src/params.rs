@@ -489,6 +489,18 @@ impl FurParams {
     }
 }
 
+/// A note for the commands to print when `spec` names both a preset and an existing file:
+/// [`FurParams::load_json`] reads the file (what the user put there), which would
+/// otherwise pass for the preset unsaid.
+pub fn preset_shadow_note(spec: &str) -> Option<String> {
+    (FurParams::preset(spec).is_some() && Path::new(spec).exists()).then(|| {
+        format!(
+            "note: '{spec}' is read from the file of that name here, not the preset '{spec}' \
+             (move or rename the file to use the preset)"
+        )
+    })
+}
+
 /// One channel of a multi-channel fit file (its `channels` array, `fit::job`).
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitChannel {

@@ -390,7 +390,7 @@ pub fn synthesize(
     prof.set_meta("synthetic", "true");
     prof.set_meta("source", SOURCE);
     prof.set_meta("params", params.to_json_value().to_string());
-    prof.set_meta("exposure", format!("{exposure}"));
+    prof.set_meta("exposure", crate::error::Num(exposure).to_string());
     prof.set_meta("model", model_kind.name());
     prof.set_meta("lobes", lobe_names.join(","));
     if model_kind == ModelKind::Far {

@@ -714,3 +714,59 @@ fn interrupt_removes_the_temporary() {
     assert_eq!(temp(), None, "the temporary was left behind");
     assert!(!out.exists());
 }
+
+/// `--channel all` is the documented default, so it is accepted for a single set of
+/// parameters too (a preset), giving the same file as leaving it out.
+#[test]
+fn channel_all_of_a_single_set_is_the_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |extra: &[&str], out: &str| {
+        let mut c = tiny_synth();
+        c.args(extra).arg("--out").arg(dir.path().join(out));
+        c.output().unwrap()
+    };
+    let o = run(&["--channel", "all"], "all.csv");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(run(&[], "plain.csv").status.success());
+    let values = |f: &str| {
+        std::fs::read_to_string(dir.path().join(f))
+            .unwrap()
+            .lines()
+            .filter(|l| !l.starts_with('#'))
+            .map(String::from)
+            .collect::<Vec<_>>()
+    };
+    assert_eq!(values("all.csv"), values("plain.csv"));
+}
+
+/// A file named like a preset is read, and a note says so (it used to pass for the
+/// preset unsaid).
+#[test]
+fn a_file_named_like_a_preset_is_read_with_a_note() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut p = furfit::FurParams::preset("cat").unwrap().to_json_value();
+    p["sigma_c_a"] = serde_json::json!(0.9);
+    std::fs::write(dir.path().join("human"), p.to_string()).unwrap();
+    let o = furfit()
+        .current_dir(dir.path())
+        .args([
+            "synth",
+            "--params",
+            "human",
+            "--theta-i",
+            "0",
+            "--theta-r",
+            "0",
+        ])
+        .args(["--phi", "0", "--out", "h.csv"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("'human' is read from the file of that name here, not the preset"),
+        "{err}"
+    );
+    let text = std::fs::read_to_string(dir.path().join("h.csv")).unwrap();
+    assert!(text.contains("\"sigma_c_a\":0.9"), "{text}");
+}

@@ -131,6 +131,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     if let Some(init) = &a.init {
+        if let Some(n) = crate::params::preset_shadow_note(init) {
+            eprintln!("{n}");
+        }
         let (p, _) = FurParams::load(init)?;
         opts.init = Some(p.to_file_units());
     }

@@ -268,8 +268,27 @@ impl FarArgs {
 }
 
 /// `a` as one shell word: unchanged when it holds only characters no shell treats
-/// specially, else in single quotes (an embedded `'` as `'\''`).
+/// specially, else in single quotes (an embedded `'` as `'\''`), or where it holds a
+/// control character (a line break would end a file's `# command:` line) in bash's
+/// `$'...'` quoting with the character escaped.
 pub(crate) fn shell_quote(a: &str) -> String {
+    if a.chars().any(char::is_control) {
+        let mut out = String::from("$'");
+        for c in a.chars() {
+            match c {
+                '\\' => out.push_str("\\\\"),
+                '\'' => out.push_str("\\'"),
+                '\n' => out.push_str("\\n"),
+                '\r' => out.push_str("\\r"),
+                '\t' => out.push_str("\\t"),
+                // bash's \uHHHH (every control character is below U+00A0).
+                c if c.is_control() => out.push_str(&format!("\\u{:04x}", c as u32)),
+                c => out.push(c),
+            }
+        }
+        out.push('\'');
+        return out;
+    }
     if !a.is_empty()
         && a.chars()
             .all(|c| c.is_ascii_alphanumeric() || "-_./:,=+".contains(c))
@@ -302,6 +321,10 @@ mod quote_tests {
         assert_eq!(shell_quote("it's"), "'it'\\''s'");
         assert_eq!(shell_quote(""), "''");
         assert_eq!(shell_quote("a$b"), "'a$b'");
+        // A line break would split a file's `# command:` line: bash's $'...' form.
+        assert_eq!(shell_quote("x\ny.csv"), "$'x\\ny.csv'");
+        assert_eq!(shell_quote("it's\t\\"), "$'it\\'s\\t\\\\'");
+        assert_eq!(shell_quote("\u{7}"), "$'\\u0007'");
     }
 }
 

@@ -101,6 +101,9 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::io::check_out_file(p)?;
     }
     crate::io::check_replaceable(&paths, a.force)?;
+    if let Some(n) = crate::params::preset_shadow_note(&a.params) {
+        eprintln!("{n}");
+    }
     let (params, _) = FurParams::load(&a.params)?;
     // What each render's pool gets: --threads 0 is rayon's default, the global pool's size.
     let threads = match a.threads {

@@ -76,6 +76,9 @@ fn check_out(out: &Path, force: bool) -> anyhow::Result<()> {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     check_out(&a.out, a.force).context("--out")?;
+    if let Some(n) = crate::params::preset_shadow_note(&a.params) {
+        eprintln!("{n}");
+    }
     let (params, file_k, json) = FurParams::load_json(&a.params)?;
     let fitted = match &json {
         Some(v) => crate::params::fit_channels(v, &a.params)?,
@@ -96,7 +99,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .map(|c| (c.name.clone(), c.params, c.exposure))
                 .collect()
         }
-        None => vec![(String::new(), params, file_k)],
+        // `all` of a single set of parameters is that set.
+        None | Some("all") => vec![(String::new(), params, file_k)],
         Some(c) => {
             let f = crate::params::select_channel(&fitted, c, &a.params)?;
             vec![(f.name.clone(), f.params, f.exposure)]
@@ -111,6 +115,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let tr = parse_theta_grid("--theta-r", &a.theta_r)?;
     let phi = parse_phi_grid("--phi", &a.phi)?;
     check_grid_size(ti.len(), tr.len(), phi.len(), channels.len())?;
+    for (what, g) in [("--theta-i", &ti), ("--theta-r", &tr), ("--phi", &phi)] {
+        if let Some(n) = crate::grid::radians_note(what, g) {
+            eprintln!("{n}");
+        }
+    }
     for (what, g, lim) in [
         ("--theta-i", &ti, 90.0),
         ("--theta-r", &tr, 90.0),
