@@ -770,3 +770,32 @@ fn a_file_named_like_a_preset_is_read_with_a_note() {
     let text = std::fs::read_to_string(dir.path().join("h.csv")).unwrap();
     assert!(text.contains("\"sigma_c_a\":0.9"), "{text}");
 }
+
+/// An exposure that pushes only a deep tail (below 1e-12 of the peak) under the normal
+/// range writes the profile with a note; a grid used to be refused over such samples.
+#[test]
+fn synth_notes_an_exposure_that_underflows_only_a_deep_tail() {
+    let dir = tempfile::tempdir().unwrap();
+    let params = params_file(
+        dir.path(),
+        r#"{"eta":1.05,"kappa":0.999,"alpha":2,"beta_m":3,"beta_n":0.3,"sigma_c_a":30,"sigma_m_s":0.5,"sigma_m_a":20,"g":0.9,"l":5}"#,
+    );
+    let out = dir.path().join("t.csv");
+    // Values span ~0.65 down to ~6e-24 here: at 1e-287 the peak stays normal, the tail not.
+    let o = furfit()
+        .arg("synth")
+        .arg("--params")
+        .arg(&params)
+        .args(["--theta-i=-80,0", "--theta-r=-85:85:5", "--phi=-180:180:3"])
+        .args(["--exposure", "1e-287", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("value(s) below 1e-12 of their channel's peak fall below the normal"),
+        "{err}"
+    );
+    assert!(out.exists());
+}

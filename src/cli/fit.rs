@@ -366,7 +366,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             // As synth and render say it: a tau or g beyond the tables is evaluated at
             // their edge (a fit can reach it through --fix or the local solve).
-            for n in crate::model::FurModel::table_notes(&o.params) {
+            for n in crate::model::FurModel::model_notes(&o.params) {
                 outln!("  note: {n}");
             }
             for iv in &o.profile {

@@ -420,7 +420,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let command = super::command_line();
     let (mut sheet_about, mut sheet_params) = (Vec::new(), Vec::new());
     for ((name, p, colour, about), out) in jobs.iter().zip(&outs) {
-        for n in crate::model::FurModel::table_notes(p) {
+        for n in crate::model::FurModel::model_notes(p) {
             eprintln!("note: {name}: {n}");
         }
         // An explicit --tint wins; else a fit's own r, g, b absorption, else the default.

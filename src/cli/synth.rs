@@ -2,6 +2,7 @@
 
 use crate::grid::{check_grid_size, parse_phi_grid, parse_theta_grid};
 use crate::model::LobeSet;
+use crate::profile::Sample;
 use crate::synth::{self, ModelKind};
 use crate::FurParams;
 use anyhow::{bail, Context};
@@ -74,6 +75,10 @@ fn check_out(out: &Path, force: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Share of a channel's peak below which a value the exposure pushes under the normal
+/// f64 range is a deep tail: written (with a note), not refused ([`run`]).
+const UNDERFLOW_TAIL: f64 = 1e-12;
+
 pub fn run(a: Args) -> anyhow::Result<()> {
     check_out(&a.out, a.force).context("--out")?;
     if let Some(n) = crate::params::preset_shadow_note(&a.params) {
@@ -107,7 +112,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     };
     for (_, p, _) in &channels {
-        for n in crate::model::FurModel::table_notes(p) {
+        for n in crate::model::FurModel::model_notes(p) {
             eprintln!("note: {n}");
         }
     }
@@ -178,13 +183,35 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // value past the f64 range, to inf (which would not load back), or from the normal
     // range below it (a few bits at most). A value the model itself gives below the normal
     // range (a far tail under heavy absorption, 1e-310) is written as it is.
+    //
+    // An exposure that pushes values into that range costs them bits: refused where the
+    // value is at least [`UNDERFLOW_TAIL`] of its channel's peak (the data), noted and
+    // written for a deep tail (a whole grid refused over one grazing sample at 1e-300 of
+    // the peak was the black-box audit's finding).
     let exposure = |c: usize| a.exposure.unwrap_or(channels[c.min(channels.len() - 1)].2);
-    if let Some(s) = prof.samples.iter().find(|s| {
-        !s.value.is_finite()
-            || (s.value > 0.0
-                && s.value < f64::MIN_POSITIVE
-                && s.value / exposure(s.channel) >= f64::MIN_POSITIVE)
-    }) {
+    let mut peak = vec![0.0f64; prof.channels.len().max(1)];
+    for s in &prof.samples {
+        if let Some(p) = peak.get_mut(s.channel) {
+            *p = p.max(s.value);
+        }
+    }
+    let exposure_underflow = |s: &Sample| {
+        s.value > 0.0
+            && s.value < f64::MIN_POSITIVE
+            && s.value / exposure(s.channel) >= f64::MIN_POSITIVE
+    };
+    let in_tail =
+        |s: &Sample| s.value < UNDERFLOW_TAIL * peak.get(s.channel).copied().unwrap_or(0.0);
+    let tail_underflows = prof
+        .samples
+        .iter()
+        .filter(|s| exposure_underflow(s) && in_tail(s))
+        .count();
+    if let Some(s) = prof
+        .samples
+        .iter()
+        .find(|s| !s.value.is_finite() || (exposure_underflow(s) && !in_tail(s)))
+    {
         // NaN is no exposure's doing: the model failed there (the stability report
         // checks for this; say where, so it can be reported).
         if s.value.is_nan() {
@@ -213,6 +240,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             s.theta_r,
             s.phi,
             s.value
+        );
+    }
+    if tail_underflows > 0 {
+        eprintln!(
+            "note: at this exposure {tail_underflows} value(s) below {UNDERFLOW_TAIL:e} of their channel's peak fall below the normal f64 range ({:e}) and keep fewer significant bits",
+            f64::MIN_POSITIVE
         );
     }
     for (key, c) in &prof.metadata {

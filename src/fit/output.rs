@@ -170,7 +170,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "capped_slices": {"capped": out.capped_slices.0, "slices": out.capped_slices.1},
             // Where the result leaves the medulla tables' (tau, g) range: the scattered
             // lobes were evaluated with the shape at the nearest table edge there.
-            "table_notes": crate::model::FurModel::table_notes(&out.params),
+            "table_notes": crate::model::FurModel::model_notes(&out.params),
             "weighted": opts.weighted,
             "wall_time_s": out.wall_time_s,
             "model_time_s": out.model_time_s,

@@ -198,6 +198,13 @@ pub struct FurModel {
     medulla: Option<MedullaSlice>,
 }
 
+/// Smallest roughness `beta_m`, `beta_n` (radians) the model evaluates, 1e-7 rad
+/// (6e-6 deg, far below any goniometer's resolution): inside the hard bounds `(0, ...]`,
+/// widths down to 1e-160 deg made `x / beta` and `1 / beta^2` overflow into NaN
+/// (black-box audit, 2026-11-28). [`FurModel::with_tables`] floors them;
+/// [`FurModel::model_notes`] says so.
+pub const MIN_WIDTH: f64 = 1e-7;
+
 impl FurModel {
     /// Build the model with the shipped medulla tables. `params` must already be validated
     /// (see [`FurParams::validate`]).
@@ -212,20 +219,32 @@ impl FurModel {
         } else {
             None
         };
-        FurModel {
-            params: *params,
-            medulla,
-        }
+        let mut params = *params;
+        params.beta_m = params.beta_m.max(MIN_WIDTH);
+        params.beta_n = params.beta_n.max(MIN_WIDTH);
+        FurModel { params, medulla }
     }
 
-    /// Where these parameters leave the shipped medulla tables' `(tau, g)` range
-    /// ([`MedullaTables::domain_notes`]); empty when no scattered lobe exists.
-    pub fn table_notes(params: &FurParams) -> Vec<String> {
-        if scatters(params) {
+    /// Notes on how the model reads these parameters: where they leave the shipped medulla
+    /// tables' `(tau, g)` range ([`MedullaTables::domain_notes`]; none when no scattered
+    /// lobe exists), and a roughness below [`MIN_WIDTH`].
+    pub fn model_notes(params: &FurParams) -> Vec<String> {
+        let mut out = if scatters(params) {
             MedullaTables::builtin().domain_notes(params.sigma_m_s * params.kappa, params.g)
         } else {
             Vec::new()
+        };
+        for (name, v) in [("beta_m", params.beta_m), ("beta_n", params.beta_n)] {
+            if v < MIN_WIDTH {
+                out.push(format!(
+                    "{name} = {} deg is below {} deg: the model evaluates it at that width \
+                     (a narrower Gaussian is a spike no grid resolves, and its arithmetic overflows)",
+                    crate::error::Num(v.to_degrees()),
+                    crate::error::Num(MIN_WIDTH.to_degrees())
+                ));
+            }
         }
+        out
     }
 
     /// Do the scattered lobes exist for these parameters?

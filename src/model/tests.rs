@@ -177,3 +177,41 @@ fn no_nan_or_negative_at_hard_bounds() {
     }
     assert!(count > 5000);
 }
+
+/// Roughness far below any resolution, but inside the hard bounds `(0, ...]`: the model
+/// evaluates it at [`MIN_WIDTH`] (before, x / beta overflowed into NaN in the near field
+/// at beta_n 1e-160 deg and everywhere at beta_m 5e-324 deg), and says so.
+#[test]
+fn tiny_widths_are_floored_not_nan() {
+    let at = |bm: f64, bn: f64| {
+        let p = FurParams::from_file_units([1.55, 0.5, 0.0, bm, bn, 0.3, 3.0, 0.2, 0.5, 1.0])
+            .expect("inside the hard bounds");
+        let m = FurModel::new(&p);
+        (m.params, FurModel::model_notes(&p))
+    };
+    for (bm, bn) in [(5.0, 1e-160), (5e-324, 10.0), (1e-307, 1e-12)] {
+        let (eff, notes) = at(bm, bn);
+        assert!(
+            eff.beta_m >= MIN_WIDTH && eff.beta_n >= MIN_WIDTH,
+            "{eff:?}"
+        );
+        assert!(
+            !notes.is_empty() && notes.iter().all(|n| n.contains("below")),
+            "{notes:?}"
+        );
+        let m = FurModel::with_tables(&eff, crate::model::medulla::MedullaTables::builtin());
+        let az = m.azimuthal(0.0);
+        for h in [-0.9, 0.0, 0.3] {
+            for phi in [0.0, 1e-9, 1.0, 3.0] {
+                let v = az.near(h, phi, LobeSet::ALL);
+                assert!(v.0.iter().all(|x| x.is_finite() && *x >= 0.0), "{v:?}");
+            }
+        }
+        let far = az.far(0.5, LobeSet::ALL, &crate::model::far::FarOptions::default());
+        assert!(far.0.iter().all(|x| x.is_finite() && *x >= 0.0), "{far:?}");
+    }
+    // Ordinary widths are left alone and get no note.
+    let (eff, notes) = at(5.0, 10.0);
+    assert_eq!(eff.beta_n, 10f64.to_radians());
+    assert!(notes.iter().all(|n| !n.contains("below")), "{notes:?}");
+}
