@@ -132,6 +132,14 @@ const BISECT_PSI_PIECES: usize = 64;
 /// such a span `C^N` meets at most one kink, a 3e-5 part of a bin.
 const PSI_MIN_SPAN: f64 = 1e-6;
 
+/// An unscattered segment over which `Phi_p` moves at most this (radians) is never fitted
+/// in `Phi`: at `eta = 1 + 1e-15` TT's `Phi_1 = pi + 2 (gamma_t - gamma_i)` spans a few
+/// ulps, and the quadratic through three such points had infinite and NaN coefficients
+/// (TT came out NaN at `phi = pi`, its peak; black-box accuracy search, 2026-11-28). Such
+/// a segment is narrow for any width at or above [`crate::model::MIN_WIDTH`], so it goes
+/// to Gauss-Legendre in `u`.
+const PHI_MIN_SPAN: f64 = 1e-9;
+
 /// Values at one offset `u = asin h`, for all lobes at once.
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -910,7 +918,7 @@ impl<'a> FarSlice<'a> {
         let lo = ph.iter().cloned().fold(f64::INFINITY, f64::min);
         let hi = ph.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
         // Taped decisions ([`Decisions`]): the facts first, then the thresholds.
-        let monotone = rf.tape.fact(same_sign && hi > lo);
+        let monotone = rf.tape.fact(same_sign && hi - lo > PHI_MIN_SPAN);
         let narrow = rf.tape.choose_bool(hi - lo <= GL_SPAN_SIGMAS * beta);
         let phi_fit = monotone && rf.tape.choose_bool(dmin >= RATIO_MIN * dmax);
         let quarter = |s: &Self| {

@@ -867,3 +867,54 @@ fn reference_resolves_the_medulla_layer() {
         );
     }
 }
+
+#[test]
+fn eta_a_few_ulps_above_one_is_not_nan() {
+    // eta = 1 + 1e-15: TT's Phi spans a few ulps over a segment, and its quadratic fit in
+    // Phi had NaN coefficients; TT was NaN at phi = pi (its peak), in every mode, and in
+    // the multi-scale model (black-box accuracy search).
+    let p = params([
+        1.000000000000001,
+        0.0,
+        0.0,
+        10.0,
+        10.0,
+        0.0,
+        0.0,
+        0.0,
+        0.0,
+        1.0,
+    ]);
+    let m = FurModel::new(&p);
+    let az = m.azimuthal(0.0);
+    for opts in [FarOptions::default(), FarOptions::paper()] {
+        let fs = az.far_slice(LobeSet::ALL, &opts);
+        for phi in [PI, 2.5, 0.0] {
+            let f = fs.eval(phi);
+            let r = az.far_reference(phi, LobeSet::ALL);
+            assert!(f.0.iter().all(|v| v.is_finite()), "phi {phi}: {f:?}");
+            // TT holds all the light here (peak 1.62 at pi): 1e-4 of that peak.
+            let tt = Lobe::TT.index();
+            assert!(
+                (f.0[tt] - r.0[tt]).abs() <= 1e-4 * 1.62,
+                "phi {phi}: {f:?} vs {r:?}"
+            );
+        }
+    }
+    let p = params([
+        1.000000000000001,
+        0.98,
+        0.0,
+        10.0,
+        10.0,
+        0.0,
+        0.0,
+        0.0,
+        -0.4,
+        2.0,
+    ]);
+    let m = FurModel::new(&p);
+    let az = m.azimuthal(-60f64.to_radians());
+    let v = az.multiscale(PI, -0.05, 1e-4, LobeSet::ALL, &FarOptions::default());
+    assert!(v.0.iter().all(|x| x.is_finite()), "{v:?}");
+}
