@@ -6,30 +6,72 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-/// Temporaries being filled or awaiting their rename ([`write_temp`] to [`commit`]): what
-/// [`install_interrupt_cleanup`]'s handler removes.
+/// Temporaries (and a group write's backups) being filled or awaiting their rename
+/// ([`write_temp`] to [`commit`]): what [`install_interrupt_cleanup`]'s handler removes.
 static IN_FLIGHT: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
+/// Held by a group write ([`write_atomic_all`]) from its backups to its last rename or
+/// rollback, and by the interrupt handler before it cleans up: a signal then lets the
+/// group land whole (or roll back) instead of leaving some files new and some old.
+static COMMIT: Mutex<()> = Mutex::new(());
+
+fn lock<T>(m: &'static Mutex<T>) -> std::sync::MutexGuard<'static, T> {
+    // A panic while holding the lock leaves the data usable.
+    m.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 fn in_flight() -> std::sync::MutexGuard<'static, Vec<PathBuf>> {
-    // A panic while holding the lock leaves the list usable.
-    IN_FLIGHT.lock().unwrap_or_else(|e| e.into_inner())
+    lock(&IN_FLIGHT)
 }
 
 fn forget_temp(tmp: &Path) {
     in_flight().retain(|p| p != tmp);
 }
 
-/// On SIGINT, SIGTERM or SIGHUP, remove the temporaries of writes in flight and exit with
-/// status 130, instead of leaving a hidden, half-written `.<name>.tmp-<pid>` beside the
-/// target (the target itself is never touched before the rename). The binary calls this
-/// once at start; an error (a handler already set) is ignored, the default action stays.
+/// On SIGINT, SIGTERM or SIGHUP: let a group write in progress finish, remove the
+/// temporaries of writes in flight, then die of the signal as if there were no handler
+/// (so a shell loop around furfit still stops on Ctrl-C, and the exit status says which
+/// signal), instead of leaving a hidden, half-written `.<name>.tmp-<pid>` beside the
+/// target (the target itself is never touched before the rename). A signal the process
+/// was started ignoring (SIGHUP under `nohup`, SIGINT in a background job) stays
+/// ignored. The binary calls this once at start; if the handler cannot be set up the
+/// default actions stay (stale temporaries are still removed by the next write to the
+/// same path, see `remove_stale_siblings`).
+#[cfg(unix)]
 pub fn install_interrupt_cleanup() {
-    let _ = ctrlc::set_handler(|| {
-        for p in in_flight().drain(..) {
-            let _ = std::fs::remove_file(p);
+    use signal_hook::consts::{SIGHUP, SIGINT, SIGTERM};
+    let wanted: Vec<i32> = [SIGINT, SIGTERM, SIGHUP]
+        .into_iter()
+        .filter(|&s| !signal_ignored(s))
+        .collect();
+    let Ok(mut signals) = signal_hook::iterator::Signals::new(&wanted) else {
+        return;
+    };
+    std::thread::spawn(move || {
+        if let Some(sig) = signals.forever().next() {
+            let _group = lock(&COMMIT);
+            // Held until the process ends: no new temporary is created after the sweep.
+            let mut list = in_flight();
+            for p in list.drain(..) {
+                let _ = std::fs::remove_file(p);
+            }
+            let _ = signal_hook::low_level::emulate_default_handler(sig);
+            std::process::exit(128 + sig);
         }
-        std::process::exit(130);
     });
+}
+
+#[cfg(not(unix))]
+pub fn install_interrupt_cleanup() {}
+
+/// Was the process started with `sig` ignored (`SIG_IGN`)?
+#[cfg(unix)]
+fn signal_ignored(sig: i32) -> bool {
+    // SAFETY: sigaction with a null new action only reads the current one into `old`.
+    unsafe {
+        let mut old: libc::sigaction = std::mem::zeroed();
+        libc::sigaction(sig, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
+    }
 }
 
 /// Write `bytes` to `path` atomically: write a temporary file in the same directory, flush
@@ -90,6 +132,8 @@ fn write_all_with(
             }
         }
     }
+    // From here to the last rename or rollback, an interrupt waits (see COMMIT).
+    let _group = lock(&COMMIT);
     // Backups of the targets that exist (hard links: no copy of the bytes), to roll back.
     let mut backups: Vec<Option<PathBuf>> = Vec::with_capacity(files.len());
     for (path, _) in files {
@@ -206,9 +250,14 @@ where
         return Err(Error::file(path, "not a file path"));
     }
     let tmp = sibling(path, "tmp");
-    in_flight().push(tmp.clone());
     let result = (|| {
-        let mut f = std::fs::File::create(&tmp)?;
+        // Listed and created under the lock, so the interrupt handler's sweep cannot miss
+        // a temporary created while it runs.
+        let mut f = {
+            let mut list = in_flight();
+            list.push(tmp.clone());
+            std::fs::File::create(&tmp)?
+        };
         fill(&mut f)?;
         f.flush()?;
         f.sync_all()?;
@@ -505,7 +554,11 @@ pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
     let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
     let dir = parent_dir(path);
     if let Some(name) = &name {
-        update_ledger(&dir, vec![(name.clone(), entry)])?;
+        if let Err(e) = update_ledger(&dir, vec![(name.clone(), entry)]) {
+            let _ = std::fs::remove_file(&tmp);
+            forget_temp(&tmp);
+            return Err(e);
+        }
     }
     commit(&tmp, path)?;
     remove_stale_siblings(path);

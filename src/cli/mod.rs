@@ -281,8 +281,14 @@ pub(crate) fn shell_quote(a: &str) -> String {
                 '\n' => out.push_str("\\n"),
                 '\r' => out.push_str("\\r"),
                 '\t' => out.push_str("\\t"),
-                // bash's \uHHHH (every control character is below U+00A0).
-                c if c.is_control() => out.push_str(&format!("\\u{:04x}", c as u32)),
+                // Each UTF-8 byte as \xHH: bash's \uHHHH goes through the locale, and
+                // under LC_ALL=C a C1 control (U+0080..U+009F) came back as its escape.
+                c if c.is_control() => {
+                    let mut buf = [0u8; 4];
+                    for b in c.encode_utf8(&mut buf).bytes() {
+                        out.push_str(&format!("\\x{b:02x}"));
+                    }
+                }
                 c => out.push(c),
             }
         }
@@ -324,7 +330,8 @@ mod quote_tests {
         // A line break would split a file's `# command:` line: bash's $'...' form.
         assert_eq!(shell_quote("x\ny.csv"), "$'x\\ny.csv'");
         assert_eq!(shell_quote("it's\t\\"), "$'it\\'s\\t\\\\'");
-        assert_eq!(shell_quote("\u{7}"), "$'\\u0007'");
+        assert_eq!(shell_quote("\u{7}F"), "$'\\x07F'");
+        assert_eq!(shell_quote("\u{85}z"), "$'\\xc2\\x85z'");
     }
 }
 

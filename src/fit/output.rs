@@ -168,8 +168,10 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             // theta_d slices of the final evaluation whose refinement hit its limit (their
             // model values are not guaranteed to `tol`).
             "capped_slices": {"capped": out.capped_slices.0, "slices": out.capped_slices.1},
-            // Where the result leaves the medulla tables' (tau, g) range: the scattered
-            // lobes were evaluated with the shape at the nearest table edge there.
+            // How the model read the result (`FurModel::model_notes`; the key keeps its
+            // first name): where it leaves the medulla tables' (tau, g) range, so the
+            // scattered lobes were evaluated with the shape at the nearest table edge, and
+            // a roughness below the model's floor.
             "table_notes": crate::model::FurModel::model_notes(&out.params),
             "weighted": opts.weighted,
             "wall_time_s": out.wall_time_s,

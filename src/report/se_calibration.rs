@@ -495,8 +495,6 @@ mod tests {
         );
     }
 
-    /// The table says which replicates failed and prints no ratio over a zero spread
-    /// (all estimates equal), instead of inf or NaN.
     #[test]
     fn noise_residuals_are_the_residuals_at_the_truth() {
         // Residuals at the true parameters of a noisy profile are its noise alone, so the
@@ -552,6 +550,8 @@ mod tests {
         assert!(noise_residuals(&data, &short).is_none());
     }
 
+    /// The table says which replicates failed and prints no ratio over a zero spread
+    /// (all estimates equal), instead of inf or NaN.
     #[test]
     fn markdown_counts_failures_and_survives_a_zero_spread() {
         let row = Row {

@@ -1,7 +1,15 @@
 //! Reference integrator of the far field / multi-scale integral (tests and reports only):
 //! adaptive Gauss-Kronrod of the near field `A_p(h) D_p(h, phi)` over `h`, about 1e-10
 //! relative. It shares nothing with the piecewise-analytic evaluator except the near-field
-//! model itself ([`AzimuthalSlice::near`]), so it is an independent check of the closed forms.
+//! model itself ([`AzimuthalSlice::near`]) and, where the medulla's extinction is steep,
+//! the evaluator's mesh toward the medulla edge (`engine::medulla_layer_h`: breakpoints
+//! only, which place the quadrature but not its values; a test checks the reference there
+//! against an integral in another variable), so it is an independent check of the closed
+//! forms.
+//!
+//! Known blind spots (a black-box accuracy search, 2026-11-28, against a denser reference):
+//! spikes within ~1e-9 of `h = +-1` (tiny `l` with tiny `beta_n`; at `eta' -> 1` it counts
+//! one of TT's two grazing spikes); the far field was right in the cases seen.
 //!
 //! It integrates in `u = asin h` (`dh = cos u du`), which removes the square-root endpoint
 //! behaviour at `h -> ±1`, and starts from breakpoints at every place the integrand is not
