@@ -430,14 +430,10 @@ pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::pa
     std::fs::create_dir_all(out).map_err(|e| Error::io(out, e))?;
     let name = fit.label();
     let [png, svg] = outputs(fit, out);
-    // Render to temporaries, then move into place atomically.
-    let tmp_png = out.join(format!(".fig11_{name}.tmp.png"));
-    {
-        let root = BitMapBackend::new(&tmp_png, size).into_drawing_area();
-        draw(root, &name, &sls, fit.nrmse, fit.synthetic).map_err(plot_err(&png))?;
-    }
-    let bytes = std::fs::read(&tmp_png).map_err(|e| Error::io(&tmp_png, e))?;
-    let _ = std::fs::remove_file(&tmp_png);
+    // Rendered in memory, then written atomically.
+    let bytes = super::plot::png_bytes(size, &png, |root| {
+        draw(root, &name, &sls, fit.nrmse, fit.synthetic).map_err(plot_err(&png))
+    })?;
     crate::io::write_output(&png, &bytes)?;
     let mut svg_text = String::new();
     {

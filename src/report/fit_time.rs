@@ -251,13 +251,9 @@ pub fn write(fits: &[FitFile], out: &Path) -> Result<()> {
     crate::io::write_output(&out.join("fit_error_vs_time.csv"), csv(fits).as_bytes())?;
     let size = size(fits);
     let png = out.join("fit_error_vs_time.png");
-    let tmp = out.join(".fit_error_vs_time.tmp.png");
-    {
-        let root = BitMapBackend::new(&tmp, size).into_drawing_area();
-        draw(root, fits).map_err(|e| Error::file(&png, format!("plotting failed: {e:?}")))?;
-    }
-    let bytes = std::fs::read(&tmp).map_err(|e| Error::io(&tmp, e))?;
-    let _ = std::fs::remove_file(&tmp);
+    let bytes = super::plot::png_bytes(size, &png, |root| {
+        draw(root, fits).map_err(|e| Error::file(&png, format!("plotting failed: {e:?}")))
+    })?;
     crate::io::write_output(&png, &bytes)?;
     let mut svg = String::new();
     {

@@ -158,23 +158,33 @@ pub fn loglog_chart(
         crate::io::write_atomic(path, text.as_bytes())?;
     }
     if let Some(path) = png {
-        let (w, h) = (spec.width, spec.height);
-        let mut buf = vec![0u8; (w * h * 3) as usize];
-        {
-            let root = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
-            draw(root, spec, series).map_err(|e| Error::file(path, format!("plot: {e}")))?;
-        }
-        let img = image::RgbImage::from_raw(w, h, buf)
-            .ok_or_else(|| Error::file(path, "plot buffer has the wrong size"))?;
-        let mut bytes = Vec::new();
-        img.write_to(
-            &mut std::io::Cursor::new(&mut bytes),
-            image::ImageFormat::Png,
-        )
-        .map_err(|e| Error::file(path, format!("PNG encoding: {e}")))?;
+        let bytes = png_bytes((spec.width, spec.height), path, |root| {
+            draw(root, spec, series).map_err(|e| Error::file(path, format!("plot: {e}")))
+        })?;
         crate::io::write_atomic(path, &bytes)?;
     }
     Ok(())
+}
+
+/// The PNG bytes of a plot of `size` drawn by `draw` into memory (no temporary file to
+/// leave behind if the run is stopped); `path` names the plot in errors.
+pub fn png_bytes(
+    size: (u32, u32),
+    path: &Path,
+    draw: impl FnOnce(DrawingArea<BitMapBackend<'_>, plotters::coord::Shift>) -> Result<()>,
+) -> Result<Vec<u8>> {
+    let (w, h) = size;
+    let mut buf = vec![0u8; (w as usize) * (h as usize) * 3];
+    draw(BitMapBackend::with_buffer(&mut buf, size).into_drawing_area())?;
+    let img = image::RgbImage::from_raw(w, h, buf)
+        .ok_or_else(|| Error::file(path, "plot buffer has the wrong size"))?;
+    let mut bytes = Vec::new();
+    img.write_to(
+        &mut std::io::Cursor::new(&mut bytes),
+        image::ImageFormat::Png,
+    )
+    .map_err(|e| Error::file(path, format!("PNG encoding: {e}")))?;
+    Ok(bytes)
 }
 
 #[cfg(test)]
