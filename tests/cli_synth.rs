@@ -575,16 +575,22 @@ fn params_file(dir: &std::path::Path, json: &str) -> std::path::PathBuf {
     p
 }
 
+/// A parameter file of heavy absorption and a near-index-matched fiber, whose far tails
+/// fall below the normal f64 range.
+fn heavy_absorption(dir: &std::path::Path) -> std::path::PathBuf {
+    params_file(
+        dir,
+        r#"{"eta":1.05,"kappa":0.999,"alpha":2,"beta_m":3,"beta_n":0.3,"sigma_c_a":30,"sigma_m_s":0.5,"sigma_m_a":20,"g":0.9,"l":5}"#,
+    )
+}
+
 /// A value the model itself gives below the normal range (TRT's far tail under heavy
 /// absorption: ~4e-320 at theta_i -80, theta_r -85) is written as it is at exposure 1; it
 /// was refused as an exposure underflow. It loads back as a valid sample.
 #[test]
 fn synth_writes_the_models_own_subnormal_values() {
     let dir = tempfile::tempdir().unwrap();
-    let params = params_file(
-        dir.path(),
-        r#"{"eta":1.05,"kappa":0.999,"alpha":2,"beta_m":3,"beta_n":0.3,"sigma_c_a":30,"sigma_m_s":0.5,"sigma_m_a":20,"g":0.9,"l":5}"#,
-    );
+    let params = heavy_absorption(dir.path());
     let out = dir.path().join("t.csv");
     let o = Command::new(env!("CARGO_BIN_EXE_furfit"))
         .arg("synth")
@@ -778,10 +784,7 @@ fn a_file_named_like_a_preset_is_read_with_a_note() {
 #[test]
 fn synth_notes_an_exposure_that_underflows_only_a_deep_tail() {
     let dir = tempfile::tempdir().unwrap();
-    let params = params_file(
-        dir.path(),
-        r#"{"eta":1.05,"kappa":0.999,"alpha":2,"beta_m":3,"beta_n":0.3,"sigma_c_a":30,"sigma_m_s":0.5,"sigma_m_a":20,"g":0.9,"l":5}"#,
-    );
+    let params = heavy_absorption(dir.path());
     let out = dir.path().join("t.csv");
     // Values span ~0.65 down to ~6e-24 here: at 1e-287 the peak stays normal, the tail not.
     let o = furfit()

@@ -130,6 +130,19 @@ fn angle_key(&(a, b, c): &(f64, f64, f64)) -> [u64; 3] {
     [a.to_bits(), b.to_bits(), c.to_bits()]
 }
 
+/// Multiply each sample of `prof` by `exp(e)` (log-space noise, one per sample) and return
+/// the noise keyed by the samples' angles ([`angle_key`]).
+fn apply_noise(prof: &mut crate::profile::Profile, e: &[f64]) -> HashMap<[u64; 3], f64> {
+    prof.samples
+        .iter_mut()
+        .zip(e)
+        .map(|(s, &e)| {
+            s.value *= e.exp();
+            (angle_key(&s.angles_rad()), e)
+        })
+        .collect()
+}
+
 /// The residuals `data` would have at the true parameters given its log-space noise
 /// (keyed by [`angle_key`]): `-sqrt(w) (e - mean_w e) / range`, the exposure taking the
 /// weighted mean. `None` if a sample has no noise value.
@@ -226,16 +239,8 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
             let mut rng = Xoshiro256PlusPlus::seed_from_u64(((c as u64) << 32) | rep as u64);
             let e = noise_for(&angles, nz, &mut rng);
             let mut prof = base.clone();
-            for (s, e) in prof.samples.iter_mut().zip(&e) {
-                s.value *= e.exp();
-            }
+            let noise = apply_noise(&mut prof, &e);
             let data = channel_data(&prof, 0, false, crate::fit::DEFAULT_FLOOR)?;
-            let noise: HashMap<[u64; 3], f64> = prof
-                .samples
-                .iter()
-                .zip(&e)
-                .map(|(s, &e)| (angle_key(&s.angles_rad()), e))
-                .collect();
             // A failed replicate is counted, not fatal: minutes of others stay.
             let fit = match fit_data(&data, &FitOptions::default(), None) {
                 Ok(f) => f,
@@ -520,15 +525,7 @@ mod tests {
             .iter()
             .map(|_| 0.1 * normal(&mut rng))
             .collect();
-        for (s, e) in prof.samples.iter_mut().zip(&e) {
-            s.value *= e.exp();
-        }
-        let noise: HashMap<[u64; 3], f64> = prof
-            .samples
-            .iter()
-            .zip(&e)
-            .map(|(s, &e)| (angle_key(&s.angles_rad()), e))
-            .collect();
+        let noise = apply_noise(&mut prof, &e);
         let data = channel_data(&prof, 0, false, crate::fit::DEFAULT_FLOOR).expect("data");
         let fed = noise_residuals(&data, &noise).expect("every sample has noise");
         let opts = FitOptions::default();
