@@ -6,8 +6,9 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 
-/// Temporaries (and a group write's backups) being filled or awaiting their rename
-/// ([`write_temp`] to [`commit`]): what [`install_interrupt_cleanup`]'s handler removes.
+/// Temporaries being filled or awaiting their rename ([`write_temp`] to [`commit`]): what
+/// [`install_interrupt_cleanup`]'s handler removes. A group write's backups are not
+/// listed: the handler waits for the group ([`COMMIT`]), which removes them itself.
 static IN_FLIGHT: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
 /// Held by a group write ([`write_atomic_all`]) from its backups to its last rename or

@@ -2,7 +2,6 @@
 
 use crate::fit::job::{fit_loaded, jobs_for_all, load_inputs_full, species_name, Job};
 use crate::fit::FitOptions;
-use crate::FurParams;
 use anyhow::Context;
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -131,10 +130,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     if let Some(init) = &a.init {
-        if let Some(n) = crate::params::preset_shadow_note(init) {
-            eprintln!("{n}");
-        }
-        let (p, _) = FurParams::load(init)?;
+        let (p, _, _) = super::load_params(init)?;
         opts.init = Some(p.to_file_units());
     }
     for f in &a.fix {

@@ -2,6 +2,7 @@
 //! arguments, calls the library and prints. Errors go to stderr with a non-zero exit.
 
 use crate::model::far::{FarOptions, SCATTERED_STEP_STRICT};
+use crate::FurParams;
 use clap::{Parser, Subcommand};
 use std::io::Write;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -302,6 +303,27 @@ pub(crate) fn shell_quote(a: &str) -> String {
         a.to_string()
     } else {
         format!("'{}'", a.replace('\'', "'\\''"))
+    }
+}
+
+/// [`FurParams::load_json`] for a command's `--params` (or `--init`), saying first when a
+/// file of that name is read in place of the preset of that name
+/// ([`crate::params::preset_shadow_note`]).
+pub(crate) fn load_params(
+    spec: &str,
+) -> crate::Result<(FurParams, f64, Option<serde_json::Value>)> {
+    if let Some(n) = crate::params::preset_shadow_note(spec) {
+        eprintln!("{n}");
+    }
+    FurParams::load_json(spec)
+}
+
+/// Print [`crate::grid::radians_note`] for each of a command's angle grids.
+pub(crate) fn note_radian_grids(grids: &[(&str, &[f64])]) {
+    for (what, g) in grids {
+        if let Some(n) = crate::grid::radians_note(what, g) {
+            eprintln!("{n}");
+        }
     }
 }
 

@@ -593,10 +593,7 @@ fn stale_aov_notes(out: &Path, written: &[PathBuf]) -> Vec<String> {
 /// whether its data were synthetic), from one read of the file. The fit's exposure k is a
 /// measurement scale, not a light level: not used here.
 fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, String)> {
-    if let Some(n) = crate::params::preset_shadow_note(spec) {
-        eprintln!("{n}");
-    }
-    let (p, _, json) = FurParams::load_json(spec)?;
+    let (p, _, json) = super::load_params(spec)?;
     let Some(v) = json else {
         return Ok((p, None, format!("preset {spec} (seed Table 4)")));
     };

@@ -2,7 +2,6 @@
 //! lock, the equal-quality speedup of multi-scale over near field, and (with
 //! `--culling-study`) the time saved by far-field culling with its image difference.
 
-use crate::params::FurParams;
 use crate::render::bsdf::Mode;
 use crate::render::study::{convergence, culling_study, plot_convergence_bytes};
 use crate::render::{RenderSettings, Scene, MAX_PIXELS, MAX_SIDE, MAX_SPP};
@@ -101,10 +100,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::io::check_out_file(p)?;
     }
     crate::io::check_replaceable(&paths, a.force)?;
-    if let Some(n) = crate::params::preset_shadow_note(&a.params) {
-        eprintln!("{n}");
-    }
-    let (params, _) = FurParams::load(&a.params)?;
+    let (params, _, _) = super::load_params(&a.params)?;
     // What each render's pool gets: --threads 0 is rayon's default, the global pool's size.
     let threads = match a.threads {
         0 => rayon::current_num_threads(),

@@ -119,10 +119,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     // Before the simulation: a bad name should not cost a run.
     output::check_file_name(&a.file)?;
     output::check_replace(&out, &a.file, a.force)?;
-    if let Some(n) = crate::params::preset_shadow_note(&spec) {
-        eprintln!("{n}");
-    }
-    let (params, _exposure, json) = FurParams::load_json(&spec)?;
+    let (params, _exposure, json) = super::load_params(&spec)?;
     let fitted = match &json {
         Some(v) => crate::params::fit_channels(v, &spec)?,
         None => Vec::new(),
@@ -185,15 +182,11 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         smooth: false,
     };
     s.validate()?;
-    for (what, g) in [
+    super::note_radian_grids(&[
         ("--theta-i", &s.theta_i),
         ("--theta-r", &s.theta_r),
         ("--phi", &s.phi),
-    ] {
-        if let Some(n) = crate::grid::radians_note(what, g) {
-            eprintln!("{n}");
-        }
-    }
+    ]);
     if a.max_paths.is_some() && a.rel_noise.is_none() {
         eprintln!("warning: --max-paths only bounds --rel-noise: ignored (--paths sets the count)");
     }

@@ -81,10 +81,7 @@ const UNDERFLOW_TAIL: f64 = 1e-12;
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     check_out(&a.out, a.force).context("--out")?;
-    if let Some(n) = crate::params::preset_shadow_note(&a.params) {
-        eprintln!("{n}");
-    }
-    let (params, file_k, json) = FurParams::load_json(&a.params)?;
+    let (params, file_k, json) = super::load_params(&a.params)?;
     let fitted = match &json {
         Some(v) => crate::params::fit_channels(v, &a.params)?,
         None => Vec::new(),
@@ -120,11 +117,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let tr = parse_theta_grid("--theta-r", &a.theta_r)?;
     let phi = parse_phi_grid("--phi", &a.phi)?;
     check_grid_size(ti.len(), tr.len(), phi.len(), channels.len())?;
-    for (what, g) in [("--theta-i", &ti), ("--theta-r", &tr), ("--phi", &phi)] {
-        if let Some(n) = crate::grid::radians_note(what, g) {
-            eprintln!("{n}");
-        }
-    }
+    super::note_radian_grids(&[("--theta-i", &ti), ("--theta-r", &tr), ("--phi", &phi)]);
     for (what, g, lim) in [
         ("--theta-i", &ti, 90.0),
         ("--theta-r", &tr, 90.0),

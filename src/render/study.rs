@@ -412,19 +412,9 @@ pub fn plot_convergence_bytes(
         .map_err(err)?;
         Ok(s.into_bytes())
     } else {
-        let mut buf = vec![0u8; 720 * 480 * 3];
-        draw_chart(
-            BitMapBackend::with_buffer(&mut buf, (720, 480)).into_drawing_area(),
-            &curves,
-            bounds,
-        )
-        .map_err(err)?;
-        let img = image::RgbImage::from_raw(720, 480, buf)
-            .ok_or_else(|| crate::Error::file(path, "bad plot buffer"))?;
-        let mut out = std::io::Cursor::new(Vec::new());
-        img.write_to(&mut out, image::ImageFormat::Png)
-            .map_err(|e| crate::Error::file(path, format!("PNG encoding failed: {e}")))?;
-        Ok(out.into_inner())
+        crate::report::plot::png_bytes((720, 480), path, |root| {
+            draw_chart(root, &curves, bounds).map_err(err)
+        })
     }
 }
 

@@ -79,7 +79,7 @@ pub fn diverging(t: f64) -> RGBColor {
     }
 }
 
-fn plot_err<E: std::fmt::Debug>(path: &Path) -> impl Fn(E) -> Error + '_ {
+pub(super) fn plot_err<E: std::fmt::Debug>(path: &Path) -> impl Fn(E) -> Error + '_ {
     move |e| Error::file(path, format!("plotting failed: {e:?}"))
 }
 

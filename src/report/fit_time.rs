@@ -10,9 +10,9 @@
 //! NRMSE (often several times smaller): those fits get the metric `weighted_rms` in the
 //! CSV and their own row of panels in the figure, never an NRMSE axis.
 
-use super::fig11::{ensure_font, FONT};
+use super::fig11::{ensure_font, plot_err, FONT};
 use super::nrmse::FitFile;
-use crate::error::{Error, Result};
+use crate::error::Result;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::fmt::Write as _;
@@ -251,14 +251,13 @@ pub fn write(fits: &[FitFile], out: &Path) -> Result<()> {
     crate::io::write_output(&out.join("fit_error_vs_time.csv"), csv(fits).as_bytes())?;
     let size = size(fits);
     let png = out.join("fit_error_vs_time.png");
-    let bytes = super::plot::png_bytes(size, &png, |root| {
-        draw(root, fits).map_err(|e| Error::file(&png, format!("plotting failed: {e:?}")))
-    })?;
+    let bytes =
+        super::plot::png_bytes(size, &png, |root| draw(root, fits).map_err(plot_err(&png)))?;
     crate::io::write_output(&png, &bytes)?;
     let mut svg = String::new();
     {
         let root = SVGBackend::with_string(&mut svg, size).into_drawing_area();
-        draw(root, fits).map_err(|e| Error::file(out, format!("plotting failed: {e:?}")))?;
+        draw(root, fits).map_err(plot_err(out))?;
     }
     crate::io::write_output(&out.join("fit_error_vs_time.svg"), svg.as_bytes())
 }

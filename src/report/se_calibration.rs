@@ -292,31 +292,27 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
             let med = median(&mut est);
             let mut dev: Vec<f64> = est.iter().map(|v| (v - med).abs()).collect();
             let sd_mad = 1.4826 * median(&mut dev);
-            let covers = |se: f64, v: f64| f64::from(u8::from((v - t[k]).abs() <= 1.96 * se));
+            // Per kind of SE (read from a replicate by `se`): its mean, and the share of
+            // replicates whose +-1.96 SE covers the truth.
+            let mean = |se: fn(&Estimate) -> Option<f64>| {
+                used.iter().map(|u| se(u).unwrap_or(0.0)).sum::<f64>() / nf
+            };
+            let cover = |se: fn(&Estimate) -> Option<f64>| {
+                let hit = |u: &Estimate| (u.0 - t[k]).abs() <= 1.96 * se(u).unwrap_or(0.0);
+                used.iter().filter(|u| hit(u)).count() as f64 / nf
+            };
             rows.push(Row {
                 noise: nz.name,
                 param: id,
                 n,
                 sd,
                 sd_mad,
-                mean_se: used.iter().map(|u| u.1.unwrap_or(0.0)).sum::<f64>() / nf,
-                mean_se_robust: used.iter().map(|u| u.2.unwrap_or(0.0)).sum::<f64>() / nf,
-                mean_se_noise_fed: used.iter().map(|u| u.3.unwrap_or(0.0)).sum::<f64>() / nf,
-                cover: used
-                    .iter()
-                    .map(|u| covers(u.1.unwrap_or(0.0), u.0))
-                    .sum::<f64>()
-                    / nf,
-                cover_robust: used
-                    .iter()
-                    .map(|u| covers(u.2.unwrap_or(0.0), u.0))
-                    .sum::<f64>()
-                    / nf,
-                cover_noise_fed: used
-                    .iter()
-                    .map(|u| covers(u.3.unwrap_or(0.0), u.0))
-                    .sum::<f64>()
-                    / nf,
+                mean_se: mean(|u| u.1),
+                mean_se_robust: mean(|u| u.2),
+                mean_se_noise_fed: mean(|u| u.3),
+                cover: cover(|u| u.1),
+                cover_robust: cover(|u| u.2),
+                cover_noise_fed: cover(|u| u.3),
             });
         }
     }
