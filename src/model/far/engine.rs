@@ -81,6 +81,10 @@ const MAX_DEPTH: u32 = 30;
 /// runaway (a fit error at the rounding floor of its inputs), and a slice that hit it
 /// says so in [`SliceStats::capped`].
 const MAX_SPLITS: usize = 4096;
+/// Cuticle layers `l` below which [`fresnel_layer_u`] also resolves the grazing layer of
+/// the pile-of-plates reflectance: the layer is then under `1e-3` rad wide in `u`, finer
+/// than the initial segments' nodes sample (every preset and shipped fit has `l > 0.2`).
+const L_LAYER_MAX: f64 = 4e-3;
 /// Least extinction across the medulla radius, `c kappa` in [`medulla_layer_h`], that
 /// grades the initial segments toward the medulla edge.
 const MEDULLA_LAYER_MIN: f64 = 16.0;
@@ -573,7 +577,7 @@ impl<'a> FarSlice<'a> {
             hs.extend(&layer);
             let mut us = to_u(&hs, ha, hb);
             if opts.tol.is_some() {
-                us.extend(fresnel_layer_u(az.eta_prime));
+                us.extend(fresnel_layer_u(az.eta_prime, az.model.params.l));
             }
             sort_dedup(&mut us, ha.asin(), hb.asin());
             let mut us_trt = us.clone();
@@ -2169,10 +2173,18 @@ impl Piece {
 /// initial segments' nodes (and so the mass estimate and the fit checks) never see it.
 /// A geometric mesh `u = pi/2 - w 2^k / 4` up to `pi/2 - 0.05` resolves it; for ordinary
 /// `eta'` (`w > 0.2`) it adds nothing.
-fn fresnel_layer_u(eta_prime: f64) -> Vec<f64> {
+///
+/// Few cuticle layers make a second such layer: the pile-of-plates `F = l f / (1 + (l -
+/// 1) f)` passes 1/2 where `1 - f ~ l`, i.e. within about `l w` of grazing in `u`, and
+/// below that `F ~ l f / (1 - f)` is small, so at `l = 5e-6` most of R sits in a layer
+/// 1e-6 wide (R was 1.4e-4 of its peak off at `phi = pi`; accuracy search, 2026-11-28).
+/// Below [`L_LAYER_MAX`] the mesh starts at `l w / 4` instead.
+fn fresnel_layer_u(eta_prime: f64, l: f64) -> Vec<f64> {
     let w = (1.0 - 1.0 / (eta_prime * eta_prime)).max(0.0).sqrt();
     let mut out = Vec::new();
-    let mut d = (0.25 * w).max(1e-9);
+    // Few cuticle layers narrow the layer in proportion (see the doc above).
+    let narrow = if l < L_LAYER_MAX { l } else { 1.0 };
+    let mut d = (0.25 * w * narrow).max(1e-9);
     while d < 0.05 {
         out.push(FRAC_PI_2 - d);
         d *= 2.0;

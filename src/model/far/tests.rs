@@ -918,3 +918,25 @@ fn eta_a_few_ulps_above_one_is_not_nan() {
     let v = az.multiscale(PI, -0.05, 1e-4, LobeSet::ALL, &FarOptions::default());
     assert!(v.0.iter().all(|x| x.is_finite()), "{v:?}");
 }
+
+#[test]
+fn few_cuticle_layers_resolve_the_grazing_layer() {
+    // l = 5e-6: the pile-of-plates F climbs from ~l f / (1 - f) to 1 within ~1e-6 rad of
+    // grazing, where R's peak at phi = pi comes from. The initial nodes missed that layer
+    // and R was 1.4e-4 of its peak off there (accuracy search); the layer mesh brings it
+    // to ~2e-7. 1e-4 of the peak is the tolerance mode's claim.
+    let p = params([1.7, 0.0, 0.0, 10.0, 2.0, 0.0, 0.0, 0.0, -0.1, 5e-6]);
+    let m = FurModel::new(&p);
+    let az = m.azimuthal((-40.0f64).to_radians());
+    let fs = az.far_slice(LobeSet::ALL, &FarOptions::default());
+    let r = Lobe::R.index();
+    let peak = az.far_reference(PI, LobeSet::ALL).0[r];
+    for phi in [PI, PI - 0.01, PI - 0.05, 2.0, 0.0] {
+        let f = fs.eval(phi).0[r];
+        let want = az.far_reference(phi, LobeSet::ALL).0[r];
+        assert!(
+            (f - want).abs() <= 1e-4 * peak,
+            "phi {phi}: {f} vs {want} (peak {peak})"
+        );
+    }
+}
