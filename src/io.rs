@@ -222,6 +222,46 @@ pub fn check_out_file(path: &Path) -> Result<()> {
     check_out_dir(&parent_dir(path))
 }
 
+/// Whether the file `path` can be written, before a long job computes it: a probe file in
+/// its directory, or (when that does not exist yet, as `fits/` on a first fit) in the
+/// nearest existing ancestor, where the directory would be created. Creates nothing that
+/// stays. [`check_out_file`] first.
+pub fn probe_file_writable(path: &Path) -> Result<()> {
+    check_out_file(path)?;
+    let dir = parent_dir(path);
+    let Some(existing) = dir
+        .ancestors()
+        .find(|a| a.as_os_str().is_empty() || a.is_dir())
+    else {
+        return Ok(());
+    };
+    let existing = if existing.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        existing
+    };
+    let probe = existing.join(format!(".furfit-probe-{}", std::process::id()));
+    match std::fs::OpenOptions::new()
+        .write(true)
+        .create_new(true)
+        .open(&probe)
+    {
+        Ok(_) => {
+            let _ = std::fs::remove_file(&probe);
+            Ok(())
+        }
+        // Another probe of this pid's name (a killed run's): the folder took a file once.
+        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+        Err(e) => Err(Error::file(
+            path,
+            format!(
+                "cannot be written: no file can be created in {} ({e}); nothing was run",
+                existing.display()
+            ),
+        )),
+    }
+}
+
 /// The directory `path` is in (`.` for a bare file name).
 pub(crate) fn parent_dir(path: &Path) -> PathBuf {
     match path.parent() {

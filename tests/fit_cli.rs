@@ -1560,3 +1560,129 @@ fn report_removes_a_stale_figure_and_makes_no_folder_for_refused_inputs() {
     assert!(!o.status.success());
     assert!(!root.join("fresh").exists());
 }
+
+/// An output folder no file can be created in fails before the fit, not after it
+/// (`/proc` refuses new files even to root, who ignores permission bits).
+#[cfg(target_os = "linux")]
+#[test]
+fn fit_refuses_an_unwritable_out_before_fitting() {
+    let tmp = tempfile::tempdir().unwrap();
+    make_species(tmp.path(), "mouse");
+    let o = fit_cmd(tmp.path())
+        .args(["measurements/mouse", "--out", "/proc/furfit-no/x.json"])
+        .output()
+        .unwrap();
+    assert!(
+        o.stdout.is_empty(),
+        "{}",
+        String::from_utf8_lossy(&o.stdout)
+    );
+    fails_with(
+        o,
+        &[
+            "/proc/furfit-no/x.json",
+            "cannot be written",
+            "nothing was run",
+        ],
+    );
+}
+
+/// The fits folder as users keep it (audit, 2026-11-28): a damaged fit file is skipped
+/// and listed while the others are reported; a fit file named for another species gets a
+/// note; a figure of a fit no longer there is removed; the data is found through the
+/// path recorded relative to the fit file when the report runs elsewhere; two fits that
+/// would write one figure are refused, naming both.
+#[test]
+fn report_copes_with_the_fits_folder_as_users_keep_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    fit(root, "mouse", "fits/mouse.json", "1");
+    std::fs::copy(root.join("fits/mouse.json"), root.join("fits/vole.json")).unwrap();
+    std::fs::write(root.join("fits/broken.json"), "{\"nrmse\":").unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success(), "{err}");
+    assert!(
+        err.contains("skipped broken.json: not read: fits/broken.json:1"),
+        "{err}"
+    );
+    assert!(
+        err.contains("fits/vole.json records species 'mouse'"),
+        "{err}"
+    );
+    let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
+    assert!(
+        md.contains("## Fit files not read") && md.contains("- broken.json"),
+        "{md}"
+    );
+    assert!(md.contains("| parameter | unit | mouse | vole |"), "{md}");
+    assert!(root.join("reports/fig11_vole.png").is_file());
+
+    std::fs::remove_file(root.join("fits/broken.json")).unwrap();
+    std::fs::remove_file(root.join("fits/vole.json")).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains(
+            "removed reports/fig11_vole.png (a figure of a fit no longer in the fits folder)"
+        ),
+        "{err}"
+    );
+    assert!(!root.join("reports/fig11_vole.png").exists());
+    assert!(root.join("reports/fig11_mouse.png").is_file());
+
+    // A fit written into a project of its own (deep/fits/) from the root: a report run in
+    // deep/ finds the data only through the path recorded relative to the fit file.
+    fit(root, "mouse", "deep/fits/mouse.json", "1");
+    let o = furfit()
+        .current_dir(root.join("deep"))
+        .args(["report", "--measurements", "/nonexistent-furfit"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(root.join("deep/reports/fig11_mouse.png").is_file());
+
+    // mouse-a.json (one channel) and a.json... here: two files, one label.
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("fits/mouse.json")).unwrap())
+            .unwrap();
+    let ch = |name: &str| {
+        let mut c = v.clone();
+        c["data"]["channel"] = name.into();
+        c
+    };
+    let (a, b) = (ch("a"), ch("b"));
+    v["channels"] = serde_json::json!([a, b]);
+    std::fs::write(root.join("fits/x.json"), v.to_string()).unwrap();
+    std::fs::copy(root.join("fits/mouse.json"), root.join("fits/x-a.json")).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    fails_with(o, &["fits/x.json", "'x-a'", "fits/x-a.json", "rename one"]);
+}
+
+/// Samples without a positive value are left out of the log-space fit, and the fit says
+/// how many and of which kind (audit, 2026-11-28: it printed only the count it kept).
+#[test]
+fn fit_notes_the_samples_it_leaves_out() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    let prof = root.join("measurements/mouse/profile.csv");
+    let mut text = std::fs::read_to_string(&prof).unwrap();
+    text.push_str("20,65,0,-0.5\n20,65,15,-0.25\n20,65,30,0\n");
+    std::fs::write(&prof, text).unwrap();
+    let o = fit_cmd(root)
+        .args(["measurements/mouse", "--max-iters", "2"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned() + &String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains(
+            "3 sample(s) without a positive value left out (2 negative, 1 zero, 0 missing"
+        ),
+        "{err}"
+    );
+}

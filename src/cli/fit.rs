@@ -130,7 +130,20 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     if let Some(init) = &a.init {
-        let (p, _, _) = super::load_params(init)?;
+        let (p, _, json) = super::load_params(init)?;
+        if let Some(chs) = json
+            .as_ref()
+            .and_then(|v| v["channels"].as_array())
+            .filter(|c| c.len() > 1)
+        {
+            let primary = json.as_ref().and_then(|v| v["data"]["channel"].as_str());
+            eprintln!(
+                "note: --init {init} is a fit of {} channels: every channel fitted here \
+                 starts from its top-level channel{}",
+                chs.len(),
+                primary.map_or(String::new(), |c| format!(" '{c}'"))
+            );
+        }
         opts.init = Some(p.to_file_units());
     }
     for f in &a.fix {
@@ -213,6 +226,36 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     continue;
                 }
             };
+            let ch_of = |s: &&crate::profile::Sample| s.channel == c && !s.is_valid();
+            let left: Vec<f64> = inputs
+                .profile
+                .samples
+                .iter()
+                .filter(ch_of)
+                .map(|s| s.value)
+                .collect();
+            if !left.is_empty() {
+                let ch = inputs
+                    .profile
+                    .channels
+                    .get(c)
+                    .map_or(String::new(), |n| format!(" of channel {n}"));
+                let neg = left.iter().filter(|v| **v < 0.0).count();
+                let zero = left.iter().filter(|v| **v == 0.0).count();
+                let mut note = format!(
+                    "{} sample(s){ch} without a positive value left out ({neg} negative, {zero} \
+                     zero, {} missing or not finite): the fit works in log space",
+                    left.len(),
+                    left.len() - neg - zero
+                );
+                if neg > 0 {
+                    note.push_str(
+                        "; leaving out negative values (background subtraction) biases the \
+                         low-signal regions upward",
+                    );
+                }
+                notes.push(note);
+            }
             if d.n_below_floor > 0 {
                 let ch = inputs
                     .profile

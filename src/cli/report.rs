@@ -29,11 +29,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for (s, why) in &sum.skipped {
         eprintln!("skipped {s}: {why}");
     }
-    for p in &sum.removed {
-        eprintln!(
-            "removed {} (an earlier report's figure of data that no longer match)",
-            p.display()
-        );
+    for (p, why) in &sum.removed {
+        eprintln!("removed {} ({why})", p.display());
+    }
+    for n in &sum.notes {
+        eprintln!("note: {n}");
     }
     if !sum.skipped.is_empty() {
         // The other reports are written, but a missing plot or row must not pass as

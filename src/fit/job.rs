@@ -236,7 +236,8 @@ pub fn check_out(out: &Path) -> Result<()> {
     if out.is_dir() {
         return Err(Error::file(out, "is a directory, not a fit file path"));
     }
-    crate::io::check_out_file(out)?;
+    // A read-only folder fails here, not after a fit of minutes (audit, 2026-11-28).
+    crate::io::probe_file_writable(out)?;
     if out.exists() {
         let is_fit = crate::io::read_json(out)
             .is_ok_and(|v| v.get("solver").is_some() && v.get("tool_version").is_some());
@@ -350,7 +351,10 @@ pub fn fit_loaded(
     let text = serde_json::to_string_pretty(&top)
         .map_err(|e| Error::Invalid(format!("JSON: {e}")))?
         + "\n";
-    crate::io::write_atomic(&job.out, text.as_bytes())?;
+    // Again: a user's file may have appeared there during the fit (audit, 2026-11-28).
+    check_out(&job.out)
+        .and_then(|()| crate::io::write_atomic(&job.out, text.as_bytes()))
+        .map_err(|e| Error::Invalid(format!("the fit finished but was not written: {e}")))?;
     Ok((top, sums))
 }
 

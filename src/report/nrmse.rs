@@ -170,19 +170,31 @@ impl FitFile {
                 .unwrap_or_default()
         };
         // Recorded as given to `furfit fit`, usually relative to the project folder: read
-        // from here, else from the folder above the fits folder (`report --fits
-        // /elsewhere/fits` run from another directory).
+        // from here, else relative to the fit file (`from_fit`, so a report run from
+        // another directory finds them), else from the folder above the fits folder.
+        let fit_dir = crate::io::parent_dir(path);
         let project = path.parent().and_then(Path::parent);
-        let files: Vec<PathBuf> = recorded("path")
-            .into_iter()
-            .map(PathBuf::from)
-            .map(|f| match project {
-                Some(root) if f.is_relative() && !f.exists() && root.join(&f).exists() => {
-                    root.join(f)
-                }
-                _ => f,
+        let files: Vec<PathBuf> = v["data"]["files"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|f| {
+                        let given = PathBuf::from(f["path"].as_str()?);
+                        let from_fit = f["from_fit"].as_str().map(|r| fit_dir.join(r));
+                        Some(if given.is_absolute() || given.exists() {
+                            given
+                        } else if let Some(r) = from_fit.filter(|r| r.exists()) {
+                            r
+                        } else {
+                            match project {
+                                Some(root) if root.join(&given).exists() => root.join(given),
+                                _ => given,
+                            }
+                        })
+                    })
+                    .collect()
             })
-            .collect();
+            .unwrap_or_default();
         let load = legacy_load(v, &files);
         let sha256 = recorded("sha256");
         let samples_sha256 = recorded("samples_sha256");
@@ -340,8 +352,14 @@ impl FitFile {
     }
 }
 
-/// Every `*.json` fit file in `dir`, sorted by file name.
-pub fn read_fits(dir: &Path) -> Result<Vec<FitFile>> {
+/// `(name, why)`: a fit file or report part left out.
+pub type Skipped = (String, String);
+
+/// Every readable `*.json` fit file in `dir`, sorted by file name, and `(file name, why)`
+/// for those that could not be read: a damaged file is skipped like a fit whose data
+/// changed, not a stop for the whole report. An error when no fit file is readable, or
+/// when two fits would get the same column and figure name ([`FitFile::label`]).
+pub fn read_fits(dir: &Path) -> Result<(Vec<FitFile>, Vec<Skipped>)> {
     let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     let mut paths: Vec<PathBuf> = rd
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -354,11 +372,42 @@ pub fn read_fits(dir: &Path) -> Result<Vec<FitFile>> {
             "no fit files (*.json); run `furfit fit` first",
         ));
     }
-    let mut out = Vec::new();
+    let mut out: Vec<FitFile> = Vec::new();
+    let mut bad = Vec::new();
     for p in &paths {
-        out.extend(FitFile::read(p)?);
+        match FitFile::read(p) {
+            Ok(fits) => {
+                for f in fits {
+                    if let Some(o) = out.iter().find(|o| o.label == f.label) {
+                        return Err(Error::file(
+                            &f.path,
+                            format!(
+                                "its column and figure would be named '{}', as those of {}; \
+                                 rename one of the two files",
+                                f.label,
+                                o.path.display()
+                            ),
+                        ));
+                    }
+                    out.push(f);
+                }
+            }
+            Err(e) => bad.push((
+                p.file_name()
+                    .map(|n| n.to_string_lossy().into_owned())
+                    .unwrap_or_default(),
+                format!("not read: {e}"),
+            )),
+        }
     }
-    Ok(out)
+    if out.is_empty() {
+        let (name, why) = bad.into_iter().next().expect("paths is not empty");
+        return Err(Error::file(
+            dir,
+            format!("no readable fit file ({name}: {why})"),
+        ));
+    }
+    Ok((out, bad))
 }
 
 /// What data the fits ran on, for the table heading.
@@ -475,6 +524,27 @@ fn rows(fits: &[FitFile]) -> Vec<(String, String, Vec<String>)> {
     rows
 }
 
+/// Fit files whose name is not the species they record (`cat.json` holding a red fox
+/// fit): the column and figure take the file's name, the paper's figures beside it the
+/// recorded species'.
+pub fn species_notes(fits: &[FitFile]) -> Vec<String> {
+    fits.iter()
+        .filter(|f| f.primary)
+        .filter_map(|f| {
+            let stem = f.path.file_stem()?.to_string_lossy().into_owned();
+            (stem != f.species).then(|| {
+                format!(
+                    "{} records species '{}': its column and figure are named '{stem}', the \
+                     paper's NRMSE beside it is {}'s",
+                    f.path.display(),
+                    f.species,
+                    f.species
+                )
+            })
+        })
+        .collect()
+}
+
 /// The Markdown table, followed by the introduction of `fit_error_vs_time.*`.
 pub fn markdown(fits: &[FitFile]) -> String {
     let mut s = String::new();
@@ -508,6 +578,13 @@ pub fn markdown(fits: &[FitFile]) -> String {
             let _ = write!(s, " {v} |");
         }
         s.push('\n');
+    }
+    let notes = species_notes(fits);
+    if !notes.is_empty() {
+        s.push_str("\nNotes:\n\n");
+        for n in notes {
+            let _ = writeln!(s, "- {n}");
+        }
     }
     // The convergence figure is introduced here, with what its values are.
     s.push('\n');
@@ -589,8 +666,20 @@ pub fn csv(fits: &[FitFile]) -> String {
 /// Write `nrmse.md` and `nrmse.csv` into `out`; `unverified` lists `(fit label, why)` for
 /// fits whose data could not be read back as the fit recorded it (changed or missing):
 /// their columns are the fit files' own figures, and `nrmse.md` says so.
-pub fn write(fits: &[FitFile], unverified: &[(String, String)], out: &Path) -> Result<()> {
+/// `unread` lists `(file name, why)` for fit files in the folder that could not be read.
+pub fn write(
+    fits: &[FitFile],
+    unverified: &[(String, String)],
+    unread: &[(String, String)],
+    out: &Path,
+) -> Result<()> {
     let mut md = markdown(fits);
+    if !unread.is_empty() {
+        md.push_str("\n## Fit files not read\n\nNot in the table:\n\n");
+        for (name, why) in unread {
+            md.push_str(&format!("- {name}: {why}\n"));
+        }
+    }
     if !unverified.is_empty() {
         md.push_str(
             "\n## Not checked against their data\n\nThese columns are the fit files' own \
@@ -611,9 +700,12 @@ pub struct ReportSummary {
     pub written: Vec<PathBuf>,
     /// `(species, reason)` for figures or entries that could not be made.
     pub skipped: Vec<(String, String)>,
-    /// An earlier run's figures of a fit whose figure could not be made now (removed, so
-    /// no stale figure stands beside the new reports).
-    pub removed: Vec<PathBuf>,
+    /// An earlier run's figures removed, with why: of a fit whose figure could not be
+    /// made now, or of a fit no longer there (no stale figure stands beside the reports).
+    pub removed: Vec<(PathBuf, &'static str)>,
+    /// Things the reader should know that do not stop a part (a fit file named for
+    /// another species than the one it records).
+    pub notes: Vec<String>,
 }
 
 /// The entry point of the fit reports: `nrmse.{md,csv}`, `fig11_<species>.{png,svg}`,
@@ -627,7 +719,7 @@ pub fn write_fit_reports(
     force: bool,
 ) -> Result<ReportSummary> {
     use super::fig11;
-    let fits = read_fits(fits_dir)?;
+    let (fits, bad) = read_fits(fits_dir)?;
     // Every file this run may write, checked before any is ([`crate::io::LEDGER`]).
     let mut planned: Vec<PathBuf> = ["nrmse.md", "nrmse.csv", "model_vs_simulation.md"]
         .iter()
@@ -640,7 +732,33 @@ pub fn write_fit_reports(
         .collect();
     planned.extend(fits.iter().flat_map(|f| fig11::outputs(f, out)));
     crate::io::check_replaceable(&planned, force)?;
-    let mut sum = ReportSummary::default();
+    let mut sum = ReportSummary {
+        skipped: bad,
+        notes: species_notes(&fits),
+        ..Default::default()
+    };
+    // Figures of fits no longer in the folder: an earlier run's, still recorded unchanged
+    // in the ledger (so furfit's own), would stand beside tables that do not list them.
+    let current: Vec<PathBuf> = fits.iter().flat_map(|f| fig11::outputs(f, out)).collect();
+    if let Ok(rd) = std::fs::read_dir(out) {
+        let mut stale: Vec<PathBuf> = rd
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+                name.is_some_and(|n| {
+                    n.starts_with("fig11_") && (n.ends_with(".png") || n.ends_with(".svg"))
+                }) && !current.contains(p)
+                    && crate::io::check_replaceable(std::slice::from_ref(p), false).is_ok()
+            })
+            .collect();
+        stale.sort();
+        for p in stale {
+            if std::fs::remove_file(&p).is_ok() {
+                sum.removed
+                    .push((p, "a figure of a fit no longer in the fits folder"));
+            }
+        }
+    }
     write_planned(&fits, measurements, out, &mut sum)?;
     Ok(sum)
 }
@@ -672,7 +790,8 @@ fn write_planned(
         .zip(&data)
         .filter_map(|(f, d)| d.as_ref().err().map(|e| (f.label(), e.to_string())))
         .collect();
-    write(fits, &unverified, out)?;
+    let unread = sum.skipped.clone();
+    write(fits, &unverified, &unread, out)?;
     sum.written
         .extend(["nrmse.md", "nrmse.csv"].map(|n| out.join(n)));
     fit_time::write(fits, out)?;
@@ -686,7 +805,8 @@ fn write_planned(
                 // shows: remove it (the ledger check at the start let this run replace it).
                 for p in fig11::outputs(f, out) {
                     if p.is_file() && std::fs::remove_file(&p).is_ok() {
-                        sum.removed.push(p);
+                        sum.removed
+                            .push((p, "an earlier report's figure of data that no longer match"));
                     }
                 }
                 sum.skipped.push((f.label(), format!("fig11: {e}")));
