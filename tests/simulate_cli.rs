@@ -336,6 +336,70 @@ fn simulate_replaces_only_its_own_earlier_output_and_only_with_force() {
         measured
     );
     assert!(!lab.join("metadata.json").exists());
+
+    // A user's own data put in place of the simulated profile (the record beside it
+    // still says simulate): refused even with --force (audit, 2026-11-28).
+    std::fs::write(out.join("profile.csv"), measured).unwrap();
+    let o = tiny_run(&out, &["--force"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("was changed since furfit simulate wrote it"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(out.join("profile.csv")).unwrap(),
+        measured
+    );
+}
+
+/// One path per angle gives every bin it hits a standard error of 0, and no run may
+/// overflow the path total: both refused before any work.
+#[test]
+fn simulate_refuses_path_counts_without_an_error_estimate_or_beyond_the_limit() {
+    let dir = tempfile::tempdir().unwrap();
+    for (paths, needle) in [
+        ("1", "--paths must be at least 2"),
+        ("18446744073709551615", "--paths must be at most 1e12"),
+    ] {
+        let o = furfit()
+            .args(["simulate", "--params", "red-fox", "--theta-i", "0"])
+            .args([
+                "--theta-r",
+                "-40:40:10",
+                "--phi",
+                "-180:180:60",
+                "--paths",
+                paths,
+            ])
+            .arg("--out")
+            .arg(dir.path().join("s"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        assert!(err.contains(needle), "{err}");
+    }
+}
+
+/// A run whose every sample is invalid is written (its metadata says why) but warned of.
+#[test]
+fn simulate_warns_when_no_sample_is_valid() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = tiny_run(&dir.path().join("s"), &["--drop", "0.999999"]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("warning: no sample of"), "{err}");
+}
+
+/// A folder no file can be created in fails before the simulation (`/proc` refuses new
+/// files even to root).
+#[cfg(target_os = "linux")]
+#[test]
+fn simulate_refuses_an_unwritable_out_before_the_run() {
+    let o = tiny_run(std::path::Path::new("/proc/furfit-no"), &[]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("cannot be written"), "{err}");
 }
 
 /// `--threads` has render's bound (100000 hung spawning threads). `--out` is left out, so
@@ -423,7 +487,10 @@ fn rel_noise_pilot_respects_max_paths() {
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("--max-paths must be at least 1"), "{err}");
+    assert!(
+        err.contains("--max-paths must be in 2..=1e12, found 0"),
+        "{err}"
+    );
 }
 
 /// `--max-paths` only bounds `--rel-noise`: given without it, a warning says so.

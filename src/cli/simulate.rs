@@ -16,10 +16,12 @@ pub struct Args {
     /// Incidence angles (degrees), list or start:stop:step.
     #[arg(long, default_value = "0,15,30,45", allow_hyphen_values = true)]
     pub theta_i: String,
-    /// Outgoing inclinations (degrees): bin centres; bin width = grid step (at least two values).
+    /// Outgoing inclinations (degrees): bin centres; bin width = grid step, or for an uneven
+    /// list twice the distance to the nearer neighbour (at least two values).
     #[arg(long, default_value = "-80:80:2", allow_hyphen_values = true)]
     pub theta_r: String,
-    /// Relative azimuths (degrees): bin centres; bin width = grid step (at least two values).
+    /// Relative azimuths (degrees): bin centres; bin width = grid step, or for an uneven
+    /// list twice the distance to the nearer neighbour around the circle (at least two values).
     #[arg(long, default_value = "-180:180:2", allow_hyphen_values = true)]
     pub phi: String,
     /// Paths traced per incidence angle.
@@ -119,6 +121,8 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     // Before the simulation: a bad name should not cost a run.
     output::check_file_name(&a.file)?;
     output::check_replace(&out, &a.file, a.force)?;
+    // A folder no file can be created in fails now, not after the simulation (audit).
+    crate::io::probe_file_writable(&out.join(&a.file))?;
     let (params, _exposure, json) = super::load_params(&spec)?;
     let fitted = match &json {
         Some(v) => crate::params::fit_channels(v, &spec)?,
@@ -197,8 +201,11 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
             bail!("--rel-noise {}: must be in (0, 1)", crate::error::Num(x));
         }
         let max_paths = a.max_paths.unwrap_or(200_000_000);
-        if max_paths == 0 {
-            bail!("--max-paths must be at least 1");
+        if !(2..=crate::simulate::MAX_PATHS).contains(&max_paths) {
+            bail!(
+                "--max-paths must be in 2..={:e}, found {max_paths}",
+                crate::simulate::MAX_PATHS as f64
+            );
         }
         let mut pilot = s.clone();
         pilot.paths = (1 << 19).min(max_paths);
@@ -277,7 +284,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "ellipse_axis_ratio": a.ellipse,
         "medulla_eta": a.medulla_eta.unwrap_or(params.eta),
         "grid": {"theta_i": a.theta_i, "theta_r": a.theta_r, "phi": a.phi,
-                 "bins": "centred on grid values, width = grid step"},
+                 "bins": "centred on grid values, width = grid step (uneven lists: twice the distance to the nearer neighbour; phi around the circle)"},
         "value_units": "exitant energy / incident energy / (rad theta_r * rad phi); far field over the fiber width; not divided by cos theta_r",
         "effects": fx,
         "samples": {"total": m.value.len(), "valid": valid,
@@ -291,6 +298,14 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "threads": rayon::current_num_threads(),
     });
     output::write_all(&out, &a.file, &prof, &md)?;
+    if valid == 0 {
+        // Written (the metadata says why each sample is invalid), but no fit can use it.
+        eprintln!(
+            "warning: no sample of {} is valid (see metadata.json's samples: floor, wedge, \
+             drop, noise); nothing in it can be fitted",
+            out.join(&a.file).display()
+        );
+    }
     outln!(
         "{}: {} samples ({} valid), {} paths/angle x {} angles in {:.1} s on {} threads ({:.2e} paths/s); median rel. error above {:.0e} x peak: {}",
         out.join(&a.file).display(),

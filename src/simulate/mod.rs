@@ -34,6 +34,18 @@
 //!   `gamma`) the R lobe's shift and width are ~0.6-0.8 of `alpha`, `beta_m`. This is a
 //!   real difference from the analytic model (which shifts every `h` by `alpha`); fits to
 //!   these data should be expected to return a smaller `alpha`/`beta_m` than simulated.
+//!   Refraction turns a ray by less than reflection does: a tilt `t` deflects a transmitted
+//!   ray by about `(1 - 1/eta) t` entering and `(eta - 1) t` leaving (small angles), so TT's
+//!   azimuthal spread is about `0.33 beta_n` at `eta = 1.55`, where MODEL.md gives the
+//!   unscattered lobe `p` a variance `(p + 1) beta_n^2` (TT: `1.41 beta_n`). Measured (audit,
+//!   2026-11-28, kappa 0): beta_n 1 -> 40 deg moves the goniometer's forward TT peak by 6 %
+//!   (0.353 -> 0.332) and the model's by half (0.354 -> 0.187). So fits to these data
+//!   match the goniometer's narrow TT with a small `beta_n` (red fox and springbok run to
+//!   the bound): a difference of the two physics, not missing information. Likewise the
+//!   exact facet optics put TT and TRT's longitudinal shifts near `-(eta - 1) alpha` and
+//!   `-(2 eta - 1) alpha` where MODEL.md has `-alpha/2` and `-3 alpha/2` (TRT peak at
+//!   theta_r -17.5 deg against the model's -12 for `alpha = 8`, theta_i 0), which pulls
+//!   fitted `alpha` too.
 //!   The same tilted micro-normal is used for internal hits of the cuticle, so repeated
 //!   internal reflections are steered along the axis and can end up guided (total internal
 //!   reflection along the fiber); absorption and Russian roulette end those paths. The interface reflects
@@ -48,11 +60,13 @@
 //!   function is Henyey-Greenstein with `g`. Paths leave and re-enter the medulla and bounce
 //!   inside any number of times; after 6 events a path whose weight is below 0.1 plays
 //!   Russian roulette (survives with probability `w/0.1`, then carries 0.1: unbiased). A path
-//!   still inside after [`trace::MAX_EVENTS`] events is light guided along the fiber; it
+//!   still inside after [`trace::MAX_EVENTS`] events, or farther than
+//!   [`trace::GUIDED_LENGTH`] radii along the axis, is light guided along the fiber; it
 //!   leaves far from the lit spot, so it is tallied as `guided`, not detected.
 //! - **Detector.** Exit directions are binned in `(theta_r, phi)`; each bin is centred on
-//!   its grid value with the width of the grid step (for lists, edges half-way between
-//!   neighbours; the end bins are symmetric). `phi` bins wrap around the circle, so a grid
+//!   its grid value with the width of the grid step (for uneven lists, twice the distance
+//!   to the nearer neighbour, so no bin stretches across a gap; the end bins are
+//!   symmetric: [`bins`]). `phi` bins wrap around the circle without overlapping, so a grid
 //!   holding both -180 and 180 fills both with the same light. The value of a bin is
 //!   `(energy in the bin) / (launched energy) / (dtheta_r dphi)` in radians^2: a density
 //!   per radian of `theta_r` and per radian of `phi` of outgoing energy per unit incident
@@ -79,7 +93,7 @@ use crate::FurParams;
 use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
-use std::f64::consts::{FRAC_PI_2, PI};
+use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use trace::{trace_path, Fiber, Outcome};
 
 /// Paths per deterministic chunk (one RNG stream each).
@@ -108,8 +122,20 @@ impl SimSettings {
     pub fn validate(&self) -> Result<()> {
         self.params.validate()?;
         let bad = |m: String| Err(Error::Invalid(m));
-        if self.paths == 0 {
-            return bad("--paths must be > 0".into());
+        if self.paths < 2 {
+            // One path gives every bin it hits a standard error of 0 (audit, 2026-11-28).
+            return bad(format!(
+                "--paths must be at least 2 (each sample's standard error is the spread over \
+                 paths), found {}",
+                self.paths
+            ));
+        }
+        if self.paths > MAX_PATHS {
+            return bad(format!(
+                "--paths must be at most {MAX_PATHS:e} per incidence angle (days of tracing at \
+                 ~1e6 paths/s), found {:e}",
+                self.paths as f64
+            ));
         }
         if self.theta_i.is_empty() || self.theta_r.is_empty() || self.phi.is_empty() {
             return bad("empty angle grid".into());
@@ -138,7 +164,7 @@ impl SimSettings {
         {
             return bad(format!("--theta-i: {} is given twice", Num(*x)));
         }
-        // A detector bin is as wide as the spacing of its axis's centres (bin_edges), so
+        // A detector bin is as wide as the spacing of its axis's centres (bins), so
         // one centre has no width of its own; refuse it rather than invent one.
         for (what, v) in [("--theta-r", &self.theta_r), ("--phi", &self.phi)] {
             if let [x] = v[..] {
@@ -178,81 +204,132 @@ impl SimSettings {
     }
 }
 
+/// Most paths per incidence angle (the run's path total must also fit a `u64`).
+pub const MAX_PATHS: u64 = 1_000_000_000_000;
+
 /// Smallest `--ellipse` axis ratio (see [`SimSettings::validate`]).
 pub const ELLIPSE_MIN: f64 = 0.01;
 
-/// Bin edges (radians) for grid centres (degrees): half-way between neighbours, symmetric
-/// end bins; a single value gets a 1-degree bin (kept total; [`SimSettings::validate`]
-/// refuses a single-value axis, whose width would be arbitrary).
-pub fn bin_edges(centres_deg: &[f64]) -> Vec<f64> {
+/// Detector bins `(lo, hi)` (radians) for grid centres (degrees, ascending): each bin is
+/// centred on its value, with half-width half the gap to its nearer neighbour, so a uniform
+/// grid gets bins as wide as its step and an uneven or gapped one gets no bin stretched
+/// across a gap (a bin reaching half-way to a far neighbour was centred off its label and
+/// read a density averaged over the gap; audit, 2026-11-28). End bins are symmetric. With
+/// `cyclic` (phi) neighbours are taken around the circle, so bins never overlap there and
+/// never cover more than 360 degrees in all (`-170,170` gave two 340-degree bins that
+/// counted the light twice); a value at the same azimuth as another (-180 and 180) shares
+/// its bin. A single value gets a 1-degree bin ([`SimSettings::validate`] refuses a
+/// single-value axis, whose width would be arbitrary).
+pub fn bins(centres_deg: &[f64], cyclic: bool) -> Vec<(f64, f64)> {
     let c: Vec<f64> = centres_deg.iter().map(|x| x.to_radians()).collect();
     let n = c.len();
-    let mut e = Vec::with_capacity(n + 1);
     if n == 1 {
         let h = 0.5f64.to_radians();
-        return vec![c[0] - h, c[0] + h];
+        return vec![(c[0] - h, c[0] + h)];
     }
-    e.push(c[0] - 0.5 * (c[1] - c[0]));
-    for i in 0..n - 1 {
-        e.push(0.5 * (c[i] + c[i + 1]));
-    }
-    e.push(c[n - 1] + 0.5 * (c[n - 1] - c[n - 2]));
-    e
+    // Same azimuth on the circle (an ulp apart after the radian conversion).
+    let same = |d: f64| d.abs() < 1e-9;
+    // Gap from c[i] to its nearest distinct neighbour below / above.
+    let gap = |i: usize, up: bool| -> Option<f64> {
+        let step = |k: usize| if up { (k + 1) % n } else { (k + n - 1) % n };
+        let mut k = i;
+        for _ in 0..n - 1 {
+            k = step(k);
+            let wraps = if up { k <= i } else { k >= i };
+            if wraps && !cyclic {
+                return None;
+            }
+            let mut d = if up { c[k] - c[i] } else { c[i] - c[k] };
+            if wraps {
+                d += TAU;
+            }
+            let d = d.rem_euclid(TAU);
+            if !same(d) && !same(d - TAU) {
+                return Some(d);
+            }
+        }
+        None
+    };
+    (0..n)
+        .map(|i| {
+            let (lo_gap, hi_gap) = (gap(i, false), gap(i, true));
+            let half = 0.5
+                * match (lo_gap, hi_gap) {
+                    (Some(a), Some(b)) => a.min(b),
+                    (Some(a), None) | (None, Some(a)) => a,
+                    (None, None) => TAU,
+                };
+            // Between two neighbours of equal half-widths (a uniform grid) the shared edge
+            // is their midpoint, as it always was, not c +- half rounded twice.
+            let lo = match lo_gap {
+                Some(g) if i > 0 && (0.5 * g - half).abs() <= 1e-12 * g => 0.5 * (c[i - 1] + c[i]),
+                _ => c[i] - half,
+            };
+            let hi = match hi_gap {
+                Some(g) if i + 1 < n && (0.5 * g - half).abs() <= 1e-12 * g => {
+                    0.5 * (c[i] + c[i + 1])
+                }
+                _ => c[i] + half,
+            };
+            (lo, hi)
+        })
+        .collect()
 }
 
-/// Index of the bin holding `x`, if any (edges ascending, half-open `[e_k, e_k+1)`).
+/// Index of the bin holding `x`, if any (bins ascending and disjoint, half-open `[lo, hi)`).
 #[inline]
-fn find_bin(edges: &[f64], x: f64) -> Option<usize> {
-    if x < edges[0] || x >= edges[edges.len() - 1] {
-        return None;
-    }
-    let k = edges.partition_point(|&e| e <= x);
-    Some(k - 1)
+fn find_bin(bins: &[(f64, f64)], x: f64) -> Option<usize> {
+    let k = bins.partition_point(|b| b.0 <= x);
+    (k > 0 && x < bins[k - 1].1).then(|| k - 1)
 }
 
-/// The detector: bin edges in theta_r and phi, radians.
+/// The detector: bins `(lo, hi)` in theta_r and phi, radians.
 #[derive(Clone, Debug)]
 pub struct Detector {
-    pub theta_edges: Vec<f64>,
-    pub phi_edges: Vec<f64>,
+    pub theta_bins: Vec<(f64, f64)>,
+    pub phi_bins: Vec<(f64, f64)>,
 }
 
 impl Detector {
-    /// `theta_r` edges are clipped to `[-90, 90]` degrees: an end bin centred at +-90 would
+    /// `theta_r` bins are clipped to `[-90, 90]` degrees: an end bin centred at +-90 would
     /// otherwise reach past the pole, where no exit direction lies, and its value (energy
     /// over the bin's width) would read about half the density.
     pub fn new(theta_r_deg: &[f64], phi_deg: &[f64]) -> Self {
-        let theta_edges = bin_edges(theta_r_deg)
+        let theta_bins = bins(theta_r_deg, false)
             .into_iter()
-            .map(|e| e.clamp(-FRAC_PI_2, FRAC_PI_2))
+            .map(|(a, b)| {
+                (
+                    a.clamp(-FRAC_PI_2, FRAC_PI_2),
+                    b.clamp(-FRAC_PI_2, FRAC_PI_2),
+                )
+            })
             .collect();
         Detector {
-            theta_edges,
-            phi_edges: bin_edges(phi_deg),
+            theta_bins,
+            phi_bins: bins(phi_deg, true),
         }
     }
     pub fn n_theta(&self) -> usize {
-        self.theta_edges.len() - 1
+        self.theta_bins.len()
     }
     pub fn n_phi(&self) -> usize {
-        self.phi_edges.len() - 1
+        self.phi_bins.len()
     }
     /// Solid-angle-free bin area dtheta_r * dphi (radians^2) of bin (j, k).
     pub fn area(&self, j: usize, k: usize) -> f64 {
-        (self.theta_edges[j + 1] - self.theta_edges[j])
-            * (self.phi_edges[k + 1] - self.phi_edges[k])
+        (self.theta_bins[j].1 - self.theta_bins[j].0) * (self.phi_bins[k].1 - self.phi_bins[k].0)
     }
 
     /// Call `f(flat_index)` for every bin the exit (theta_r, phi) falls into (phi wraps:
     /// the shifted copies phi +- 2 pi are tried too).
     #[inline]
     pub fn deposit(&self, theta_r: f64, phi: f64, mut f: impl FnMut(usize)) {
-        let Some(j) = find_bin(&self.theta_edges, theta_r) else {
+        let Some(j) = find_bin(&self.theta_bins, theta_r) else {
             return;
         };
         let np = self.n_phi();
         for shift in [0.0, 2.0 * PI, -2.0 * PI] {
-            if let Some(k) = find_bin(&self.phi_edges, phi + shift) {
+            if let Some(k) = find_bin(&self.phi_bins, phi + shift) {
                 f(j * np + k);
             }
         }

@@ -125,6 +125,21 @@ pub fn check_replace(dir: &Path, file_name: &str, force: bool) -> Result<()> {
             ),
         ));
     }
+    // A profile edited or replaced since (a user's own data in its place): not ours to
+    // replace (metadata from before the digest was recorded is taken on trust).
+    if let (Some(want), true) = (record["file_sha256"].as_str(), target.is_file()) {
+        let bytes = std::fs::read(&target).map_err(|e| Error::io(&target, e))?;
+        if crate::io::sha256_hex(&bytes) != want {
+            return Err(Error::file(
+                &target,
+                format!(
+                    "was changed since furfit simulate wrote it (its SHA-256 is not the one \
+                     {} records): not replaced, even with --force (move it away first)",
+                    meta.display()
+                ),
+            ));
+        }
+    }
     Ok(())
 }
 
@@ -139,7 +154,12 @@ pub fn write_all(
     check_file_name(file_name)?;
     let path = dir.join(file_name);
     let bytes = profile::encode(&path, prof)?;
-    let mut js = serde_json::to_vec_pretty(metadata)
+    // The profile's digest, so a later `--force` replaces only this file as written.
+    let mut metadata = metadata.clone();
+    if let serde_json::Value::Object(m) = &mut metadata {
+        m.insert("file_sha256".into(), crate::io::sha256_hex(&bytes).into());
+    }
+    let mut js = serde_json::to_vec_pretty(&metadata)
         .map_err(|e| Error::Invalid(format!("metadata JSON: {e}")))?;
     js.push(b'\n');
     crate::io::write_atomic_all(&[(path, bytes), (dir.join("metadata.json"), js)])

@@ -334,7 +334,7 @@ fn deterministic_across_thread_counts() {
 #[test]
 fn detector_bins_and_wrap() {
     let det = Detector::new(&[-10.0, 0.0, 10.0], &[-180.0, -90.0, 0.0, 90.0, 180.0]);
-    assert!((det.theta_edges[0] - (-15f64).to_radians()).abs() < 1e-12);
+    assert!((det.theta_bins[0].0 - (-15f64).to_radians()).abs() < 1e-12);
     assert!((det.area(1, 2) - (10f64.to_radians() * 90f64.to_radians())).abs() < 1e-12);
     let mut hits = Vec::new();
     det.deposit(0.0, 179f64.to_radians(), |b| hits.push(b));
@@ -446,11 +446,58 @@ fn theta_r_end_bins_at_the_pole_stop_there() {
     // Exact halves up to the rounding of degree-to-radian conversion (~1e-16 relative).
     assert!((d.area(0, 1) / inner - 0.5).abs() < 1e-12);
     assert!((d.area(last, 1) / inner - 0.5).abs() < 1e-12);
-    assert_eq!(d.theta_edges[last + 1], std::f64::consts::FRAC_PI_2);
+    assert_eq!(d.theta_bins[last].1, std::f64::consts::FRAC_PI_2);
     let mut hit = None;
     d.deposit(89.9f64.to_radians(), 0.0, |b| hit = Some(b));
     assert_eq!(hit.map(|b| b / d.n_phi()), Some(last));
     // Centres short of the pole keep their symmetric end bins.
     let d = Detector::new(&[-80.0, -78.0, 78.0, 80.0], &[0.0, 10.0]);
-    assert!((d.theta_edges[4] - 81f64.to_radians()).abs() < 1e-15);
+    assert!((d.theta_bins[3].1 - 81f64.to_radians()).abs() < 1e-15);
+}
+
+/// Uneven and gapped grids get bins centred on their values, never across a gap, and phi
+/// bins that never overlap around the circle (audit, 2026-11-28: `--theta-r -40,-30,10`
+/// gave -30 the bin [-35, -10], a wrapped `--phi 90:270:2` gave -90 a 91-degree bin, and
+/// `--phi -170,170` two 340-degree bins that counted the light twice).
+#[test]
+fn uneven_grids_get_centred_bins_without_overlap() {
+    let deg = |b: (f64, f64)| (b.0.to_degrees(), b.1.to_degrees());
+    let close = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0).abs() < 1e-9 && (a.1 - b.1).abs() < 1e-9;
+    let b = bins(&[-40.0, -30.0, 10.0], false);
+    for (got, want) in b
+        .iter()
+        .zip([(-45.0, -35.0), (-35.0, -25.0), (-10.0, 30.0)])
+    {
+        assert!(close(deg(*got), want), "{:?} vs {want:?}", deg(*got));
+    }
+    let b = bins(&[-170.0, 170.0], true);
+    assert!(
+        close(deg(b[0]), (-180.0, -160.0)) && close(deg(b[1]), (160.0, 180.0)),
+        "{b:?}"
+    );
+    // Half a circle wrapped into (-180, 180]: -90 and 90 are 180 degrees apart.
+    let phi: Vec<f64> = (-89..=0)
+        .map(|k| 2.0 * k as f64 - 2.0)
+        .filter(|p| *p >= -180.0)
+        .chain((45..=90).map(|k| 2.0 * k as f64))
+        .collect();
+    let b = bins(&phi, true);
+    let total: f64 = b.iter().map(|x| x.1 - x.0).sum();
+    assert!(
+        b.iter()
+            .all(|x| (x.1 - x.0 - 2f64.to_radians()).abs() < 1e-12),
+        "{total}"
+    );
+    // Uniform grids: edges shared exactly (the midpoints), as before.
+    let b = bins(&[-10.0, 0.0, 10.0, 20.0], false);
+    for w in b.windows(2) {
+        assert_eq!(w[0].1, w[1].0);
+    }
+    // Energy is counted once: every direction lands in at most one phi bin.
+    let det = Detector::new(&[-10.0, 0.0, 10.0], &[-170.0, 170.0]);
+    for k in 0..360 {
+        let mut n = 0;
+        det.deposit(0.0, (k as f64 - 179.5).to_radians(), |_| n += 1);
+        assert!(n <= 1, "phi {k}: {n} bins");
+    }
 }
