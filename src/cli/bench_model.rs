@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Output directory for far_field_error_vs_time.{csv,png,svg}.
+    /// Output directory for far_field_error_vs_time.{csv,png,svg,md}.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
     /// Only print the grid-synthesis throughput (4 x 61 x 181 samples), no error sweep.
@@ -22,7 +22,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     // The sweep takes minutes: a bad --out fails first, naming the path.
     crate::io::probe_writable(&a.out)?;
-    let paths = ["csv", "png", "svg"].map(|e| a.out.join(format!("far_field_error_vs_time.{e}")));
+    let paths =
+        ["csv", "png", "svg", "md"].map(|e| a.out.join(format!("far_field_error_vs_time.{e}")));
     crate::io::check_replaceable(&paths, a.force)?;
     std::fs::create_dir_all(&a.out).map_err(|e| crate::Error::io(&a.out, e))?;
     crate::report::far_error::run(&a.out, &mut |line| outln!("{line}"))?;

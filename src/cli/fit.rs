@@ -67,8 +67,9 @@ pub struct Args {
     #[arg(long, default_value_t = 100)]
     pub max_iters: u64,
     /// Profile-likelihood intervals (68 %, Delta RSS = s^2) of these free parameters after
-    /// the fit: a comma list of names or `all`. Each re-solves the other parameters at up
-    /// to eight values, so it costs several fits; recorded as uncertainty.profile.
+    /// the fit: a comma list of names or `all`. Each re-solves the other parameters at
+    /// typically under ten values per side (at most 22 per parameter), so it costs several
+    /// fits; recorded as uncertainty.profile.
     #[arg(long, value_name = "NAMES")]
     pub profile: Option<String>,
     /// Leave out samples below this fraction of the channel's largest value, in [0, 1)
@@ -433,7 +434,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
             if a.bench {
                 outln!(
-                    "  bench: {:.3e} sample evaluations/s, {:.1} model evaluations/s, estimated model time share {:.0}% ({:.2} s model in {:.2} s wall, {} threads)",
+                    "  bench: {:.3e} sample evaluations/s, {:.1} model evaluations/s, estimated model time / wall {:.0}% ({:.2} s model in {:.2} s wall, {} threads; above 100 % where evaluations overlapped on several threads)",
                     o.sample_evaluations as f64 / o.wall_time_s,
                     o.evaluations as f64 / o.wall_time_s,
                     100.0 * o.model_time_s / o.wall_time_s,

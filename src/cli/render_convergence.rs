@@ -209,7 +209,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for fast in [Mode::Multiscale, Mode::Far] {
         if let Some(s) = c.speedup(Mode::Near, fast, 4) {
             outln!(
-                "equal-quality speedup {} over near: {s:.2}x pooled, per repeat {} (paper, multiscale: 3.5-8x)",
+                "equal-quality speedup {} over near: {s:.2}x pooled, per repeat {} (paper, hair lock: multi-scale ~5x its near field)",
                 fast.name(),
                 c.speedup_per_repeat(Mode::Near, fast, 4)
                     .iter()

@@ -186,7 +186,8 @@ pub struct FitOutcome {
     /// Estimated seconds inside the model: evaluations x the wall time of one evaluation
     /// measured alone after the solve (fastest of three), a finite-difference column
     /// counted at the mean column cost of the final Jacobian (most recompute only the
-    /// terms their parameter changes).
+    /// terms their parameter changes). Summed over evaluations that may run side by side
+    /// on several threads, so it can exceed the wall time (`model_time_share` > 1).
     pub model_time_s: f64,
     pub starts_global: usize,
     pub starts_lm: usize,

@@ -217,7 +217,11 @@ impl Convergence {
                 );
             }
         }
-        s += "\nPaper (seed Sec. 6): multi-scale 3.5-8x faster than near field at equal quality.\n";
+        s += "\nPaper (seed Sec. 7, Fig. 15, the central 32 x 32 patch of a hair lock with the \
+              human-hair fit): its near field converges about 2x faster than Yan et al. 2015 and \
+              its multi-scale model about an order of magnitude faster, so multi-scale is about \
+              5x its own near field there. Its 3.5x (Fig. 16) and 6-8x (Figs. 1, 17) compare \
+              with Yan et al. 2015, not with its own near field.\n";
         s
     }
 
@@ -369,6 +373,8 @@ pub fn plot_convergence_bytes(
             .x_desc("seconds")
             .y_desc("RMSE")
             .label_style((font, 13))
+            .x_label_formatter(&crate::report::plot::tick)
+            .y_label_formatter(&crate::report::plot::tick)
             .draw()
             .map_err(|e| e.to_string())?;
         for (mode, color) in [

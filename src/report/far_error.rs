@@ -235,151 +235,163 @@ fn head_to_head(set: &Set, opts: &FarOptions, n: usize) -> (f64, f64) {
 
 /// Run the benchmark and write `far_field_error_vs_time.{csv,png,svg}` into `out`.
 /// Returns the rows.
-pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
-    let models: Vec<FurModel> = PRESETS
-        .iter()
-        .map(|n| FurModel::new(&FurParams::preset(n).expect("shipped preset")))
-        .collect();
-    let phis: Vec<f64> = (0..N_PHI)
-        .map(|k| -PI + 2.0 * PI * (k as f64 + 0.37) / N_PHI as f64)
-        .collect();
-    log(&format!(
-        "reference (adaptive Gauss-Kronrod, ~1e-10) on {} presets x {} theta_d x {} phi ...",
-        PRESETS.len(),
-        THETA_D.len(),
-        N_PHI
-    ));
-    let t0 = Instant::now();
-    let reference = per_sample(&models, &phis, |az, p| az.far_reference(p, LobeSet::ALL));
-    log(&format!("  done in {:.1} s", t0.elapsed().as_secs_f64()));
-    let set = Set {
-        models,
-        phis,
-        reference,
-    };
-    let mut rows = Vec::new();
-    let reps = 3;
-    let push = |rows: &mut Vec<Row>,
-                method: &str,
-                setting: String,
-                r: (Vec<Vec<Vec<LobeValues>>>, f64, f64),
-                opts: Option<FarOptions>,
-                log: &mut dyn FnMut(&str)| {
-        let (max_err, median_err) = errors(&set, &r.0);
+pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
+    // Every printed line is also kept for far_field_error_vs_time.md (what the files ran on).
+    let mut lines: Vec<String> = Vec::new();
+    let t_run = Instant::now();
+    let rows = {
+        let mut tee = |l: &str| {
+            lines.push(l.to_string());
+            outer_log(l);
+        };
+        let log: &mut dyn FnMut(&str) = &mut tee;
+        let models: Vec<FurModel> = PRESETS
+            .iter()
+            .map(|n| FurModel::new(&FurParams::preset(n).expect("shipped preset")))
+            .collect();
+        let phis: Vec<f64> = (0..N_PHI)
+            .map(|k| -PI + 2.0 * PI * (k as f64 + 0.37) / N_PHI as f64)
+            .collect();
         log(&format!(
+            "reference (adaptive Gauss-Kronrod, ~1e-10) on {} presets x {} theta_d x {} phi ...",
+            PRESETS.len(),
+            THETA_D.len(),
+            N_PHI
+        ));
+        let t0 = Instant::now();
+        let reference = per_sample(&models, &phis, |az, p| az.far_reference(p, LobeSet::ALL));
+        log(&format!("  done in {:.1} s", t0.elapsed().as_secs_f64()));
+        let set = Set {
+            models,
+            phis,
+            reference,
+        };
+        let mut rows = Vec::new();
+        let reps = 3;
+        let push = |rows: &mut Vec<Row>,
+                    method: &str,
+                    setting: String,
+                    r: (Vec<Vec<Vec<LobeValues>>>, f64, f64),
+                    opts: Option<FarOptions>,
+                    log: &mut dyn FnMut(&str)| {
+            let (max_err, median_err) = errors(&set, &r.0);
+            log(&format!(
             "{method:<12} {setting:<10} max err {max_err:.2e}  median {median_err:.2e}  {:.2} us/eval single, {:.2} us amortised",
             r.1, r.2
         ));
-        rows.push(Row {
-            method: method.into(),
-            setting,
-            max_err,
-            median_err,
-            us_single: r.1,
-            us_amortised: r.2,
-            opts,
-        });
-    };
-    for n in 1..=16usize {
-        let opts = FarOptions {
-            n_unscattered: n,
-            n_scattered: n,
-            tol: None,
-            ..FarOptions::paper()
+            rows.push(Row {
+                method: method.into(),
+                setting,
+                max_err,
+                median_err,
+                us_single: r.1,
+                us_amortised: r.2,
+                opts,
+            });
         };
-        let r = measure_far(&set, reps, &opts);
-        push(&mut rows, "far-fixed", format!("n={n}"), r, Some(opts), log);
-    }
-    for tol in TOLS {
-        let opts = FarOptions {
-            tol: Some(tol),
-            ..FarOptions::default()
-        };
-        let r = measure_far(&set, reps, &opts);
-        push(
-            &mut rows,
-            "far-tol",
-            format!("tol={tol:.0e}"),
-            r,
-            Some(opts),
-            log,
-        );
-    }
-    for tol in TOLS {
-        let opts = FarOptions {
-            tol: Some(tol),
-            ..FarOptions::strict()
-        };
-        let r = measure_far(&set, reps, &opts);
-        push(
-            &mut rows,
-            "far-tol-strict",
-            format!("tol={tol:.0e}"),
-            r,
-            Some(opts),
-            log,
-        );
-    }
-    for n in GL_POINTS {
-        let r = measure(
-            &set,
-            reps,
-            |az, phi| az.far_gl(phi, n, LobeSet::ALL),
-            |az, phis| {
-                phis.iter()
-                    .map(|&p| az.far_gl(p, n, LobeSet::ALL))
-                    .collect()
-            },
-        );
-        push(&mut rows, "gauss-legendre", format!("N={n}"), r, None, log);
-    }
-    // Speedup at equal error.
-    let gl: Vec<&Row> = rows
-        .iter()
-        .filter(|r| r.method == "gauss-legendre")
-        .collect();
-    // The rows the goal is stated for.
-    let compared = [
-        ("far-fixed", "n=8"),
-        ("far-tol", "tol=1e-4"),
-        ("far-tol-strict", "tol=1e-4"),
-    ];
-    for (method, setting) in compared {
-        let Some((r, opts)) = rows
+        for n in 1..=16usize {
+            let opts = FarOptions {
+                n_unscattered: n,
+                n_scattered: n,
+                tol: None,
+                ..FarOptions::paper()
+            };
+            let r = measure_far(&set, reps, &opts);
+            push(&mut rows, "far-fixed", format!("n={n}"), r, Some(opts), log);
+        }
+        for tol in TOLS {
+            let opts = FarOptions {
+                tol: Some(tol),
+                ..FarOptions::default()
+            };
+            let r = measure_far(&set, reps, &opts);
+            push(
+                &mut rows,
+                "far-tol",
+                format!("tol={tol:.0e}"),
+                r,
+                Some(opts),
+                log,
+            );
+        }
+        for tol in TOLS {
+            let opts = FarOptions {
+                tol: Some(tol),
+                ..FarOptions::strict()
+            };
+            let r = measure_far(&set, reps, &opts);
+            push(
+                &mut rows,
+                "far-tol-strict",
+                format!("tol={tol:.0e}"),
+                r,
+                Some(opts),
+                log,
+            );
+        }
+        for n in GL_POINTS {
+            let r = measure(
+                &set,
+                reps,
+                |az, phi| az.far_gl(phi, n, LobeSet::ALL),
+                |az, phis| {
+                    phis.iter()
+                        .map(|&p| az.far_gl(p, n, LobeSet::ALL))
+                        .collect()
+                },
+            );
+            push(&mut rows, "gauss-legendre", format!("N={n}"), r, None, log);
+        }
+        // Speedup at equal error.
+        let gl: Vec<&Row> = rows
             .iter()
-            .find(|r| r.method == method && r.setting == setting)
-            .and_then(|r| Some((r, r.opts?)))
-        else {
-            continue;
-        };
-        // The cheapest rule at least as accurate: among the plotted ones, else among
-        // larger rules searched for the comparison only, else the largest (a bound).
-        let found = match gl.iter().position(|g| g.max_err <= r.max_err) {
-            Some(k) => Some((GL_POINTS[k], gl[k].max_err)),
-            None => gl_reaching(&set, r.max_err),
-        };
-        let (n, what) = match found {
-            Some((n, err)) => (
-                n,
-                format!("Gauss-Legendre needs N={n} for max err <= that ({err:.2e})"),
-            ),
-            None => {
-                let n = *GL_POINTS_SEARCH.last().expect("non-empty");
-                (
+            .filter(|r| r.method == "gauss-legendre")
+            .collect();
+        // The rows the goal is stated for.
+        let compared = [
+            ("far-fixed", "n=8"),
+            ("far-tol", "tol=1e-4"),
+            ("far-tol-strict", "tol=1e-4"),
+        ];
+        for (method, setting) in compared {
+            let Some((r, opts)) = rows
+                .iter()
+                .find(|r| r.method == method && r.setting == setting)
+                .and_then(|r| Some((r, r.opts?)))
+            else {
+                continue;
+            };
+            // The cheapest rule at least as accurate: among the plotted ones, else among
+            // larger rules searched for the comparison only, else the largest (a bound).
+            let found = match gl.iter().position(|g| g.max_err <= r.max_err) {
+                Some(k) => Some((GL_POINTS[k], gl[k].max_err)),
+                None => gl_reaching(&set, r.max_err),
+            };
+            let (n, what) = match found {
+                Some((n, err)) => (
                     n,
-                    format!(
+                    format!("Gauss-Legendre needs N={n} for max err <= that ({err:.2e})"),
+                ),
+                None => {
+                    let n = *GL_POINTS_SEARCH.last().expect("non-empty");
+                    (
+                        n,
+                        format!(
                         "no Gauss-Legendre rule up to N={n} reaches it; vs that rule, a lower bound"
                     ),
-                )
-            }
-        };
-        let (xs, xa) = head_to_head(&set, &opts, n);
-        log(&format!(
+                    )
+                }
+            };
+            let (xs, xa) = head_to_head(&set, &opts, n);
+            log(&format!(
             "speedup {method} {setting} (max err {:.2e}): {what}: {xs:.1}x single, {xa:.1}x amortised (median of {H2H_ROUNDS} interleaved rounds)",
             r.max_err
         ));
-    }
-    synth_throughput(log);
+        }
+        synth_throughput(log);
+        rows
+    };
+    let log = outer_log;
     // Files.
     let mut csv = String::from(
         "method,setting,max_rel_err,median_rel_err,us_per_eval_single,us_per_eval_amortised\n",
@@ -442,8 +454,28 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
         },
         &series,
     )?;
+    let md = format!(
+        "# Far-field error vs evaluation time\n\n\
+         Written by `furfit bench-model` ({}) in {:.0} s on {} thread(s); the timings depend on \
+         the machine and its load. Test set: the far field of the presets {} at theta_d {} \
+         deg, {N_PHI} phi each, against adaptive Gauss-Kronrod quadrature of the near field \
+         (~1e-10); error = |N - N_ref| / (the reference's peak over phi for that theta_d and \
+         lobe), all five lobes. Figures: `far_field_error_vs_time.{{csv,png,svg}}`.\n\n\
+         What the run printed:\n\n```text\n{}\n```\n",
+        crate::TOOL_VERSION,
+        t_run.elapsed().as_secs_f64(),
+        rayon::current_num_threads(),
+        PRESETS.join(", "),
+        THETA_D
+            .iter()
+            .map(|t| format!("{t:.0}"))
+            .collect::<Vec<_>>()
+            .join(", "),
+        lines.join("\n")
+    );
+    crate::io::write_atomic(&out.join("far_field_error_vs_time.md"), md.as_bytes())?;
     log(&format!(
-        "wrote {}/far_field_error_vs_time.{{csv,png,svg}}",
+        "wrote {}/far_field_error_vs_time.{{csv,png,svg,md}}",
         out.display()
     ));
     Ok(rows)
@@ -497,7 +529,7 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
 /// `plan`, the mean slice build (segmentation and fits) and evaluation at its `|phi|`
 /// (best of three passes over all slices), and the mean quadrature pieces and nodes per
 /// slice. At 1e7 samples/s on two cores the 4 x 61 x 181 grid allows about 85 us per
-/// slice on each.
+/// slice on each (a budget, not a measurement).
 fn slice_breakdown(model: &FurModel, plan: &crate::synth::GridPlan, opts: &FarOptions) -> String {
     use crate::model::far::FarSlice;
     let groups = plan.groups();

@@ -187,8 +187,35 @@ pub fn png_bytes(
     Ok(bytes)
 }
 
+/// A tick label for a log axis: three significant digits without binary noise (plotters'
+/// default printed 0.30000000000000004), scientific outside 1e-3..1e4.
+pub fn tick(v: &f64) -> String {
+    let a = v.abs();
+    if a == 0.0 || !a.is_finite() {
+        return format!("{v}");
+    }
+    let mag = a.log10().floor();
+    if !(-3.0..4.0).contains(&mag) {
+        return format!("{v:.1e}");
+    }
+    let s = format!("{:.*}", (2.0 - mag).max(0.0) as usize, v);
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn ticks_have_no_binary_noise() {
+        assert_eq!(super::tick(&0.30000000000000004), "0.3");
+        assert_eq!(super::tick(&0.6000000000000001), "0.6");
+        assert_eq!(super::tick(&12.5), "12.5");
+        assert_eq!(super::tick(&2e-5), "2.0e-5");
+    }
+
     use super::*;
 
     #[test]

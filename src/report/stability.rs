@@ -627,7 +627,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
          exactly, kinks included; only segments spanning at most one psi bin next to a \
          `Phi^s` caustic (TRTs) are left to a three-node quadrature, which the strict step \
          subdivides further (its column). The paper mode's three-node quadrature does not \
-         follow the kinks. Compare the tables' own 5-7 % error against fresh Monte Carlo \
+         follow the kinks. Compare the tables' own 3-5 % error (relative L2) against fresh Monte Carlo \
          (`furfit tables info`).\n\
          * Paper-mode errors above 1 occur where a lobe is vanishingly small (e.g. TRTs at \
          eta -> 1 and grazing theta_d, peak ~1e-40): 5 fixed segments misfit its steep \
