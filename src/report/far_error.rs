@@ -299,35 +299,25 @@ pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row
             let r = measure_far(&set, reps, &opts);
             push(&mut rows, "far-fixed", format!("n={n}"), r, Some(opts), log);
         }
-        for tol in TOLS {
-            let opts = FarOptions {
-                tol: Some(tol),
-                ..FarOptions::default()
-            };
-            let r = measure_far(&set, reps, &opts);
-            push(
-                &mut rows,
-                "far-tol",
-                format!("tol={tol:.0e}"),
-                r,
-                Some(opts),
-                log,
-            );
-        }
-        for tol in TOLS {
-            let opts = FarOptions {
-                tol: Some(tol),
-                ..FarOptions::strict()
-            };
-            let r = measure_far(&set, reps, &opts);
-            push(
-                &mut rows,
-                "far-tol-strict",
-                format!("tol={tol:.0e}"),
-                r,
-                Some(opts),
-                log,
-            );
+        for (method, base) in [
+            ("far-tol", FarOptions::default()),
+            ("far-tol-strict", FarOptions::strict()),
+        ] {
+            for tol in TOLS {
+                let opts = FarOptions {
+                    tol: Some(tol),
+                    ..base
+                };
+                let r = measure_far(&set, reps, &opts);
+                push(
+                    &mut rows,
+                    method,
+                    format!("tol={tol:.0e}"),
+                    r,
+                    Some(opts),
+                    log,
+                );
+            }
         }
         for n in GL_POINTS {
             let r = measure(
