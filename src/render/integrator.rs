@@ -6,9 +6,9 @@
 //! test lock it costs a shadow ray and two pdf evaluations per vertex, and those rays
 //! mostly cross the whole lock, while the BCSDF sampler already follows the lobes that
 //! weigh the smooth environment. Measured (`furfit render-convergence` without and with
-//! `--env-nee`, red fox, same day): RMSE^2 x seconds 1.07e-3 near / 8.4e-4 multi-scale
-//! without it, 1.52e-3 / 1.40e-3 with it; on a 128 x 128 patch of the frame's centre at
-//! 16 spp, RMSE 4.06e-2 in 4.4 s without it against 4.23e-2 in 6.8-7.4 s with it.
+//! `--env-nee`, red fox, one after the other on 2026-11-28; `reports/render_convergence.md`
+//! and `reports/env_nee/`): RMSE^2 x seconds 9.0e-3 near / 6.3e-3 multi-scale without it,
+//! 1.25e-2 / 1.12e-2 with it.
 //!
 //! Pixel footprint (seed Eq. 27): each ray carries a cone, width `w0 + t * spread`.
 //! Primary rays start with `w0 = 0` and `spread` = one pixel's angle, and the coverage is
