@@ -240,18 +240,25 @@ pub fn probe_file_writable(path: &Path) -> Result<()> {
     } else {
         existing
     };
-    let probe = existing.join(format!(".furfit-probe-{}", std::process::id()));
-    match std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe)
-    {
-        Ok(_) => {
-            let _ = std::fs::remove_file(&probe);
-            Ok(())
+    // A name no other probe holds (a killed run's leftover of a reused pid is skipped).
+    let mut attempt = 0u32;
+    let made = loop {
+        let probe = existing.join(format!(".furfit-probe-{}-{attempt}", std::process::id()));
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&probe)
+        {
+            Ok(_) => {
+                let _ = std::fs::remove_file(&probe);
+                break Ok(());
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 64 => attempt += 1,
+            Err(e) => break Err(e),
         }
-        // Another probe of this pid's name (a killed run's): the folder took a file once.
-        Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => Ok(()),
+    };
+    match made {
+        Ok(()) => Ok(()),
         Err(e) => Err(Error::file(
             path,
             format!(

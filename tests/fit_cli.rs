@@ -1645,6 +1645,33 @@ fn report_copes_with_the_fits_folder_as_users_keep_it() {
     assert!(o.status.success(), "{err}");
     assert!(root.join("deep/reports/fig11_mouse.png").is_file());
 
+    // Another project with its own, different measurements/mouse: the path as recorded
+    // exists there but holds other data, so the report falls back to the fit's own data
+    // through from_fit instead of skipping the figure (review, 2026-11-28).
+    let other = root.join("other/measurements/mouse");
+    std::fs::create_dir_all(&other).unwrap();
+    let mut text = std::fs::read_to_string(root.join("measurements/mouse/profile.csv")).unwrap();
+    text.push_str("20,65,0,0.5\n");
+    std::fs::write(other.join("profile.csv"), text).unwrap();
+    let o = furfit()
+        .current_dir(root.join("other"))
+        .args(["report", "--fits", "../fits", "--out", "rep"])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(root.join("other/rep/fig11_mouse.png").is_file());
+
+    // A fit file damaged after its figure was made: skipped, and its figure is kept.
+    std::fs::copy(root.join("fits/mouse.json"), root.join("fits/vole.json")).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    std::fs::write(root.join("fits/vole.json"), "{").unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(!o.status.success());
+    assert!(root.join("reports/fig11_vole.png").is_file());
+    std::fs::remove_file(root.join("fits/vole.json")).unwrap();
+
     // mouse-a.json (one channel) and a.json... here: two files, one label.
     let mut v: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(root.join("fits/mouse.json")).unwrap())

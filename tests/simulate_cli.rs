@@ -400,6 +400,9 @@ fn simulate_refuses_an_unwritable_out_before_the_run() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("cannot be written"), "{err}");
+    // Nothing was traced: no tally line.
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(!out.contains("exited"), "{out}");
 }
 
 /// `--threads` has render's bound (100000 hung spawning threads). `--out` is left out, so

@@ -182,6 +182,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .unwrap_or_else(|| a.fits.join(format!("{species}.json"))),
             species,
             inputs: a.inputs.clone(),
+            force: a.force,
         }]
     };
     // Every job's data is read before any fit, so an unreadable file or an axis option no

@@ -17,11 +17,11 @@ pub struct Args {
     #[arg(long, default_value = "0,15,30,45", allow_hyphen_values = true)]
     pub theta_i: String,
     /// Outgoing inclinations (degrees): bin centres; bin width = grid step, or for an uneven
-    /// list twice the distance to the nearer neighbour (at least two values).
+    /// list the distance to the nearer neighbour (at least two values).
     #[arg(long, default_value = "-80:80:2", allow_hyphen_values = true)]
     pub theta_r: String,
     /// Relative azimuths (degrees): bin centres; bin width = grid step, or for an uneven
-    /// list twice the distance to the nearer neighbour around the circle (at least two values).
+    /// list the distance to the nearer neighbour around the circle (at least two values).
     #[arg(long, default_value = "-180:180:2", allow_hyphen_values = true)]
     pub phi: String,
     /// Paths traced per incidence angle.
@@ -284,7 +284,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "ellipse_axis_ratio": a.ellipse,
         "medulla_eta": a.medulla_eta.unwrap_or(params.eta),
         "grid": {"theta_i": a.theta_i, "theta_r": a.theta_r, "phi": a.phi,
-                 "bins": "centred on grid values, width = grid step (uneven lists: twice the distance to the nearer neighbour; phi around the circle)"},
+                 "bins": "centred on grid values, width = grid step (uneven lists: the distance to the nearer neighbour; phi around the circle)"},
         "value_units": "exitant energy / incident energy / (rad theta_r * rad phi); far field over the fiber width; not divided by cos theta_r",
         "effects": fx,
         "samples": {"total": m.value.len(), "valid": valid,

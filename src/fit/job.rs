@@ -21,6 +21,8 @@ pub struct Job {
     /// Profile files and/or species folders, merged.
     pub inputs: Vec<PathBuf>,
     pub out: PathBuf,
+    /// `--force`: replace a fit file of other data at `out`.
+    pub force: bool,
 }
 
 /// Species name of an input: the folder name, or the file stem (the folder's name for a
@@ -128,6 +130,7 @@ pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<(Vec<Job>, V
                 out: fits_dir.join(format!("{species}.json")),
                 species,
                 inputs: vec![d],
+                force: false,
             }
         })
         .collect();
@@ -351,9 +354,23 @@ pub fn fit_loaded(
     let text = serde_json::to_string_pretty(&top)
         .map_err(|e| Error::Invalid(format!("JSON: {e}")))?
         + "\n";
-    // Again: a user's file may have appeared there during the fit (audit, 2026-11-28).
-    check_out(&job.out)
-        .and_then(|()| crate::io::write_atomic(&job.out, text.as_bytes()))
+    // Again: a user's file, or another run's fit of other data, may have appeared there
+    // during the fit (audit, 2026-11-28). Refused, the finished fit is kept beside it.
+    if let Err(e) =
+        check_out(&job.out).and_then(|()| check_replace_fit(&job.out, &inputs.files, job.force))
+    {
+        let keep = job
+            .out
+            .with_extension(format!("{}.json", std::process::id()));
+        let kept = crate::io::write_atomic(&keep, text.as_bytes())
+            .map(|()| format!("; the fit is written to {} instead", keep.display()))
+            .unwrap_or_default();
+        return Err(Error::Invalid(format!(
+            "{} appeared while fitting: {e}{kept}",
+            job.out.display()
+        )));
+    }
+    crate::io::write_atomic(&job.out, text.as_bytes())
         .map_err(|e| Error::Invalid(format!("the fit finished but was not written: {e}")))?;
     Ok((top, sums))
 }

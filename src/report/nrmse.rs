@@ -48,8 +48,10 @@ pub struct FitFile {
     pub exposure: f64,
     pub nrmse: f64,
     pub synthetic: bool,
-    /// Data files recorded in the fit (paths as given to `furfit fit`).
+    /// Data files recorded in the fit, where they are found now (see `candidates`).
     pub files: Vec<PathBuf>,
+    /// The places the recorded files may be, in the order [`FitFile::load_data`] tries.
+    candidates: Vec<Vec<PathBuf>>,
     /// Their SHA-256 digests as recorded (empty in fit files that did not record them).
     pub sha256: Vec<String>,
     /// The SHA-256 of each recorded file's samples (empty for fit files from before it).
@@ -169,32 +171,45 @@ impl FitFile {
                 })
                 .unwrap_or_default()
         };
-        // Recorded as given to `furfit fit`, usually relative to the project folder: read
-        // from here, else relative to the fit file (`from_fit`, so a report run from
-        // another directory finds them), else from the folder above the fits folder.
+        // Where the recorded files may be, in order: as given to `furfit fit` (usually
+        // relative to the project folder it ran in), relative to the fit file (`from_fit`:
+        // a report run from elsewhere, or a project moved), under the folder above the fits
+        // folder. `load_data` takes the first place whose files all exist and hold the
+        // recorded data; `files` is the first whose files exist.
         let fit_dir = crate::io::parent_dir(path);
         let project = path.parent().and_then(Path::parent);
-        let files: Vec<PathBuf> = v["data"]["files"]
-            .as_array()
-            .map(|a| {
-                a.iter()
-                    .filter_map(|f| {
-                        let given = PathBuf::from(f["path"].as_str()?);
-                        let from_fit = f["from_fit"].as_str().map(|r| fit_dir.join(r));
-                        Some(if given.is_absolute() || given.exists() {
-                            given
-                        } else if let Some(r) = from_fit.filter(|r| r.exists()) {
-                            r
+        let entries = v["data"]["files"].as_array().cloned().unwrap_or_default();
+        let given: Vec<PathBuf> = entries
+            .iter()
+            .filter_map(|f| f["path"].as_str().map(PathBuf::from))
+            .collect();
+        let mut candidates = vec![given.clone()];
+        let from_fit: Option<Vec<PathBuf>> = entries
+            .iter()
+            .map(|f| f["from_fit"].as_str().map(|r| fit_dir.join(r)))
+            .collect();
+        candidates.extend(from_fit);
+        if let Some(root) = project {
+            candidates.push(
+                given
+                    .iter()
+                    .map(|g| {
+                        if g.is_relative() {
+                            root.join(g)
                         } else {
-                            match project {
-                                Some(root) if root.join(&given).exists() => root.join(given),
-                                _ => given,
-                            }
-                        })
+                            g.clone()
+                        }
                     })
-                    .collect()
-            })
-            .unwrap_or_default();
+                    .collect(),
+            );
+        }
+        candidates.retain(|c| c.len() == given.len() && !c.is_empty());
+        candidates.dedup();
+        let files = candidates
+            .iter()
+            .find(|c| c.iter().all(|f| f.exists()))
+            .cloned()
+            .unwrap_or(given);
         let load = legacy_load(v, &files);
         let sha256 = recorded("sha256");
         let samples_sha256 = recorded("samples_sha256");
@@ -251,6 +266,7 @@ impl FitFile {
             files,
             sha256,
             samples_sha256,
+            candidates,
             load,
             channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
             trace,
@@ -279,21 +295,35 @@ impl FitFile {
     /// have the recorded SHA-256 digests, so a figure never shows a fit over other data
     /// than it was fitted to (fit files without digests are taken on trust).
     fn load_data(&self, measurements: &Path) -> Result<crate::Profile> {
-        let inputs = if !self.files.is_empty() && self.files.iter().all(|p| p.is_file()) {
-            self.files.clone()
-        } else {
-            let dir = measurements.join(&self.species);
-            if !dir.is_dir() {
-                return Err(Error::Invalid(format!(
-                    "its recorded data files are missing and there is no {}",
-                    dir.display()
-                )));
+        let mut first_err = None;
+        let places = self
+            .candidates
+            .iter()
+            .filter(|c| c.iter().all(|p| p.is_file()))
+            .cloned()
+            .chain(
+                Some(measurements.join(&self.species))
+                    .filter(|d| d.is_dir())
+                    .map(|d| vec![d]),
+            );
+        // The first place holding the recorded data; a copy of other data (a project's
+        // own measurements/ beside the one fitted) does not hide a later one that matches.
+        for inputs in places {
+            match crate::fit::job::load_inputs_full(&inputs, &self.load)
+                .and_then(|l| self.check_digests(&inputs, &l.files).map(|()| l.profile))
+            {
+                Ok(p) => return Ok(p),
+                Err(e) => {
+                    first_err.get_or_insert(e);
+                }
             }
-            vec![dir]
-        };
-        let loaded = crate::fit::job::load_inputs_full(&inputs, &self.load)?;
-        self.check_digests(&inputs, &loaded.files)?;
-        Ok(loaded.profile)
+        }
+        Err(first_err.unwrap_or_else(|| {
+            Error::Invalid(format!(
+                "its recorded data files are missing and there is no {}",
+                measurements.join(&self.species).display()
+            ))
+        }))
     }
 
     /// The files read from `inputs` have the digests this fit recorded (fit files without
@@ -740,13 +770,29 @@ pub fn write_fit_reports(
     // Figures of fits no longer in the folder: an earlier run's, still recorded unchanged
     // in the ledger (so furfit's own), would stand beside tables that do not list them.
     let current: Vec<PathBuf> = fits.iter().flat_map(|f| fig11::outputs(f, out)).collect();
+    // A fit file that could not be read this time is still there: its figures stay.
+    let unread: Vec<String> = sum
+        .skipped
+        .iter()
+        .map(|(name, _)| name.trim_end_matches(".json").to_string())
+        .collect();
+    let of_unread = |name: &str| {
+        unread.iter().any(|stem| {
+            let rest = name
+                .strip_prefix("fig11_")
+                .and_then(|n| n.strip_prefix(stem.as_str()));
+            rest.is_some_and(|r| r.starts_with('.') || r.starts_with('-'))
+        })
+    };
     if let Ok(rd) = std::fs::read_dir(out) {
         let mut stale: Vec<PathBuf> = rd
             .filter_map(|e| e.ok().map(|e| e.path()))
             .filter(|p| {
                 let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
                 name.is_some_and(|n| {
-                    n.starts_with("fig11_") && (n.ends_with(".png") || n.ends_with(".svg"))
+                    n.starts_with("fig11_")
+                        && (n.ends_with(".png") || n.ends_with(".svg"))
+                        && !of_unread(&n)
                 }) && !current.contains(p)
                     && crate::io::check_replaceable(std::slice::from_ref(p), false).is_ok()
             })

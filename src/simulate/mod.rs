@@ -60,11 +60,12 @@
 //!   function is Henyey-Greenstein with `g`. Paths leave and re-enter the medulla and bounce
 //!   inside any number of times; after 6 events a path whose weight is below 0.1 plays
 //!   Russian roulette (survives with probability `w/0.1`, then carries 0.1: unbiased). A path
-//!   still inside after [`trace::MAX_EVENTS`] events, or farther than
-//!   [`trace::GUIDED_LENGTH`] radii along the axis, is light guided along the fiber; it
+//!   still inside after [`trace::MAX_EVENTS`] events or [`trace::MAX_CUTICLE_HITS`] cuticle
+//!   interactions, or farther than [`trace::GUIDED_LENGTH`] radii along the axis, is light
+//!   guided along the fiber; it
 //!   leaves far from the lit spot, so it is tallied as `guided`, not detected.
 //! - **Detector.** Exit directions are binned in `(theta_r, phi)`; each bin is centred on
-//!   its grid value with the width of the grid step (for uneven lists, twice the distance
+//!   its grid value with the width of the grid step (for uneven lists, the distance
 //!   to the nearer neighbour, so no bin stretches across a gap; the end bins are
 //!   symmetric: [`bins`]). `phi` bins wrap around the circle without overlapping, so a grid
 //!   holding both -180 and 180 fills both with the same light. The value of a bin is
@@ -227,24 +228,24 @@ pub fn bins(centres_deg: &[f64], cyclic: bool) -> Vec<(f64, f64)> {
         let h = 0.5f64.to_radians();
         return vec![(c[0] - h, c[0] + h)];
     }
-    // Same azimuth on the circle (an ulp apart after the radian conversion).
-    let same = |d: f64| d.abs() < 1e-9;
-    // Gap from c[i] to its nearest distinct neighbour below / above.
+    // Gap from c[i] to its neighbour below / above: the next value, or around the circle
+    // (cyclic) the last / first one, skipping a value at the same azimuth (-180 beside
+    // 180, an ulp apart after the radian conversion; only across the wrap, so close but
+    // distinct values keep their own narrow bins).
     let gap = |i: usize, up: bool| -> Option<f64> {
         let step = |k: usize| if up { (k + 1) % n } else { (k + n - 1) % n };
         let mut k = i;
         for _ in 0..n - 1 {
             k = step(k);
             let wraps = if up { k <= i } else { k >= i };
-            if wraps && !cyclic {
+            if !wraps {
+                return Some(if up { c[k] - c[i] } else { c[i] - c[k] });
+            }
+            if !cyclic {
                 return None;
             }
-            let mut d = if up { c[k] - c[i] } else { c[i] - c[k] };
-            if wraps {
-                d += TAU;
-            }
-            let d = d.rem_euclid(TAU);
-            if !same(d) && !same(d - TAU) {
+            let d = if up { c[k] - c[i] } else { c[i] - c[k] } + TAU;
+            if d.abs() > 1e-9 && (d - TAU).abs() > 1e-9 {
                 return Some(d);
             }
         }
@@ -253,25 +254,33 @@ pub fn bins(centres_deg: &[f64], cyclic: bool) -> Vec<(f64, f64)> {
     (0..n)
         .map(|i| {
             let (lo_gap, hi_gap) = (gap(i, false), gap(i, true));
+            // Two gaps equal up to rounding (a uniform grid, its cyclic wrap included)
+            // count as one: the edges are then the midpoints between neighbours, as they
+            // always were, and an end bin takes its inner gap.
+            let equal = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.max(b);
+            let (lo, hi) = (i > 0, i + 1 < n);
             let half = 0.5
                 * match (lo_gap, hi_gap) {
+                    (Some(a), Some(b)) if equal(a, b) => {
+                        if hi {
+                            b
+                        } else {
+                            a
+                        }
+                    }
                     (Some(a), Some(b)) => a.min(b),
                     (Some(a), None) | (None, Some(a)) => a,
                     (None, None) => TAU,
                 };
-            // Between two neighbours of equal half-widths (a uniform grid) the shared edge
-            // is their midpoint, as it always was, not c +- half rounded twice.
-            let lo = match lo_gap {
-                Some(g) if i > 0 && (0.5 * g - half).abs() <= 1e-12 * g => 0.5 * (c[i - 1] + c[i]),
+            let edge_lo = match lo_gap {
+                Some(g) if lo && equal(0.5 * g, half) => 0.5 * (c[i - 1] + c[i]),
                 _ => c[i] - half,
             };
-            let hi = match hi_gap {
-                Some(g) if i + 1 < n && (0.5 * g - half).abs() <= 1e-12 * g => {
-                    0.5 * (c[i] + c[i + 1])
-                }
+            let edge_hi = match hi_gap {
+                Some(g) if hi && equal(0.5 * g, half) => 0.5 * (c[i] + c[i + 1]),
                 _ => c[i] + half,
             };
-            (lo, hi)
+            (edge_lo, edge_hi)
         })
         .collect()
 }

@@ -488,11 +488,32 @@ fn uneven_grids_get_centred_bins_without_overlap() {
             .all(|x| (x.1 - x.0 - 2f64.to_radians()).abs() < 1e-12),
         "{total}"
     );
-    // Uniform grids: edges shared exactly (the midpoints), as before.
-    let b = bins(&[-10.0, 0.0, 10.0, 20.0], false);
-    for w in b.windows(2) {
-        assert_eq!(w[0].1, w[1].0);
+    // Uniform grids, fine ones included: edges shared exactly (the midpoints), as before,
+    // and the end bins as wide as the step.
+    for (grid, cyclic) in [
+        (vec![-10.0, 0.0, 10.0, 20.0], false),
+        (
+            (0..=16000).map(|k| -80.0 + 0.01 * k as f64).collect(),
+            false,
+        ),
+        (
+            (1..=36000).map(|k| -180.0 + 0.01 * k as f64).collect(),
+            true,
+        ),
+    ] {
+        let b = bins(&grid, cyclic);
+        for w in b.windows(2) {
+            assert_eq!(w[0].1, w[1].0);
+        }
+        let c0 = grid[0].to_radians();
+        assert_eq!(b[0].0, c0 - 0.5 * (grid[1].to_radians() - c0));
     }
+    // Distinct values closer than any grid step keep disjoint bins of their own.
+    let b = bins(&[0.0, 1e-8, 10.0], false);
+    assert!(
+        b[0].1 <= b[1].0 && b[1].1 <= b[2].0 && b[1].1 > b[1].0,
+        "{b:?}"
+    );
     // Energy is counted once: every direction lands in at most one phi bin.
     let det = Detector::new(&[-10.0, 0.0, 10.0], &[-170.0, 170.0]);
     for k in 0..360 {

@@ -9,17 +9,23 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 
 /// Maximum number of segments (straight pieces inside the fiber plus interface events) of
 /// one path. Paths still inside after this are light guided along the fiber, which leaves
-/// far from the lit spot; their energy is tallied as `guided`, never binned. 2000: in a
-/// lossless cortex with a cuticle tilt (`sigma_c_a = 0`, `alpha = 8`, theta_i 30), where
-/// 14 % of the paths are trapped at weight 1, the exited energy was 0.8620 with 20 000 and
-/// 0.8618 with 2000 (20 000 paths each, noise ~3e-3), in 21 s against 5.2 s.
-pub const MAX_EVENTS: u32 = 2_000;
+/// far from the lit spot; their energy is tallied as `guided`, never binned. A medulla that
+/// scatters strongly and absorbs little needs thousands of scatterings near the lit spot
+/// (at 2000, `tau` 40 lost 1.6 % of the energy; review, 2026-11-28), so this stays large
+/// and trapped cortex paths are cut by [`MAX_CUTICLE_HITS`] instead.
+pub const MAX_EVENTS: u32 = 20_000;
+
+/// Most cuticle interactions of one path before it counts as `guided`: a path reflected
+/// this often inside the cortex is trapped by total internal reflection. In a lossless
+/// cortex with a cuticle tilt (`sigma_c_a = 0`, `alpha = 8`, theta_i 30) 14 % of the paths
+/// are trapped at weight 1, where Russian roulette never starts, and each ran the full
+/// [`MAX_EVENTS`]: that run took 48 s for 20 000 paths (audit, 2026-11-28).
+pub const MAX_CUTICLE_HITS: u32 = 2_000;
 
 /// Axial distance (fiber radii) from the entry point beyond which a path still inside is
 /// tallied as `guided` at once: 500 diameters, tens of millimetres for fur, far outside
-/// any goniometer's lit spot. Without it a lossless cortex (`sigma_c_a = 0`) with a cuticle
-/// tilt trapped paths at weight 1, where Russian roulette never starts, and each ran the
-/// full [`MAX_EVENTS`] (a run 3600 times slower; audit, 2026-11-28).
+/// any goniometer's lit spot (paths guided along the axis end here, those circling the
+/// fiber at [`MAX_CUTICLE_HITS`]).
 pub const GUIDED_LENGTH: f64 = 1000.0;
 
 /// Russian roulette starts after this many interface/scattering events ...
@@ -113,8 +119,8 @@ pub enum Outcome {
     Exit(Exit),
     /// Absorbed or killed by Russian roulette (weight 0 by construction).
     Absorbed,
-    /// Still inside after [`MAX_EVENTS`] or beyond [`GUIDED_LENGTH`]: guided along the
-    /// fiber; carries `weight`.
+    /// Still inside after [`MAX_EVENTS`] or [`MAX_CUTICLE_HITS`], or beyond
+    /// [`GUIDED_LENGTH`]: guided along the fiber; carries `weight`.
     Guided(f64),
 }
 
@@ -319,7 +325,7 @@ pub fn trace_path(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Outc
     let mut z = 0.0f64;
     loop {
         events += 1;
-        if events > MAX_EVENTS || z.abs() > GUIDED_LENGTH {
+        if events > MAX_EVENTS || cuticle_n > MAX_CUTICLE_HITS || z.abs() > GUIDED_LENGTH {
             return Outcome::Guided(w);
         }
         if events > RR_AFTER && w < RR_WEIGHT {
