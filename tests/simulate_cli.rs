@@ -389,6 +389,11 @@ fn simulate_warns_when_no_sample_is_valid() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "{err}");
     assert!(err.contains("warning: no sample of"), "{err}");
+    // Not a terminal here: plain progress lines stand in for the hidden bar.
+    assert!(
+        err.contains("simulate: 100 % (40000 of 40000 paths)"),
+        "{err}"
+    );
 }
 
 /// A folder no file can be created in fails before the simulation (`/proc` refuses new

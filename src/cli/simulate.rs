@@ -226,7 +226,23 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     }
     let total = s.paths * s.theta_i.len() as u64;
     let pb = progress_bar(total);
-    let sim = simulate::simulate(&s, |done| pb.set_position(done))?;
+    // Without a terminal (a batch job, a log file) the bar is hidden: a plain line every
+    // tenth of the run says how far it is instead (audit, 2026-11-28).
+    let plain = !std::io::IsTerminal::is_terminal(&std::io::stderr());
+    let started = Instant::now();
+    let mut next_tenth = 1u64;
+    let sim = simulate::simulate(&s, |done| {
+        pb.set_position(done);
+        if plain && total > 0 && done * 10 >= next_tenth * total && next_tenth < 10 {
+            let secs = started.elapsed().as_secs_f64();
+            let eta = secs * (total - done) as f64 / done.max(1) as f64;
+            eprintln!(
+                "simulate: {} % ({done} of {total} paths) in {secs:.0} s, about {eta:.0} s to go",
+                done * 100 / total
+            );
+            next_tenth = done * 10 / total + 1;
+        }
+    })?;
     pb.finish_and_clear();
     let secs = t0.elapsed().as_secs_f64();
     let fx = measure::Effects {
