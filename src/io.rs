@@ -29,6 +29,12 @@ fn forget_temp(tmp: &Path) {
     in_flight().retain(|p| p != tmp);
 }
 
+/// Remove a temporary that will not be committed, and unlist it.
+fn discard_temp(tmp: &Path) {
+    let _ = std::fs::remove_file(tmp);
+    forget_temp(tmp);
+}
+
 /// On SIGINT, SIGTERM or SIGHUP: let a group write in progress finish, remove the
 /// temporaries of writes in flight, then die of the signal as if there were no handler
 /// (so a shell loop around furfit still stops on Ctrl-C, and the exit status says which
@@ -120,8 +126,7 @@ fn write_all_with(
     let mut temps: Vec<PathBuf> = Vec::with_capacity(files.len());
     let remove_all = |paths: &mut dyn Iterator<Item = &PathBuf>| {
         for p in paths {
-            let _ = std::fs::remove_file(p);
-            forget_temp(p);
+            discard_temp(p);
         }
     };
     for (path, bytes) in files {
@@ -240,10 +245,24 @@ pub fn probe_file_writable(path: &Path) -> Result<()> {
     } else {
         existing
     };
-    // A name no other probe holds (a killed run's leftover of a reused pid is skipped).
+    probe_dir(existing).map_err(|e| {
+        Error::file(
+            path,
+            format!(
+                "cannot be written: no file can be created in {} ({e}); nothing was run",
+                existing.display()
+            ),
+        )
+    })
+}
+
+/// Create and remove a probe file in the existing directory `dir`: whether a file can be
+/// created there. A name no other probe holds is taken (a killed run's leftover of a
+/// reused pid is skipped).
+fn probe_dir(dir: &Path) -> std::io::Result<()> {
     let mut attempt = 0u32;
-    let made = loop {
-        let probe = existing.join(format!(".furfit-probe-{}-{attempt}", std::process::id()));
+    loop {
+        let probe = dir.join(format!(".furfit-probe-{}-{attempt}", std::process::id()));
         match std::fs::OpenOptions::new()
             .write(true)
             .create_new(true)
@@ -251,21 +270,11 @@ pub fn probe_file_writable(path: &Path) -> Result<()> {
         {
             Ok(_) => {
                 let _ = std::fs::remove_file(&probe);
-                break Ok(());
+                return Ok(());
             }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists && attempt < 64 => attempt += 1,
-            Err(e) => break Err(e),
+            Err(e) => return Err(e),
         }
-    };
-    match made {
-        Ok(()) => Ok(()),
-        Err(e) => Err(Error::file(
-            path,
-            format!(
-                "cannot be written: no file can be created in {} ({e}); nothing was run",
-                existing.display()
-            ),
-        )),
     }
 }
 
@@ -312,8 +321,7 @@ where
         Ok(())
     })();
     if let Err(e) = result {
-        let _ = std::fs::remove_file(&tmp);
-        forget_temp(&tmp);
+        discard_temp(&tmp);
         return Err(Error::io(path, e));
     }
     Ok(tmp)
@@ -321,12 +329,12 @@ where
 
 /// Rename a temporary from [`write_temp`] over `path` (atomic on POSIX file systems).
 fn commit(tmp: &Path, path: &Path) -> Result<()> {
-    let out = std::fs::rename(tmp, path).map_err(|e| {
-        let _ = std::fs::remove_file(tmp);
+    std::fs::rename(tmp, path).map_err(|e| {
+        discard_temp(tmp);
         Error::io(path, e)
-    });
+    })?;
     forget_temp(tmp);
-    out
+    Ok(())
 }
 
 /// `path` made absolute with symbolic links and `..` resolved as far as it exists (the
@@ -473,15 +481,12 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 pub fn probe_writable(dir: &Path) -> Result<()> {
     check_out_dir(dir)?;
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
-    let probe = dir.join(format!(".furfit-probe-{}", std::process::id()));
-    std::fs::File::create(&probe).map_err(|e| {
+    probe_dir(dir).map_err(|e| {
         Error::file(
             dir,
             format!("cannot write into this folder ({e}); nothing was run"),
         )
-    })?;
-    let _ = std::fs::remove_file(&probe);
-    Ok(())
+    })
 }
 
 /// The ledger furfit keeps in each directory that `render`, `render-convergence`,
@@ -603,8 +608,7 @@ pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
     let dir = parent_dir(path);
     if let Some(name) = &name {
         if let Err(e) = update_ledger(&dir, vec![(name.clone(), entry)]) {
-            let _ = std::fs::remove_file(&tmp);
-            forget_temp(&tmp);
+            discard_temp(&tmp);
             return Err(e);
         }
     }

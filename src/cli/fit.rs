@@ -228,20 +228,19 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     continue;
                 }
             };
-            let ch_of = |s: &&crate::profile::Sample| s.channel == c && !s.is_valid();
+            let ch = inputs
+                .profile
+                .channels
+                .get(c)
+                .map_or(String::new(), |n| format!(" of channel {n}"));
             let left: Vec<f64> = inputs
                 .profile
                 .samples
                 .iter()
-                .filter(ch_of)
+                .filter(|s| s.channel == c && !s.is_valid())
                 .map(|s| s.value)
                 .collect();
             if !left.is_empty() {
-                let ch = inputs
-                    .profile
-                    .channels
-                    .get(c)
-                    .map_or(String::new(), |n| format!(" of channel {n}"));
                 let neg = left.iter().filter(|v| **v < 0.0).count();
                 let zero = left.iter().filter(|v| **v == 0.0).count();
                 let mut note = format!(
@@ -259,11 +258,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 notes.push(note);
             }
             if d.n_below_floor > 0 {
-                let ch = inputs
-                    .profile
-                    .channels
-                    .get(c)
-                    .map_or(String::new(), |n| format!(" of channel {n}"));
                 notes.push(format!(
                     "{} valid sample(s){ch} below {:e} of the channel's largest value left out (--floor; 0 keeps them)",
                     d.n_below_floor, opts.floor

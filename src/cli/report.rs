@@ -20,9 +20,10 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     // The fits first: a refused run leaves no empty --out folder behind.
-    crate::report::nrmse::read_fits(&a.fits)?;
+    let (fits, unread) = crate::report::nrmse::read_fits(&a.fits)?;
     crate::io::probe_writable(&a.out)?;
-    let sum = crate::report::nrmse::write_fit_reports(&a.fits, &a.measurements, &a.out, a.force)?;
+    let sum =
+        crate::report::nrmse::write_fit_reports(&fits, &unread, &a.measurements, &a.out, a.force)?;
     for p in &sum.written {
         outln!("wrote {}", p.display());
     }

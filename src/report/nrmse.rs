@@ -700,7 +700,7 @@ pub fn csv(fits: &[FitFile]) -> String {
 pub fn write(
     fits: &[FitFile],
     unverified: &[(String, String)],
-    unread: &[(String, String)],
+    unread: &[Skipped],
     out: &Path,
 ) -> Result<()> {
     let mut md = markdown(fits);
@@ -739,17 +739,21 @@ pub struct ReportSummary {
 }
 
 /// The entry point of the fit reports: `nrmse.{md,csv}`, `fig11_<species>.{png,svg}`,
-/// `fit_error_vs_time.{csv,png,svg}` and `model_vs_simulation.md` from the fit files in
-/// `fits_dir` and the profiles in `measurements` (a fit's Fig-11 data is read from the
-/// files it recorded when they exist, else from `measurements/<species>/`).
+/// `fit_error_vs_time.{csv,png,svg}` and `model_vs_simulation.md` from the fits
+/// [`read_fits`] read (`unread`: the fit files it could not) and the profiles in
+/// `measurements` (a fit's Fig-11 data is read from the first place holding the data it
+/// recorded, see [`FitFile::load_data`]).
 pub fn write_fit_reports(
-    fits_dir: &Path,
+    fits: &[FitFile],
+    unread: &[Skipped],
     measurements: &Path,
     out: &Path,
     force: bool,
 ) -> Result<ReportSummary> {
-    use super::fig11;
-    let (fits, bad) = read_fits(fits_dir)?;
+    let figures: Vec<PathBuf> = fits
+        .iter()
+        .flat_map(|f| super::fig11::outputs(f, out))
+        .collect();
     // Every file this run may write, checked before any is ([`crate::io::LEDGER`]).
     let mut planned: Vec<PathBuf> = ["nrmse.md", "nrmse.csv", "model_vs_simulation.md"]
         .iter()
@@ -760,53 +764,59 @@ pub fn write_fit_reports(
         ])
         .map(|n| out.join(n))
         .collect();
-    planned.extend(fits.iter().flat_map(|f| fig11::outputs(f, out)));
+    planned.extend(figures.iter().cloned());
     crate::io::check_replaceable(&planned, force)?;
     let mut sum = ReportSummary {
-        skipped: bad,
-        notes: species_notes(&fits),
+        skipped: unread.to_vec(),
+        notes: species_notes(fits),
         ..Default::default()
     };
-    // Figures of fits no longer in the folder: an earlier run's, still recorded unchanged
-    // in the ledger (so furfit's own), would stand beside tables that do not list them.
-    let current: Vec<PathBuf> = fits.iter().flat_map(|f| fig11::outputs(f, out)).collect();
-    // A fit file that could not be read this time is still there: its figures stay.
-    let unread: Vec<String> = sum
-        .skipped
-        .iter()
-        .map(|(name, _)| name.trim_end_matches(".json").to_string())
-        .collect();
+    remove_stale_figures(out, &figures, unread, &mut sum);
+    write_planned(fits, unread, measurements, out, &mut sum)?;
+    Ok(sum)
+}
+
+/// Figures of fits no longer in the folder: an earlier run's, still recorded unchanged in
+/// the ledger (so furfit's own), would stand beside tables that do not list them. Those of
+/// a fit file in `unread` (still there, only not readable this time) stay; `figures` are
+/// this run's.
+fn remove_stale_figures(
+    out: &Path,
+    figures: &[PathBuf],
+    unread: &[Skipped],
+    sum: &mut ReportSummary,
+) {
     let of_unread = |name: &str| {
-        unread.iter().any(|stem| {
+        unread.iter().any(|(file, _)| {
+            let stem = file.trim_end_matches(".json");
             let rest = name
                 .strip_prefix("fig11_")
-                .and_then(|n| n.strip_prefix(stem.as_str()));
+                .and_then(|n| n.strip_prefix(stem));
             rest.is_some_and(|r| r.starts_with('.') || r.starts_with('-'))
         })
     };
-    if let Ok(rd) = std::fs::read_dir(out) {
-        let mut stale: Vec<PathBuf> = rd
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| {
-                let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
-                name.is_some_and(|n| {
-                    n.starts_with("fig11_")
-                        && (n.ends_with(".png") || n.ends_with(".svg"))
-                        && !of_unread(&n)
-                }) && !current.contains(p)
-                    && crate::io::check_replaceable(std::slice::from_ref(p), false).is_ok()
-            })
-            .collect();
-        stale.sort();
-        for p in stale {
-            if std::fs::remove_file(&p).is_ok() {
-                sum.removed
-                    .push((p, "a figure of a fit no longer in the fits folder"));
-            }
+    let Ok(rd) = std::fs::read_dir(out) else {
+        return;
+    };
+    let mut stale: Vec<PathBuf> = rd
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
+            name.is_some_and(|n| {
+                n.starts_with("fig11_")
+                    && (n.ends_with(".png") || n.ends_with(".svg"))
+                    && !of_unread(&n)
+            }) && !figures.contains(p)
+                && crate::io::check_replaceable(std::slice::from_ref(p), false).is_ok()
+        })
+        .collect();
+    stale.sort();
+    for p in stale {
+        if std::fs::remove_file(&p).is_ok() {
+            sum.removed
+                .push((p, "a figure of a fit no longer in the fits folder"));
         }
     }
-    write_planned(&fits, measurements, out, &mut sum)?;
-    Ok(sum)
 }
 
 /// Write the planned reports, listing each file in `sum.written` once it is written. Each
@@ -814,6 +824,7 @@ pub fn write_fit_reports(
 /// part-way leaves every file it wrote recorded as furfit's.
 fn write_planned(
     fits: &[FitFile],
+    unread: &[Skipped],
     measurements: &Path,
     out: &Path,
     sum: &mut ReportSummary,
@@ -836,8 +847,7 @@ fn write_planned(
         .zip(&data)
         .filter_map(|(f, d)| d.as_ref().err().map(|e| (f.label(), e.to_string())))
         .collect();
-    let unread = sum.skipped.clone();
-    write(fits, &unverified, &unread, out)?;
+    write(fits, &unverified, unread, out)?;
     sum.written
         .extend(["nrmse.md", "nrmse.csv"].map(|n| out.join(n)));
     fit_time::write(fits, out)?;
