@@ -196,6 +196,20 @@ pub fn check_out_dir(dir: &Path) -> Result<()> {
                     format!("cannot write here: {} is not a directory", a.display()),
                 ))
             }
+            // A link to nothing: the folder could not be created there (the run failed
+            // only when it wrote, after the work; review, 2026-11-28).
+            Err(e)
+                if e.kind() == std::io::ErrorKind::NotFound
+                    && std::fs::symlink_metadata(a).is_ok_and(|m| m.is_symlink()) =>
+            {
+                return Err(Error::file(
+                    dir,
+                    format!(
+                        "cannot write here: {} is a symbolic link to a missing target",
+                        a.display()
+                    ),
+                ))
+            }
             // Not found, or below a file (ENOTDIR): the ancestor in the way decides.
             Err(e)
                 if matches!(
@@ -489,6 +503,23 @@ pub fn probe_writable(dir: &Path) -> Result<()> {
     })
 }
 
+/// The fit files of a folder, sorted by name: its `*.json` files except hidden ones (a
+/// name starting with `.`), which are not fits (furfit's own [`LEDGER`] lands in a fits
+/// folder that `render --out` wrote into). `report` and `render --all` read this list.
+pub fn fit_files(dir: &Path) -> Result<Vec<PathBuf>> {
+    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
+    let mut paths: Vec<PathBuf> = rd
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| {
+            p.extension().is_some_and(|x| x == "json")
+                && p.file_name()
+                    .is_some_and(|n| !n.to_string_lossy().starts_with('.'))
+        })
+        .collect();
+    paths.sort();
+    Ok(paths)
+}
+
 /// The ledger furfit keeps in each directory that `render`, `render-convergence`,
 /// `report`, `stability`, `se-calibration` and `bench-model` write into: the files it wrote there, each with
 /// the SHA-256 of the bytes written. Those commands replace an existing file only when the
@@ -700,6 +731,29 @@ mod tests {
         for n in other.iter().chain([&alive.as_str()]) {
             assert!(d.join(n).exists(), "{n}");
         }
+    }
+
+    /// A dangling symbolic link on the way to an output is refused before the work (it
+    /// was passed over as a missing folder, and the write failed after a whole fit), and
+    /// fit files are listed without hidden files such as the ledger.
+    #[cfg(unix)]
+    #[test]
+    fn dangling_link_is_refused_and_hidden_files_are_no_fits() {
+        let dir = tempfile::tempdir().unwrap();
+        let link = dir.path().join("fits");
+        std::os::unix::fs::symlink(dir.path().join("missing"), &link).unwrap();
+        let e = probe_file_writable(&link.join("mouse.json")).unwrap_err();
+        assert!(e.to_string().contains("symbolic link"), "{e}");
+        std::fs::remove_file(&link).unwrap();
+        std::fs::create_dir(&link).unwrap();
+        probe_file_writable(&link.join("mouse.json")).unwrap();
+        for n in ["b.json", "a.json", LEDGER, ".x.json", "c.txt"] {
+            std::fs::write(link.join(n), "{}").unwrap();
+        }
+        assert_eq!(
+            fit_files(&link).unwrap(),
+            vec![link.join("a.json"), link.join("b.json")]
+        );
     }
 
     /// Concurrent ledger updates into one folder keep every entry (each holds the lock

@@ -73,6 +73,27 @@ pub struct ParamSpec {
 }
 
 impl ParamSpec {
+    /// `v` (file units) for a one-line summary: five significant digits (an exponent
+    /// beyond 1e6 or below 1e-3), or every digit where five would print a bound the
+    /// value is not on (`kappa` 0.9999966 is not `1.0000`, outside `[0, 1)`).
+    pub fn value_text(&self, v: f64) -> String {
+        let a = v.abs();
+        let short = if a == 0.0 || !a.is_finite() {
+            format!("{v}")
+        } else if !(1e-3..1e6).contains(&a) {
+            format!("{v:.4e}")
+        } else {
+            let decimals = (4 - a.log10().floor() as i32).max(0) as usize;
+            format!("{v:.decimals$}")
+        };
+        let on_bound = |b: f64| short.parse::<f64>().is_ok_and(|r| r == b) && v != b;
+        if on_bound(self.lower) || on_bound(self.upper) {
+            crate::error::Num(v).to_string()
+        } else {
+            short
+        }
+    }
+
     /// Is `v` (file units) inside the hard bounds?
     pub fn contains(&self, v: f64) -> bool {
         if !v.is_finite() {
@@ -736,6 +757,21 @@ mod tests {
         }
         assert!(FurParams::preset("Red Fox").is_some());
         assert!(FurParams::preset("unicorn").is_none());
+    }
+
+    #[test]
+    fn value_text_is_short_and_never_prints_a_bound_it_is_not_on() {
+        let spec = |name: &str| SPECS.iter().find(|s| s.name == name).unwrap();
+        let kappa = spec("kappa");
+        assert_eq!(kappa.value_text(0.86077), "0.86077");
+        assert_eq!(kappa.value_text(0.123456789), "0.12346");
+        assert_eq!(kappa.value_text(0.9999966), "0.9999966");
+        assert_eq!(kappa.value_text(0.0), "0");
+        let sca = spec("sigma_c_a");
+        assert_eq!(sca.value_text(1e308), "1.0000e308");
+        assert_eq!(sca.value_text(2.5e-7), "2.5000e-7");
+        assert_eq!(sca.value_text(17.63), "17.630");
+        assert_eq!(spec("alpha").value_text(-20.0), "-20.000");
     }
 
     #[test]

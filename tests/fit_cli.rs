@@ -594,6 +594,69 @@ fn report_keeps_two_fits_of_one_species_apart() {
     );
 }
 
+/// A fit file edited by hand (a parameter tried out) is reported with the NRMSE of the
+/// parameters it now holds, recomputed on its data, and a note; an untouched one keeps its
+/// own figure. furfit's ledger, which `render --out fits/...` leaves in the fits folder, is
+/// not taken for a fit (audit, 2026-11-28: it stopped `report` and `render --all`).
+#[test]
+fn report_recomputes_the_nrmse_of_an_edited_fit_and_skips_the_ledger() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    make_species(root, "mouse");
+    let v = fit(root, "mouse", "fits/mouse.json", "1");
+    let fitted = v["nrmse"].as_f64().unwrap();
+    let row = |root: &Path| -> String {
+        let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
+        md.lines()
+            .find(|l| l.starts_with("| NRMSE (this fit)"))
+            .unwrap()
+            .to_string()
+    };
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(row(root).contains(&format!("{:.1}%", 100.0 * fitted)));
+    let md = std::fs::read_to_string(root.join("reports/nrmse.md")).unwrap();
+    assert!(!md.contains("records NRMSE"), "{md}");
+    // A ledger in the fits folder (written there by furfit itself).
+    std::fs::write(root.join("fits/.furfit-outputs.json"), r#"{"files": {}}"#).unwrap();
+    let mut edited = v.clone();
+    edited["params"]["eta"] = serde_json::json!(2.5);
+    std::fs::write(root.join("fits/mouse.json"), edited.to_string()).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains(".furfit-outputs.json"), "{err}");
+    assert!(err.contains("records NRMSE"), "{err}");
+    let shown = row(root);
+    assert!(
+        !shown.contains(&format!("{:.1}%", 100.0 * fitted)),
+        "{shown}"
+    );
+    // The recomputed value is the NRMSE of a fit holding every parameter at the edited
+    // values (only the exposure solved, as the NRMSE's optimal exposure).
+    let vals: Vec<f64> = furfit::ParamId::ALL
+        .iter()
+        .map(|id| edited["params"][id.spec().name].as_f64().unwrap())
+        .collect();
+    let mut c = fit_cmd(root);
+    c.args(["measurements/mouse", "--out", "check.json"]);
+    fix_all_but(&mut c, &vals.try_into().unwrap(), &[]);
+    let o = c.output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let check: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("check.json")).unwrap()).unwrap();
+    let want = check["nrmse"].as_f64().unwrap();
+    assert!(
+        shown.contains(&format!("{:.1}%", 100.0 * want)),
+        "{shown} vs {want}"
+    );
+    // A negative recorded NRMSE is refused as unreadable.
+    edited["nrmse"] = serde_json::json!(-0.5);
+    std::fs::write(root.join("fits/mouse.json"), edited.to_string()).unwrap();
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    fails_with(o, &["mouse.json", "non-negative"]);
+}
+
 /// `--init` runs Levenberg-Marquardt in addition to the best-scored starts (it used to
 /// replace one, with `--lm-starts 1` the best), and the fit file records it and the
 /// iteration cap. Nonsense counts and `--all` with inputs are refused.
@@ -1190,10 +1253,45 @@ fn fit_names_profile_files_by_folder_and_keeps_fits_of_other_data() {
         &["--out", "fits/mouse.json", "--force"],
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let fit: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(root.join("fits/mouse.json")).unwrap())
-            .unwrap();
-    assert_eq!(fit["species"], "vole");
+    let species = |name: &str| -> serde_json::Value {
+        let path = root.join("fits").join(name);
+        serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(path).unwrap()).unwrap()
+            ["species"]
+            .clone()
+    };
+    assert_eq!(species("mouse.json"), "vole");
+
+    // `--all` refuses that fit of other data before any fit, and `--all --force` replaces
+    // it (its write-time re-check once ignored --force: review, 2026-11-28).
+    let all = |extra: &[&str]| {
+        let mut c = fit_cmd(root);
+        c.arg("--all").args(extra);
+        fix_all_but(&mut c, &mouse, &[]);
+        c.output().unwrap()
+    };
+    fails_with(all(&[]), &["fits/mouse.json", "holds a fit of other data"]);
+    let o = all(&["--force"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(species("mouse.json"), "mouse");
+    assert_eq!(species("vole.json"), "vole");
+    let names: Vec<String> = std::fs::read_dir(root.join("fits"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert!(names.iter().all(|n| !n.contains("kept")), "{names:?}");
+
+    // Two folders that are one species (`.vole` is named vole) are refused before any fit
+    // instead of the second overwriting (or being refused after) the first.
+    let hidden = root.join("measurements/.vole");
+    std::fs::create_dir(&hidden).unwrap();
+    std::fs::copy(
+        root.join("measurements/vole/profile.csv"),
+        hidden.join("profile.csv"),
+    )
+    .unwrap();
+    let before = std::fs::read(root.join("fits/vole.json")).unwrap();
+    fails_with(all(&[]), &["would both be fitted into", "vole.json"]);
+    assert_eq!(std::fs::read(root.join("fits/vole.json")).unwrap(), before);
 }
 
 /// Two Yan-2015 files without `# theta_i:` lines, fitted together with one `--theta-i`,
@@ -1632,6 +1730,25 @@ fn report_copes_with_the_fits_folder_as_users_keep_it() {
     );
     assert!(!root.join("reports/fig11_vole.png").exists());
     assert!(root.join("reports/fig11_mouse.png").is_file());
+    // Another command's output of such a name, recorded in the same ledger, is not one of
+    // report's figures: it stays (review, 2026-11-28).
+    let o = furfit()
+        .current_dir(root)
+        .args(["render", "--params", "mouse", "--size", "8x8", "--spp", "1"])
+        .args([
+            "--fibers",
+            "20",
+            "--no-aovs",
+            "--out",
+            "reports/fig11_mine.png",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let o = furfit().current_dir(root).arg("report").output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(root.join("reports/fig11_mine.png").is_file(), "{err}");
 
     // A fit written into a project of its own (deep/fits/) from the root: a report run in
     // deep/ finds the data only through the path recorded relative to the fit file.

@@ -162,7 +162,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let load = a.load.to_options()?;
     let jobs = if a.all {
-        let (jobs, passed) = jobs_for_all(&a.measurements, &a.fits)?;
+        let (jobs, passed) = jobs_for_all(&a.measurements, &a.fits, a.force)?;
         for d in passed {
             eprintln!(
                 "note: {}: no profile file, not a species folder",
@@ -267,10 +267,23 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         floor_notes.push(notes);
         unfit.push(why);
     }
-    // Every output too, so `--all` cannot stop at the n-th species after n - 1 fits.
-    for (job, inputs) in jobs.iter().zip(&loaded) {
+    // Every output too, so `--all` cannot stop at the n-th species after n - 1 fits, nor
+    // write two species' fits to one file (folders `fox` and `.fox` are both species fox).
+    for (j, (job, inputs)) in jobs.iter().zip(&loaded).enumerate() {
         crate::fit::job::check_out(&job.out)?;
-        crate::fit::job::check_replace_fit(&job.out, &inputs.files, a.force)?;
+        crate::fit::job::check_replace_fit(&job.out, &inputs.files, job.force)?;
+        let same = crate::io::resolve_path(&job.out);
+        if let Some(other) = jobs[..j]
+            .iter()
+            .find(|o| crate::io::resolve_path(&o.out) == same)
+        {
+            anyhow::bail!(
+                "{} and {} would both be fitted into {}; fit them one at a time with --out",
+                other.inputs[0].display(),
+                job.inputs[0].display(),
+                job.out.display()
+            );
+        }
     }
     // Species that could not be fitted, with the reason; the others go on. With several
     // species (`--all`) a failure is said when it happens and listed again at the end.
@@ -358,7 +371,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             let file = o.params.to_file_units();
             let line: Vec<String> = crate::ParamId::ALL
                 .iter()
-                .map(|id| format!("{}={:.4}", id.spec().name, file[id.index()]))
+                .map(|id| {
+                    let spec = id.spec();
+                    format!("{}={}", spec.name, spec.value_text(file[id.index()]))
+                })
                 .collect();
             outln!("  {}", line.join(" "));
             for l in se_lines(&o.uncertainty) {

@@ -327,12 +327,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // parameters come from)
     let jobs: Vec<(String, FurParams, Option<Tint>, String)> = if a.all {
         let dir = a.fits_dir.clone().unwrap_or_else(|| "fits".into());
-        let mut files: Vec<PathBuf> = std::fs::read_dir(&dir)
-            .with_context(|| format!("reading {}", dir.display()))?
-            .filter_map(|e| e.ok().map(|e| e.path()))
-            .filter(|p| p.extension().is_some_and(|e| e == "json"))
-            .collect();
-        files.sort();
+        let files = crate::io::fit_files(&dir)?;
         if files.is_empty() {
             bail!("{}: no *.json fit files", dir.display());
         }

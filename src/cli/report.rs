@@ -7,7 +7,10 @@ pub struct Args {
     /// Folder of fit files (`<species>.json`).
     #[arg(long, default_value = "fits")]
     pub fits: PathBuf,
-    /// Folder of species folders (profiles + metadata.json).
+    /// Folder of species folders (profiles + metadata.json): the species of
+    /// `model_vs_simulation.md`. A fit's own figure and NRMSE use the data it recorded
+    /// (its files as given to `fit`, found from here, from the fit file, or as
+    /// `<this folder>/<species>/`), whichever first holds exactly those data (SHA-256).
     #[arg(long, default_value = "measurements")]
     pub measurements: PathBuf,
     /// Output folder.

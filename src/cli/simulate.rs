@@ -313,6 +313,20 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         "wall_seconds": secs,
         "threads": rayon::current_num_threads(),
     });
+    // Again: a file may have appeared, or the earlier run's been edited, during a run of
+    // hours (review, 2026-11-28). Refused, the simulation is kept in a new folder beside.
+    if let Err(e) = output::check_replace(&out, &a.file, a.force) {
+        let name = out
+            .file_name()
+            .map_or("simulation".into(), |n| n.to_string_lossy().into_owned());
+        let keep = crate::io::parent_dir(&out).join(format!("{name}.kept-{}", std::process::id()));
+        let kept = if !keep.exists() && output::write_all(&keep, &a.file, &prof, &md).is_ok() {
+            format!("; the simulation is written to {} instead", keep.display())
+        } else {
+            String::new()
+        };
+        anyhow::bail!("{e} (it changed while simulating){kept}");
+    }
     output::write_all(&out, &a.file, &prof, &md)?;
     if valid == 0 {
         // Written (the metadata says why each sample is invalid), but no fit can use it.

@@ -106,9 +106,14 @@ pub fn check_replace_fit(out: &Path, files: &[ReadFile], force: bool) -> Result<
     ))
 }
 
-/// Every species folder under `measurements` (sorted), one job each, and the folders
-/// passed over for holding no profile file (the caller says so).
-pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<(Vec<Job>, Vec<PathBuf>)> {
+/// Every species folder under `measurements` (sorted), one job each (replacing a fit of
+/// other data when `force`), and the folders passed over for holding no profile file (the
+/// caller says so).
+pub fn jobs_for_all(
+    measurements: &Path,
+    fits_dir: &Path,
+    force: bool,
+) -> Result<(Vec<Job>, Vec<PathBuf>)> {
     let rd = std::fs::read_dir(measurements).map_err(|e| Error::io(measurements, e))?;
     let (mut dirs, mut passed): (Vec<PathBuf>, Vec<PathBuf>) = rd
         .filter_map(|e| e.ok().map(|e| e.path()))
@@ -130,7 +135,7 @@ pub fn jobs_for_all(measurements: &Path, fits_dir: &Path) -> Result<(Vec<Job>, V
                 out: fits_dir.join(format!("{species}.json")),
                 species,
                 inputs: vec![d],
-                force: false,
+                force,
             }
         })
         .collect();
@@ -254,6 +259,25 @@ pub fn check_out(out: &Path) -> Result<()> {
     Ok(())
 }
 
+/// Write a finished fit that may not go to `out` beside it, under a name no file has yet:
+/// `<name>.kept-<pid>` (then `-2`, `-3`, ...). Not `*.json`, so `report` and
+/// `render --all` do not take it for a fit of the folder until the user renames it.
+fn keep_refused(out: &Path, text: &[u8]) -> Option<PathBuf> {
+    let name = out.file_name()?.to_string_lossy().into_owned();
+    let pid = std::process::id();
+    (1..100)
+        .map(|k| {
+            let suffix = if k == 1 {
+                format!("kept-{pid}")
+            } else {
+                format!("kept-{pid}-{k}")
+            };
+            crate::io::parent_dir(out).join(format!("{name}.{suffix}"))
+        })
+        .find(|p| std::fs::symlink_metadata(p).is_err())
+        .filter(|p| crate::io::write_atomic(p, text).is_ok())
+}
+
 /// Summary of one channel's fit, for printing.
 #[derive(Clone, Debug)]
 pub struct ChannelSummary {
@@ -359,14 +383,11 @@ pub fn fit_loaded(
     if let Err(e) =
         check_out(&job.out).and_then(|()| check_replace_fit(&job.out, &inputs.files, job.force))
     {
-        let keep = job
-            .out
-            .with_extension(format!("{}.json", std::process::id()));
-        let kept = crate::io::write_atomic(&keep, text.as_bytes())
-            .map(|()| format!("; the fit is written to {} instead", keep.display()))
+        let kept = keep_refused(&job.out, text.as_bytes())
+            .map(|k| format!("; the fit is written to {} instead", k.display()))
             .unwrap_or_default();
         return Err(Error::Invalid(format!(
-            "{} appeared while fitting: {e}{kept}",
+            "{} can no longer be written (it changed while fitting): {e}{kept}",
             job.out.display()
         )));
     }
@@ -378,6 +399,24 @@ pub fn fit_loaded(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A refused fit is kept under a name no file holds (a user's file of the first name
+    /// stays as it was; review, 2026-11-28: `<stem>.<pid>.json` was overwritten, and pids
+    /// repeat, e.g. 1 in containers), and not as `*.json`, which reports take for a fit.
+    #[test]
+    fn a_refused_fit_is_kept_beside_without_replacing_anything() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("mouse.json");
+        let first = dir
+            .path()
+            .join(format!("mouse.json.kept-{}", std::process::id()));
+        std::fs::write(&first, "mine").unwrap();
+        let kept = keep_refused(&out, b"{}").unwrap();
+        assert_ne!(kept, first);
+        assert_eq!(std::fs::read_to_string(&first).unwrap(), "mine");
+        assert_eq!(std::fs::read_to_string(&kept).unwrap(), "{}");
+        assert!(crate::io::fit_files(dir.path()).unwrap().is_empty());
+    }
 
     #[test]
     fn species_names_have_no_leading_or_trailing_dots() {

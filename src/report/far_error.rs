@@ -1,5 +1,5 @@
 //! `furfit bench-model`: far-field error versus evaluation time, beside Gauss-Legendre
-//! quadrature of the near field. Writes `far_field_error_vs_time.{csv,png,svg}`.
+//! quadrature of the near field. Writes `far_field_error_vs_time.{csv,png,svg,md}`.
 //!
 //! Test set: presets red-fox, human, dog, mouse x theta_d {0, 30, 60} deg x 48 phi. Error
 //! of a method = max over the set of `|N - N_ref| / (peak over phi of N_ref)` (per preset,
@@ -233,7 +233,7 @@ fn head_to_head(set: &Set, opts: &FarOptions, n: usize) -> (f64, f64) {
     (median(&mut rs), median(&mut ra))
 }
 
-/// Run the benchmark and write `far_field_error_vs_time.{csv,png,svg}` into `out`.
+/// Run the benchmark and write `far_field_error_vs_time.{csv,png,svg,md}` into `out`.
 /// Returns the rows.
 pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row>> {
     // Every printed line is also kept for far_field_error_vs_time.md (what the files ran on).

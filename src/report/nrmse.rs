@@ -46,10 +46,18 @@ pub struct FitFile {
     pub species: String,
     pub params: FurParams,
     pub exposure: f64,
+    /// The NRMSE the report shows: recomputed from `params` on the fit's data when they
+    /// can be read back ([`FitFile::check_nrmse`]), else the file's own.
     pub nrmse: f64,
+    /// The file's own NRMSE when it differs from the one recomputed (`nrmse`): the file
+    /// was edited after the fit (e.g. a parameter changed by hand).
+    pub nrmse_recorded: Option<f64>,
     pub synthetic: bool,
     /// Data files recorded in the fit, where they are found now (see `candidates`).
     pub files: Vec<PathBuf>,
+    /// Where the report found the fit's own data ([`FitFile::load_data`]; empty before
+    /// it looked or when it found none): what [`FitFile::fitted_from`] tests.
+    verified: Vec<PathBuf>,
     /// The places the recorded files may be, in the order [`FitFile::load_data`] tries.
     candidates: Vec<Vec<PathBuf>>,
     /// Their SHA-256 digests as recorded (empty in fit files that did not record them).
@@ -160,7 +168,16 @@ impl FitFile {
             .unwrap_or_default();
         let nrmse = v["nrmse"]
             .as_f64()
-            .ok_or_else(|| Error::file(path, "fit file has no numeric 'nrmse'"))?;
+            .filter(|x| *x >= 0.0 && x.is_finite())
+            .ok_or_else(|| {
+                Error::file(
+                    path,
+                    format!(
+                        "'nrmse' must be a non-negative number (found {})",
+                        v["nrmse"]
+                    ),
+                )
+            })?;
         let recorded = |key: &str| -> Vec<String> {
             v["data"]["files"]
                 .as_array()
@@ -262,8 +279,10 @@ impl FitFile {
             params,
             exposure,
             nrmse,
+            nrmse_recorded: None,
             synthetic: v["data"]["synthetic"].as_bool().unwrap_or(false),
             files,
+            verified: Vec::new(),
             sha256,
             samples_sha256,
             candidates,
@@ -290,11 +309,46 @@ impl FitFile {
         self.label.clone()
     }
 
-    /// This fit's data, reloaded with its loader options: the files the fit recorded when
-    /// they all still exist, else `measurements/<species>/`; either only if the files read
-    /// have the recorded SHA-256 digests, so a figure never shows a fit over other data
-    /// than it was fitted to (fit files without digests are taken on trust).
-    fn load_data(&self, measurements: &Path) -> Result<crate::Profile> {
+    /// Recompute the NRMSE from the file's parameters on `data` (its own data, read back
+    /// as recorded) with the fit's floor and far field, as `furfit fit` computed it: a
+    /// report must not pair edited parameters with the error of the ones fitted. When the
+    /// recorded value differs by more than [`NRMSE_MATCH`] of itself, `nrmse` becomes the
+    /// recomputed one and `nrmse_recorded` keeps the file's.
+    pub fn check_nrmse(&mut self, data: &crate::Profile) {
+        let ch = data
+            .channels
+            .iter()
+            .position(|c| *c == self.channel)
+            .unwrap_or(0);
+        let (floor, far) = super::model_vs_sim::truth_settings(Some(self));
+        let Some(now) = super::model_vs_sim::nrmse_at(&self.params, data, ch, floor, &far) else {
+            return;
+        };
+        if (now.nrmse - self.nrmse).abs() > NRMSE_MATCH * self.nrmse.max(now.nrmse) {
+            self.nrmse_recorded = Some(self.nrmse);
+            self.nrmse = now.nrmse;
+        }
+    }
+
+    /// The note for a fit whose recorded NRMSE did not match its parameters.
+    fn nrmse_note(&self) -> Option<String> {
+        self.nrmse_recorded.map(|rec| {
+            format!(
+                "{}: the file records NRMSE {:.4}% but its parameters give {:.4}% on its data: \
+                 the file was changed after the fit; the report shows the recomputed value",
+                self.label,
+                100.0 * rec,
+                100.0 * self.nrmse
+            )
+        })
+    }
+
+    /// This fit's data, reloaded with its loader options, and where they were read: the
+    /// first of its `candidates` whose files all exist, then `measurements/<species>/`,
+    /// that holds files with the recorded SHA-256 digests, so a figure never shows a fit
+    /// over other data than it was fitted to (fit files without digests are taken on
+    /// trust).
+    fn load_data(&self, measurements: &Path) -> Result<(crate::Profile, Vec<PathBuf>)> {
         let mut first_err = None;
         let places = self
             .candidates
@@ -312,7 +366,7 @@ impl FitFile {
             match crate::fit::job::load_inputs_full(&inputs, &self.load)
                 .and_then(|l| self.check_digests(&inputs, &l.files).map(|()| l.profile))
             {
-                Ok(p) => return Ok(p),
+                Ok(p) => return Ok((p, inputs)),
                 Err(e) => {
                     first_err.get_or_insert(e);
                 }
@@ -368,34 +422,40 @@ impl FitFile {
         )))
     }
 
-    /// Whether every file the fit recorded lies in `dir` (so its loader options apply to
-    /// `dir` and its NRMSE is comparable with one computed there).
+    /// Whether the fit's data lie in `dir` (so its loader options apply to `dir` and its
+    /// NRMSE is comparable with one computed there): where the report found them, else
+    /// every file the fit recorded.
     fn fitted_from(&self, dir: &Path) -> bool {
         let Ok(dir) = dir.canonicalize() else {
             return false;
         };
-        !self.files.is_empty()
-            && self
-                .files
+        let files = if self.verified.is_empty() {
+            &self.files
+        } else {
+            &self.verified
+        };
+        !files.is_empty()
+            && files
                 .iter()
                 .all(|p| p.canonicalize().is_ok_and(|p| p.starts_with(&dir)))
     }
 }
 
+/// Relative difference above which a fit file's recorded NRMSE counts as not its
+/// parameters' ([`FitFile::check_nrmse`]). The recomputation repeats the fitter's
+/// arithmetic on the same samples, so an untouched file agrees to rounding (the shipped
+/// fits agree to ~1e-15); a hand edit of a parameter moves the NRMSE far more.
+const NRMSE_MATCH: f64 = 1e-9;
+
 /// `(name, why)`: a fit file or report part left out.
 pub type Skipped = (String, String);
 
-/// Every readable `*.json` fit file in `dir`, sorted by file name, and `(file name, why)`
+/// Every readable fit file in `dir` ([`crate::io::fit_files`]), sorted by file name, and `(file name, why)`
 /// for those that could not be read: a damaged file is skipped like a fit whose data
 /// changed, not a stop for the whole report. An error when no fit file is readable, or
 /// when two fits would get the same column and figure name ([`FitFile::label`]).
 pub fn read_fits(dir: &Path) -> Result<(Vec<FitFile>, Vec<Skipped>)> {
-    let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
-    let mut paths: Vec<PathBuf> = rd
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter(|p| p.extension().map(|x| x == "json").unwrap_or(false))
-        .collect();
-    paths.sort();
+    let paths = crate::io::fit_files(dir)?;
     if paths.is_empty() {
         return Err(Error::file(
             dir,
@@ -563,15 +623,19 @@ pub fn species_notes(fits: &[FitFile]) -> Vec<String> {
         .filter_map(|f| {
             let stem = f.path.file_stem()?.to_string_lossy().into_owned();
             (stem != f.species).then(|| {
+                let paper = if preset_record(&f.species).is_some() {
+                    format!("the paper's NRMSE beside it is {}'s", f.species)
+                } else {
+                    "the paper has no NRMSE for that species".to_string()
+                };
                 format!(
-                    "{} records species '{}': its column and figure are named '{stem}', the \
-                     paper's NRMSE beside it is {}'s",
+                    "{} records species '{}': its column and figure are named '{stem}', {paper}",
                     f.path.display(),
                     f.species,
-                    f.species
                 )
             })
         })
+        .chain(fits.iter().filter_map(FitFile::nrmse_note))
         .collect()
 }
 
@@ -776,41 +840,43 @@ pub fn write_fit_reports(
     Ok(sum)
 }
 
-/// Figures of fits no longer in the folder: an earlier run's, still recorded unchanged in
-/// the ledger (so furfit's own), would stand beside tables that do not list them. Those of
-/// a fit file in `unread` (still there, only not readable this time) stay; `figures` are
-/// this run's.
+/// Figures of fits no longer in the folder: an earlier report's, still recorded unchanged
+/// in the ledger (so furfit's own), would stand beside tables that do not list them. Only
+/// the figures of the fits the earlier `nrmse.csv` lists (itself unchanged) are candidates:
+/// another command's output named `fig11_*` (a render) is not report's to remove (review,
+/// 2026-11-28). Those of a fit file in `unread` (still there, only not readable this time)
+/// stay; `figures` are this run's.
 fn remove_stale_figures(
     out: &Path,
     figures: &[PathBuf],
     unread: &[Skipped],
     sum: &mut ReportSummary,
 ) {
-    let of_unread = |name: &str| {
+    let of_unread = |label: &str| {
         unread.iter().any(|(file, _)| {
-            let stem = file.trim_end_matches(".json");
-            let rest = name
-                .strip_prefix("fig11_")
-                .and_then(|n| n.strip_prefix(stem));
-            rest.is_some_and(|r| r.starts_with('.') || r.starts_with('-'))
+            let stem = file.strip_suffix(".json").unwrap_or(file);
+            label == stem || label.strip_prefix(stem).is_some_and(|r| r.starts_with('-'))
         })
     };
-    let Ok(rd) = std::fs::read_dir(out) else {
+    let table = out.join("nrmse.csv");
+    if crate::io::check_replaceable(std::slice::from_ref(&table), false).is_err() {
+        return;
+    }
+    let Ok(text) = std::fs::read_to_string(&table) else {
         return;
     };
-    let mut stale: Vec<PathBuf> = rd
-        .filter_map(|e| e.ok().map(|e| e.path()))
+    let earlier = text.lines().next().unwrap_or("").split(',').skip(2);
+    let mut stale: Vec<PathBuf> = earlier
+        .filter(|label| !label.is_empty() && !of_unread(label))
+        .flat_map(|label| ["png", "svg"].map(|e| out.join(format!("fig11_{label}.{e}"))))
         .filter(|p| {
-            let name = p.file_name().map(|n| n.to_string_lossy().into_owned());
-            name.is_some_and(|n| {
-                n.starts_with("fig11_")
-                    && (n.ends_with(".png") || n.ends_with(".svg"))
-                    && !of_unread(&n)
-            }) && !figures.contains(p)
+            p.is_file()
+                && !figures.contains(p)
                 && crate::io::check_replaceable(std::slice::from_ref(p), false).is_ok()
         })
         .collect();
     stale.sort();
+    stale.dedup();
     for p in stale {
         if std::fs::remove_file(&p).is_ok() {
             sum.removed
@@ -834,11 +900,18 @@ fn write_planned(
     // metadata.json, also when the label came after the fit) are reported as synthetic
     // everywhere, not only where the fit file recorded it.
     let mut fits = fits.to_vec();
-    let data: Vec<Result<crate::Profile>> =
-        fits.iter().map(|f| f.load_data(measurements)).collect();
-    for (f, d) in fits.iter_mut().zip(&data) {
-        if d.as_ref().is_ok_and(|p| p.is_synthetic()) {
-            f.synthetic = true;
+    let mut data: Vec<Result<crate::Profile>> = Vec::with_capacity(fits.len());
+    for f in fits.iter_mut() {
+        match f.load_data(measurements) {
+            Ok((p, place)) => {
+                // Where the data were verified, for model_vs_simulation's pairing too.
+                f.verified = place;
+                f.synthetic |= p.is_synthetic();
+                f.check_nrmse(&p);
+                sum.notes.extend(f.nrmse_note());
+                data.push(Ok(p));
+            }
+            Err(e) => data.push(Err(e)),
         }
     }
     let fits = fits.as_slice();

@@ -66,7 +66,7 @@
 //!   leaves far from the lit spot, so it is tallied as `guided`, not detected.
 //! - **Detector.** Exit directions are binned in `(theta_r, phi)`; each bin is centred on
 //!   its grid value with the width of the grid step (for uneven lists, the distance
-//!   to the nearer neighbour, so no bin stretches across a gap; the end bins are
+//!   to the nearer neighbour, so each bin stays centred on its value; the end bins are
 //!   symmetric: [`bins`]). `phi` bins wrap around the circle without overlapping, so a grid
 //!   holding both -180 and 180 fills both with the same light. The value of a bin is
 //!   `(energy in the bin) / (launched energy) / (dtheta_r dphi)` in radians^2: a density
@@ -213,9 +213,11 @@ pub const ELLIPSE_MIN: f64 = 0.01;
 
 /// Detector bins `(lo, hi)` (radians) for grid centres (degrees, ascending): each bin is
 /// centred on its value, with half-width half the gap to its nearer neighbour, so a uniform
-/// grid gets bins as wide as its step and an uneven or gapped one gets no bin stretched
-/// across a gap (a bin reaching half-way to a far neighbour was centred off its label and
-/// read a density averaged over the gap; audit, 2026-11-28). End bins are symmetric. With
+/// grid gets bins as wide as its step and no bin reaches past half the gap on either side
+/// of its value (bins reaching half-way to each neighbour were centred off their labels
+/// beside a gap and read a density averaged over it; audit, 2026-11-28). A value far from
+/// both neighbours still gets a wide bin: `-40,-30,10` gives 10 the bin (-10, 30), since
+/// its nearer neighbour is 40 degrees away. End bins are symmetric. With
 /// `cyclic` (phi) neighbours are taken around the circle, so bins never overlap there and
 /// never cover more than 360 degrees in all (`-170,170` gave two 340-degree bins that
 /// counted the light twice); a value at the same azimuth as another (-180 and 180) shares

@@ -40,7 +40,8 @@ fn integral(r: &SimResult, det: &Detector) -> f64 {
 
 /// Without absorption no energy can vanish: every path exits (weights stay 1, Russian
 /// roulette never fires), so the detector integral over the whole sphere must be 1 up to
-/// lost paths. A lost path is a bug (or a ray guided > MAX_EVENTS events), so the
+/// lost paths. A lost path is a bug (or a ray counted as guided: beyond MAX_EVENTS
+/// events, MAX_CUTICLE_HITS cuticle interactions or GUIDED_LENGTH along the axis), so the
 /// tolerance 1e-3 (=> fewer than 1 in 1000 paths lost) is far above rounding and far below
 /// any real leak; the binomial std of an *unbiased* estimate is 0 here because every path
 /// carries exactly weight 1.

@@ -82,8 +82,9 @@ const MAX_DEPTH: u32 = 30;
 /// says so in [`SliceStats::capped`].
 const MAX_SPLITS: usize = 4096;
 /// Cuticle layers `l` below which [`fresnel_layer_u`] also resolves the grazing layer of
-/// the pile-of-plates reflectance: the layer is then under `1e-3` rad wide in `u`, finer
-/// than the initial segments' nodes sample (every preset and shipped fit has `l > 0.2`).
+/// the pile-of-plates reflectance: the layer is then within about `l w` of grazing in `u`
+/// (`w` the Fresnel layer's own width), finer than the initial segments' nodes sample
+/// (every preset has `l >= 0.44`, every shipped fit `l > 0.1`).
 const L_LAYER_MAX: f64 = 4e-3;
 /// Least extinction across the medulla radius, `c kappa` in [`medulla_layer_h`], that
 /// grades the initial segments toward the medulla edge.
