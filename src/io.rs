@@ -198,10 +198,7 @@ pub fn check_out_dir(dir: &Path) -> Result<()> {
             }
             // A link to nothing: the folder could not be created there (the run failed
             // only when it wrote, after the work; review, 2026-11-28).
-            Err(e)
-                if e.kind() == std::io::ErrorKind::NotFound
-                    && std::fs::symlink_metadata(a).is_ok_and(|m| m.is_symlink()) =>
-            {
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound && is_dangling_link(a) => {
                 return Err(Error::file(
                     dir,
                     format!(
@@ -230,6 +227,13 @@ pub fn check_out_dir(dir: &Path) -> Result<()> {
 pub fn check_out_file(path: &Path) -> Result<()> {
     if path.is_dir() {
         return Err(Error::file(path, "is a directory, expected a file path"));
+    }
+    // The write would replace the link itself, a file the user made (audit, 2026-11-28).
+    if is_dangling_link(path) {
+        return Err(Error::file(
+            path,
+            "is a symbolic link to a missing target: not replaced (remove it first)",
+        ));
     }
     let text = path.as_os_str().to_string_lossy();
     if matches!(
@@ -290,6 +294,29 @@ fn probe_dir(dir: &Path) -> std::io::Result<()> {
             Err(e) => return Err(e),
         }
     }
+}
+
+/// A path beside `path` that nothing holds yet, for a result that may not go to `path`:
+/// `<name>.kept-<pid>`, then `-2`, `-3`, ... (`None` after 99 taken names).
+pub fn kept_path(path: &Path) -> Option<PathBuf> {
+    let name = path.file_name()?.to_string_lossy().into_owned();
+    let pid = std::process::id();
+    (1..100)
+        .map(|k| {
+            let suffix = if k == 1 {
+                format!("kept-{pid}")
+            } else {
+                format!("kept-{pid}-{k}")
+            };
+            parent_dir(path).join(format!("{name}.{suffix}"))
+        })
+        .find(|p| std::fs::symlink_metadata(p).is_err())
+}
+
+/// Whether `path` is a symbolic link whose target does not exist (`exists()` says false,
+/// yet an atomic write's rename would replace the link).
+pub fn is_dangling_link(path: &Path) -> bool {
+    std::fs::symlink_metadata(path).is_ok_and(|m| m.is_symlink()) && !path.exists()
 }
 
 /// The directory `path` is in (`.` for a bare file name).
@@ -560,6 +587,13 @@ pub fn check_replaceable(paths: &[PathBuf], force: bool) -> Result<()> {
         return Ok(());
     }
     for p in paths {
+        if is_dangling_link(p) {
+            return Err(Error::file(
+                p,
+                "is a symbolic link to a missing target: not replaced (remove it, or give \
+                 --force)",
+            ));
+        }
         if !p.exists() {
             continue;
         }
@@ -744,6 +778,15 @@ mod tests {
         std::os::unix::fs::symlink(dir.path().join("missing"), &link).unwrap();
         let e = probe_file_writable(&link.join("mouse.json")).unwrap_err();
         assert!(e.to_string().contains("symbolic link"), "{e}");
+        // The output itself a dangling link: refused too, by both checks.
+        let out = dir.path().join("out.png");
+        std::os::unix::fs::symlink(dir.path().join("gone.png"), &out).unwrap();
+        for e in [
+            check_out_file(&out).unwrap_err(),
+            check_replaceable(std::slice::from_ref(&out), false).unwrap_err(),
+        ] {
+            assert!(e.to_string().contains("symbolic link"), "{e}");
+        }
         std::fs::remove_file(&link).unwrap();
         std::fs::create_dir(&link).unwrap();
         probe_file_writable(&link.join("mouse.json")).unwrap();

@@ -456,18 +456,25 @@ impl FurParams {
     /// The parameter JSON object (file units), keys in table order.
     pub fn to_json_value(&self) -> Value {
         let mut m = Map::new();
-        let internal = self.to_array();
-        for (id, v) in ParamId::ALL.into_iter().zip(self.to_file_units()) {
-            // An angle given as 3.75 deg comes back from radians as 3.7499999999999996:
-            // write the shortest 12-digit form when it reads back to the same internal value.
-            let short: f64 = format!("{v:.12e}").parse().unwrap_or(v);
-            let same = id.spec().to_internal(short) == internal[id.index()];
-            m.insert(
-                id.spec().name.into(),
-                Value::from(if same { short } else { v }),
-            );
+        for (id, v) in ParamId::ALL.into_iter().zip(self.typed_file_units()) {
+            m.insert(id.spec().name.into(), Value::from(v));
         }
         Value::Object(m)
+    }
+
+    /// [`Self::to_file_units`] as they were typed: an angle given as 3.75 deg comes back
+    /// from radians as 3.7499999999999996, so each value is the shortest 12-digit form
+    /// when that reads back to the same internal value (what files and printouts show).
+    pub fn typed_file_units(&self) -> [f64; N_PARAMS] {
+        let internal = self.to_array();
+        let mut out = self.to_file_units();
+        for (id, v) in ParamId::ALL.into_iter().zip(out.iter_mut()) {
+            let short: f64 = format!("{v:.12e}").parse().unwrap_or(*v);
+            if id.spec().to_internal(short) == internal[id.index()] {
+                *v = short;
+            }
+        }
+        out
     }
 
     /// Load parameters from a preset name, a parameter JSON file or a fit JSON file.
@@ -757,6 +764,18 @@ mod tests {
         }
         assert!(FurParams::preset("Red Fox").is_some());
         assert!(FurParams::preset("unicorn").is_none());
+    }
+
+    #[test]
+    fn typed_file_units_give_back_a_bound_typed() {
+        // beta_m = 60 deg comes back from radians as 59.99999999999999; `fit` printed
+        // that, beside a fit file holding 60 (audit, 2026-11-28).
+        let mut v = PRESETS[0].values;
+        v[3] = 60.0;
+        let p = FurParams::from_file_units(v).unwrap();
+        assert_ne!(p.to_file_units()[3], 60.0);
+        assert_eq!(p.typed_file_units()[3], 60.0);
+        assert_eq!(SPECS[3].value_text(p.typed_file_units()[3]), "60.000");
     }
 
     #[test]

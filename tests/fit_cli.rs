@@ -650,11 +650,30 @@ fn report_recomputes_the_nrmse_of_an_edited_fit_and_skips_the_ledger() {
         shown.contains(&format!("{:.1}%", 100.0 * want)),
         "{shown} vs {want}"
     );
-    // A negative recorded NRMSE is refused as unreadable.
-    edited["nrmse"] = serde_json::json!(-0.5);
-    std::fs::write(root.join("fits/mouse.json"), edited.to_string()).unwrap();
+    // model_vs_simulation takes fits/mouse.json, not an edited copy named before it.
+    std::fs::write(root.join("fits/mouse.json"), v.to_string()).unwrap();
+    std::fs::write(root.join("fits/a-edit.json"), edited.to_string()).unwrap();
     let o = furfit().current_dir(root).arg("report").output().unwrap();
-    fails_with(o, &["mouse.json", "non-negative"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
+    let mouse = mvs.lines().find(|l| l.starts_with("| mouse |")).unwrap();
+    assert!(
+        mouse.ends_with(&format!("| {:.2}% |", 100.0 * fitted)),
+        "{mouse}"
+    );
+    std::fs::remove_file(root.join("fits/a-edit.json")).unwrap();
+    // A negative recorded NRMSE, or a floor outside [0, 1), is refused as unreadable.
+    for (key, bad, why) in [("nrmse", -0.5, "non-negative"), ("floor", 2.0, "[0, 1)")] {
+        let mut broken = v.clone();
+        if key == "floor" {
+            broken["data"]["floor"] = serde_json::json!(bad);
+        } else {
+            broken[key] = serde_json::json!(bad);
+        }
+        std::fs::write(root.join("fits/mouse.json"), broken.to_string()).unwrap();
+        let o = furfit().current_dir(root).arg("report").output().unwrap();
+        fails_with(o, &["mouse.json", why]);
+    }
 }
 
 /// `--init` runs Levenberg-Marquardt in addition to the best-scored starts (it used to

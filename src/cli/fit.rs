@@ -241,7 +241,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .map(|s| s.value)
                 .collect();
             if !left.is_empty() {
-                let neg = left.iter().filter(|v| **v < 0.0).count();
+                // -inf is "not finite", not a negative measurement.
+                let neg = left.iter().filter(|v| v.is_finite() && **v < 0.0).count();
                 let zero = left.iter().filter(|v| **v == 0.0).count();
                 let mut note = format!(
                     "{} sample(s){ch} without a positive value left out ({neg} negative, {zero} \
@@ -368,7 +369,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 o.wall_time_s,
                 o.termination
             );
-            let file = o.params.to_file_units();
+            let file = o.params.typed_file_units();
             let line: Vec<String> = crate::ParamId::ALL
                 .iter()
                 .map(|id| {

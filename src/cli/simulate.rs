@@ -316,14 +316,12 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     // Again: a file may have appeared, or the earlier run's been edited, during a run of
     // hours (review, 2026-11-28). Refused, the simulation is kept in a new folder beside.
     if let Err(e) = output::check_replace(&out, &a.file, a.force) {
-        let name = out
-            .file_name()
-            .map_or("simulation".into(), |n| n.to_string_lossy().into_owned());
-        let keep = crate::io::parent_dir(&out).join(format!("{name}.kept-{}", std::process::id()));
-        let kept = if !keep.exists() && output::write_all(&keep, &a.file, &prof, &md).is_ok() {
-            format!("; the simulation is written to {} instead", keep.display())
-        } else {
-            String::new()
+        let keep = crate::io::kept_path(&crate::io::resolve_path(&out));
+        let kept = match keep {
+            Some(k) if output::write_all(&k, &a.file, &prof, &md).is_ok() => {
+                format!("; the simulation is written to {} instead", k.display())
+            }
+            _ => String::new(),
         };
         anyhow::bail!("{e} (it changed while simulating){kept}");
     }

@@ -190,7 +190,8 @@ pub fn load_inputs_full(inputs: &[PathBuf], opts: &LoadOptions) -> Result<Loaded
         let (merged, collapsed) = profile::merge_loaded(parts, opts)?;
         if collapsed > 0 {
             notes.push(format!(
-                "{collapsed} identical duplicate sample(s) across inputs collapsed"
+                "{collapsed} identical duplicate sample(s) across inputs collapsed (values equal \
+                 to 1e-12 of themselves: computed copies may differ in the last digits)"
             ));
         }
         merged
@@ -259,23 +260,11 @@ pub fn check_out(out: &Path) -> Result<()> {
     Ok(())
 }
 
-/// Write a finished fit that may not go to `out` beside it, under a name no file has yet:
-/// `<name>.kept-<pid>` (then `-2`, `-3`, ...). Not `*.json`, so `report` and
+/// Write a finished fit that may not go to `out` beside it, under a name no file has yet
+/// ([`crate::io::kept_path`]). Not `*.json`, so `report` and
 /// `render --all` do not take it for a fit of the folder until the user renames it.
 fn keep_refused(out: &Path, text: &[u8]) -> Option<PathBuf> {
-    let name = out.file_name()?.to_string_lossy().into_owned();
-    let pid = std::process::id();
-    (1..100)
-        .map(|k| {
-            let suffix = if k == 1 {
-                format!("kept-{pid}")
-            } else {
-                format!("kept-{pid}-{k}")
-            };
-            crate::io::parent_dir(out).join(format!("{name}.{suffix}"))
-        })
-        .find(|p| std::fs::symlink_metadata(p).is_err())
-        .filter(|p| crate::io::write_atomic(p, text).is_ok())
+    crate::io::kept_path(out).filter(|p| crate::io::write_atomic(p, text).is_ok())
 }
 
 /// Summary of one channel's fit, for printing.

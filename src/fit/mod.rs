@@ -136,6 +136,19 @@ impl FitOptions {
                 ),
             });
         }
+        // An angle is held in radians: 5e-324 deg becomes 0, outside (0, 60].
+        let held = id.spec().to_file(id.spec().to_internal(value));
+        if !id.spec().contains(held) {
+            return Err(Error::Param {
+                key: key.into(),
+                msg: format!(
+                    "--fix value {} becomes {} in radians and back, outside its hard bound {}",
+                    Num(value),
+                    Num(held),
+                    id.spec().bound_with_unit()
+                ),
+            });
+        }
         if let Some(old) = self.layout.fixed[id.index()] {
             return Err(Error::Param {
                 key: key.into(),

@@ -275,6 +275,19 @@ fn fix_negative_zero_is_zero() {
     assert!(v == 0.0 && v.is_sign_positive());
 }
 
+/// An angle inside its bound that radians cannot hold (5e-324 deg becomes 0) is refused
+/// naming the value given, not the 0 it became (audit, 2026-11-28).
+#[test]
+fn fix_refuses_an_angle_that_radians_round_to_its_bound() {
+    let mut o = FitOptions::default();
+    let e = o.fix("beta_m", 5e-324).unwrap_err().to_string();
+    assert!(
+        e.contains("5e-324") && e.contains("becomes 0 in radians"),
+        "{e}"
+    );
+    o.fix("beta_m", 1e-300).unwrap();
+}
+
 /// The fit reports the exposure its NRMSE is taken at: the fit's own for an unweighted fit
 /// (the same closed form; 1e-12 for the rounding of two sums), the unweighted optimum for a
 /// weighted one, whose `exposure` minimises the weighted cost instead.

@@ -934,7 +934,8 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let (mut profile, collapsed) = merge_loaded(parts, opts)?;
     if collapsed > 0 {
         notes.push(format!(
-            "{collapsed} identical duplicate sample(s) across files collapsed"
+            "{collapsed} identical duplicate sample(s) across files collapsed (values equal to \
+             1e-12 of themselves: computed copies may differ in the last digits)"
         ));
     }
     notes.extend(provenance::apply_folder_label(&mut profile, dir)?);
@@ -1212,8 +1213,21 @@ fn same_opt(a: Option<f64>, b: Option<f64>) -> bool {
 /// as NaN and -1, and no value of either enters a fit, so they are one invalid sample, not
 /// a conflict.
 fn same_value(a: &Sample, b: &Sample) -> bool {
-    let close = (a.value - b.value).abs() <= VALUE_MATCH * a.value.abs().max(b.value.abs());
-    same_f64(a.value, b.value) || close || (!a.is_valid() && !b.is_valid())
+    close_f64(a.value, b.value) || (!a.is_valid() && !b.is_valid())
+}
+
+/// Equal to [`VALUE_MATCH`] (NaN equal to NaN).
+fn close_f64(a: f64, b: f64) -> bool {
+    same_f64(a, b) || (a - b).abs() <= VALUE_MATCH * a.abs().max(b.abs())
+}
+
+/// Both absent, or both present and [`close_f64`] (a sigma, like a value, computed twice).
+fn close_opt(a: Option<f64>, b: Option<f64>) -> bool {
+    match (a, b) {
+        (None, None) => true,
+        (Some(x), Some(y)) => close_f64(x, y),
+        _ => false,
+    }
 }
 
 /// Relative difference within which two copies of one direction are one value (the first
@@ -1397,7 +1411,7 @@ where
                 let a = &samples[i];
                 let diff = if !same_value(a, s) {
                     Some(format!("value ({} vs {})", Num(a.value), Num(s.value)))
-                } else if !same_opt(a.sigma, s.sigma) {
+                } else if !close_opt(a.sigma, s.sigma) {
                     Some(format!(
                         "sigma ({} vs {})",
                         opt_text(a.sigma),

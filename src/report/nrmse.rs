@@ -166,18 +166,19 @@ impl FitFile {
             .map(str::to_string)
             .or_else(|| path.file_stem().map(|s| s.to_string_lossy().into_owned()))
             .unwrap_or_default();
-        let nrmse = v["nrmse"]
-            .as_f64()
-            .filter(|x| *x >= 0.0 && x.is_finite())
-            .ok_or_else(|| {
-                Error::file(
-                    path,
-                    format!(
-                        "'nrmse' must be a non-negative number (found {})",
-                        v["nrmse"]
-                    ),
-                )
-            })?;
+        let nrmse = match &v["nrmse"] {
+            Value::Null => return Err(Error::file(path, "fit file has no 'nrmse'")),
+            x => x
+                .as_f64()
+                .filter(|x| *x >= 0.0 && x.is_finite())
+                .map(|x| x + 0.0)
+                .ok_or_else(|| {
+                    Error::file(
+                        path,
+                        format!("'nrmse' must be a non-negative number (found {x})"),
+                    )
+                })?,
+        };
         let recorded = |key: &str| -> Vec<String> {
             v["data"]["files"]
                 .as_array()
@@ -221,7 +222,16 @@ impl FitFile {
             );
         }
         candidates.retain(|c| c.len() == given.len() && !c.is_empty());
-        candidates.dedup();
+        // Each place once (with a one-folder relative --fits the project's place is the
+        // given one), in order.
+        let mut seen = Vec::new();
+        candidates.retain(|c| {
+            let fresh = !seen.contains(c);
+            if fresh {
+                seen.push(c.clone());
+            }
+            fresh
+        });
         let files = candidates
             .iter()
             .find(|c| c.iter().all(|f| f.exists()))
@@ -290,7 +300,19 @@ impl FitFile {
             channel: v["data"]["channel"].as_str().unwrap_or("").to_string(),
             trace,
             weighted: v["solver"]["weighted"].as_bool().unwrap_or(false),
-            floor: v["data"]["floor"].as_f64(),
+            floor: match &v["data"]["floor"] {
+                Value::Null => None,
+                x => Some(
+                    x.as_f64()
+                        .filter(|f| (0.0..1.0).contains(f))
+                        .ok_or_else(|| {
+                            Error::file(
+                                path,
+                                format!("'data.floor' must be a number in [0, 1) (found {x})"),
+                            )
+                        })?,
+                ),
+            },
             n_valid: v["data"]["n_valid"].as_u64(),
             n_below_floor: v["data"]["n_below_floor"].as_u64(),
             wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
@@ -468,16 +490,25 @@ pub fn read_fits(dir: &Path) -> Result<(Vec<FitFile>, Vec<Skipped>)> {
         match FitFile::read(p) {
             Ok(fits) => {
                 for f in fits {
-                    if let Some(o) = out.iter().find(|o| o.label == f.label) {
-                        return Err(Error::file(
-                            &f.path,
+                    // Case apart only: fig11_fox-R.png and fig11_fox-r.png are one file
+                    // where file names ignore case (macOS, Windows).
+                    let same = |o: &&FitFile| o.label.eq_ignore_ascii_case(&f.label);
+                    if let Some(o) = out.iter().find(same) {
+                        let why = if o.path == f.path {
+                            format!(
+                                "its channels '{}' and '{}' would both be named '{}'; rename \
+                                 one of the channels",
+                                o.channel, f.channel, f.label
+                            )
+                        } else {
                             format!(
                                 "its column and figure would be named '{}', as those of {}; \
                                  rename one of the two files",
                                 f.label,
                                 o.path.display()
-                            ),
-                        ));
+                            )
+                        };
+                        return Err(Error::file(&f.path, why));
                     }
                     out.push(f);
                 }
@@ -687,11 +718,21 @@ pub fn markdown(fits: &[FitFile]) -> String {
 }
 
 /// The CSV table (same rows; NRMSE as fractions for machines).
+/// `text` as one CSV field: quoted (quotes doubled) when it holds a comma, a quote or a
+/// line break (a fit file's stem may).
+fn csv_field(text: &str) -> String {
+    if text.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", text.replace('"', "\"\""))
+    } else {
+        text.to_string()
+    }
+}
+
 pub fn csv(fits: &[FitFile]) -> String {
     let mut s = String::from("row,unit");
     for f in fits {
         s.push(',');
-        s.push_str(&f.label());
+        s.push_str(&csv_field(&f.label()));
     }
     s.push('\n');
     for id in ParamId::ALL {
@@ -865,8 +906,18 @@ fn remove_stale_figures(
     let Ok(text) = std::fs::read_to_string(&table) else {
         return;
     };
-    let earlier = text.lines().next().unwrap_or("").split(',').skip(2);
-    let mut stale: Vec<PathBuf> = earlier
+    let mut header = ::csv::StringRecord::new();
+    let read = ::csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .from_reader(text.as_bytes())
+        .read_record(&mut header);
+    if !read.is_ok_and(|got| got) {
+        return;
+    }
+    let mut stale: Vec<PathBuf> = header
+        .iter()
+        .skip(2)
         .filter(|label| !label.is_empty() && !of_unread(label))
         .flat_map(|label| ["png", "svg"].map(|e| out.join(format!("fig11_{label}.{e}"))))
         .filter(|p| {
@@ -968,9 +1019,14 @@ fn write_planned(
             };
             // A fit of other data (its own files) has other loader options and an NRMSE
             // that is not comparable: listed without it.
+            // `<species>.json` first, then any other fit of this data (file-name order
+            // picked a hand-edited copy over it: audit, 2026-11-28).
+            let of_data = |f: &&FitFile| f.primary && f.species == species && f.fitted_from(&d);
             let mut fit = fits
                 .iter()
-                .find(|f| f.primary && f.species == species && f.fitted_from(&d))
+                .filter(of_data)
+                .find(|f| f.label == species)
+                .or_else(|| fits.iter().find(of_data))
                 .cloned();
             let load = fit.as_ref().map(|f| f.load.clone()).unwrap_or_default();
             let inputs = [d.clone()];
@@ -1073,6 +1129,38 @@ mod tests {
         let p = dir.join(format!("{name}.json"));
         std::fs::write(&p, v.to_string()).unwrap();
         FitFile::read(&p).unwrap().remove(0)
+    }
+
+    /// Labels that differ only in case are one figure on a case-blind file system:
+    /// refused, naming the channels when one file holds both; a label with a comma stays
+    /// one field of nrmse.csv's header.
+    #[test]
+    fn case_twins_are_refused_and_commas_are_quoted() {
+        let tmp = tempfile::tempdir().unwrap();
+        let params = FurParams::preset("cat").unwrap().to_json_value();
+        let ch = |name: &str| {
+            serde_json::json!({"params": params, "exposure": 1.0, "nrmse": 0.02,
+                "data": {"channel": name}})
+        };
+        let v = serde_json::json!({
+            "params": params, "exposure": 1.0, "nrmse": 0.02, "data": {"channel": "R"},
+            "channels": [ch("R"), ch("r")],
+        });
+        std::fs::write(tmp.path().join("fox.json"), v.to_string()).unwrap();
+        let e = read_fits(tmp.path()).unwrap_err().to_string();
+        assert!(
+            e.contains("its channels 'R' and 'r' would both be named 'fox-r'"),
+            "{e}"
+        );
+        std::fs::remove_file(tmp.path().join("fox.json")).unwrap();
+        fit(tmp.path(), "Fox", serde_json::json!({}));
+        fit(tmp.path(), "fox", serde_json::json!({}));
+        let e = read_fits(tmp.path()).unwrap_err().to_string();
+        assert!(e.contains("as those of") && e.contains("Fox.json"), "{e}");
+        std::fs::remove_file(tmp.path().join("Fox.json")).unwrap();
+        let odd = fit(tmp.path(), "fox,v2", serde_json::json!({}));
+        let head = csv(&[odd]).lines().next().unwrap().to_string();
+        assert_eq!(head, "row,unit,\"fox,v2\"");
     }
 
     /// furfit cannot know that data are measured: data without a synthetic mark are

@@ -89,6 +89,9 @@ pub fn check_replace(dir: &Path, file_name: &str, force: bool) -> Result<()> {
     crate::io::check_out_dir(dir)?;
     let meta = dir.join("metadata.json");
     let target = dir.join(file_name);
+    for p in [&target, &meta] {
+        crate::io::check_out_file(p)?;
+    }
     let Some(first) = [&target, &meta].into_iter().find(|p| p.exists()) else {
         return Ok(());
     };
