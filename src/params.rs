@@ -86,6 +86,17 @@ impl ParamSpec {
             let decimals = (4 - a.log10().floor() as i32).max(0) as usize;
             format!("{v:.decimals$}")
         };
+        self.off_bound(v, short)
+    }
+
+    /// `v` (file units) with `decimals` decimals (report tables), or every digit where
+    /// that would print a bound the value is not on (as [`Self::value_text`]).
+    pub fn fixed_text(&self, v: f64, decimals: usize) -> String {
+        self.off_bound(v, format!("{v:.decimals$}"))
+    }
+
+    /// `short`, the text of `v`, unless it reads as a bound `v` is not on: then `v` in full.
+    fn off_bound(&self, v: f64, short: String) -> String {
         let on_bound = |b: f64| short.parse::<f64>().is_ok_and(|r| r == b) && v != b;
         if on_bound(self.lower) || on_bound(self.upper) {
             crate::error::Num(v).to_string()
@@ -791,6 +802,8 @@ mod tests {
         assert_eq!(sca.value_text(2.5e-7), "2.5000e-7");
         assert_eq!(sca.value_text(17.63), "17.630");
         assert_eq!(spec("alpha").value_text(-20.0), "-20.000");
+        assert_eq!(kappa.fixed_text(0.9999966, 2), "0.9999966");
+        assert_eq!(kappa.fixed_text(0.86077, 2), "0.86");
     }
 
     #[test]

@@ -1311,6 +1311,14 @@ fn fit_names_profile_files_by_folder_and_keeps_fits_of_other_data() {
     let before = std::fs::read(root.join("fits/vole.json")).unwrap();
     fails_with(all(&[]), &["would both be fitted into", "vole.json"]);
     assert_eq!(std::fs::read(root.join("fits/vole.json")).unwrap(), before);
+    // A simulation kept from a refused run (`simulate`'s `<out>.kept-<pid>/`) is passed
+    // over, not fitted as a species of its own.
+    std::fs::rename(&hidden, root.join("measurements/vole.kept-7")).unwrap();
+    let o = all(&[]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("vole.kept-7: not a species folder"), "{err}");
+    assert!(!root.join("fits/vole.kept-7.json").exists());
 }
 
 /// Two Yan-2015 files without `# theta_i:` lines, fitted together with one `--theta-i`,
@@ -1485,7 +1493,7 @@ fn fit_all_names_every_bad_species_and_the_folders_passed_over() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(!err.contains("fitting vole:"), "{err}");
     assert!(
-        err.contains("notes: no profile file, not a species folder"),
+        err.contains("notes: not a species folder (no profile file"),
         "{err}"
     );
     assert!(!root.join("fits/vole.json").exists());

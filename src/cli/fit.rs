@@ -165,7 +165,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let (jobs, passed) = jobs_for_all(&a.measurements, &a.fits, a.force)?;
         for d in passed {
             eprintln!(
-                "note: {}: no profile file, not a species folder",
+                "note: {}: not a species folder (no profile file, or a result kept from a \
+                 refused run: *.kept-<pid>)",
                 d.display()
             );
         }
@@ -241,8 +242,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .map(|s| s.value)
                 .collect();
             if !left.is_empty() {
-                // -inf is "not finite", not a negative measurement.
-                let neg = left.iter().filter(|v| v.is_finite() && **v < 0.0).count();
+                let neg = left.iter().filter(|v| **v < 0.0).count();
                 let zero = left.iter().filter(|v| **v == 0.0).count();
                 let mut note = format!(
                     "{} sample(s){ch} without a positive value left out ({neg} negative, {zero} \

@@ -8,9 +8,10 @@ pub struct Args {
     #[arg(long, default_value = "fits")]
     pub fits: PathBuf,
     /// Folder of species folders (profiles + metadata.json): the species of
-    /// `model_vs_simulation.md`. A fit's own figure and NRMSE use the data it recorded
-    /// (its files as given to `fit`, found from here, from the fit file, or as
-    /// `<this folder>/<species>/`), whichever first holds exactly those data (SHA-256).
+    /// `model_vs_simulation.md`. A fit's own figure and NRMSE use the data it recorded,
+    /// from the first place holding exactly those data (SHA-256): its files as given to
+    /// `fit` (from the current folder), as recorded relative to the fit file, under the
+    /// folder above the fits folder, then `<this folder>/<species>/`.
     #[arg(long, default_value = "measurements")]
     pub measurements: PathBuf,
     /// Output folder.

@@ -107,8 +107,8 @@ pub fn check_replace_fit(out: &Path, files: &[ReadFile], force: bool) -> Result<
 }
 
 /// Every species folder under `measurements` (sorted), one job each (replacing a fit of
-/// other data when `force`), and the folders passed over for holding no profile file (the
-/// caller says so).
+/// other data when `force`), and the folders passed over for holding no profile file or
+/// a simulation kept from a refused run (`*.kept-<pid>`; the caller says so).
 pub fn jobs_for_all(
     measurements: &Path,
     fits_dir: &Path,
@@ -118,7 +118,13 @@ pub fn jobs_for_all(
     let (mut dirs, mut passed): (Vec<PathBuf>, Vec<PathBuf>) = rd
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_dir())
-        .partition(|p| profile::dir_profile_files(p).is_ok_and(|(f, _)| !f.is_empty()));
+        .partition(|p| {
+            // A simulation kept beside its refused output (`io::kept_path`) is no species.
+            let kept = p
+                .file_name()
+                .is_some_and(|n| n.to_string_lossy().contains(".kept-"));
+            !kept && profile::dir_profile_files(p).is_ok_and(|(f, _)| !f.is_empty())
+        });
     dirs.sort();
     passed.sort();
     if dirs.is_empty() {

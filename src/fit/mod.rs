@@ -136,7 +136,9 @@ impl FitOptions {
                 ),
             });
         }
-        // An angle is held in radians: 5e-324 deg becomes 0, outside (0, 60].
+        // An angle is held in radians: 5e-324 deg becomes 0, which the model would floor
+        // (`MIN_WIDTH`) but the fit's result check refuses after the whole fit. Elsewhere
+        // (`--params`, `--init`) such a width is floored with a note.
         let held = id.spec().to_file(id.spec().to_internal(value));
         if !id.spec().contains(held) {
             return Err(Error::Param {

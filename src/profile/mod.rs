@@ -1216,9 +1216,10 @@ fn same_value(a: &Sample, b: &Sample) -> bool {
     close_f64(a.value, b.value) || (!a.is_valid() && !b.is_valid())
 }
 
-/// Equal to [`VALUE_MATCH`] (NaN equal to NaN).
+/// Equal to [`VALUE_MATCH`] (NaN equal to NaN; an infinity only to itself).
 fn close_f64(a: f64, b: f64) -> bool {
-    same_f64(a, b) || (a - b).abs() <= VALUE_MATCH * a.abs().max(b.abs())
+    same_f64(a, b)
+        || (a.is_finite() && b.is_finite() && (a - b).abs() <= VALUE_MATCH * a.abs().max(b.abs()))
 }
 
 /// Both absent, or both present and [`close_f64`] (a sigma, like a value, computed twice).
@@ -1446,7 +1447,7 @@ where
                         phi: s.phi,
                     }));
                 }
-                if !same_f64(a.value, s.value) {
+                if !same_f64(a.value, s.value) && !a.is_valid() && !s.is_valid() {
                     markers.push((a.value, s.value));
                 }
                 drop[j] = true;
@@ -1928,6 +1929,22 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("with a different value"), "{e}");
+        // Within one file too, and a valid sample is not called a no-signal marker.
+        std::fs::remove_file(d.join("b.csv")).unwrap();
+        std::fs::write(
+            d.join("a.csv"),
+            format!("{head}0,-10,90,0.06136276893559789\n0,-10,90,0.061362768935597896\n"),
+        )
+        .unwrap();
+        let l = load_dir(d, &LoadOptions::default()).unwrap();
+        assert_eq!(l.profile.samples.len(), 1);
+        assert!(
+            l.notes.iter().all(|n| !n.contains("no-signal")),
+            "{:?}",
+            l.notes
+        );
+        // An infinity is close only to itself.
+        assert!(close_f64(f64::INFINITY, f64::INFINITY) && !close_f64(f64::INFINITY, 1e300));
     }
 
     /// A clash between two files names each copy as a single file's own duplicate error

@@ -164,7 +164,7 @@ fn coverage_line(entries: &[Entry]) -> String {
     let (mut n, mut plain, mut n_rob, mut rob) = (0, 0, 0, 0);
     for e in entries {
         let Some(f) = &e.fit else { continue };
-        let (v, t) = (f.params.to_file_units(), e.truth.to_file_units());
+        let (v, t) = (f.params.typed_file_units(), e.truth.typed_file_units());
         for id in ParamId::ALL {
             let k = id.index();
             if f.unconstrained.iter().any(|u| u == id.spec().name) {
@@ -288,19 +288,19 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
             let _ = writeln!(s, "Fit not shown: {n}\n");
         }
         s.push_str("| parameter | unit | true | fitted | SE | robust SE | fitted - true |\n|---|---|---:|---:|---:|---:|---:|\n");
-        let t = e.truth.to_file_units();
+        let t = e.truth.typed_file_units();
         for id in ParamId::ALL {
             let k = id.index();
             let (fv, se, rse, d) = match &e.fit {
                 Some(f) => {
-                    let v = f.params.to_file_units()[k];
+                    let v = f.params.typed_file_units()[k];
                     let flag = if f.unconstrained.iter().any(|u| u == id.spec().name) {
                         " (unconstrained)"
                     } else {
                         ""
                     };
                     (
-                        format!("{v:.4}"),
+                        id.spec().fixed_text(v, 4),
                         f.se[k]
                             .map(|x| format!("{}{flag}", sig(x, 2)))
                             .unwrap_or_else(|| format!("-{flag}")),
