@@ -95,14 +95,25 @@ impl ParamSpec {
         self.off_bound(v, format!("{v:.decimals$}"))
     }
 
-    /// `short`, the text of `v`, unless it reads as a bound `v` is not on: then `v` in full.
+    /// `short`, the text of `v`, unless it reads as an excluded (open) bound: then the
+    /// fewest more digits that tell `v` from it (an exponent below 1e-3). A closed bound
+    /// may be printed: `v` could be on it.
     fn off_bound(&self, v: f64, short: String) -> String {
-        let on_bound = |b: f64| short.parse::<f64>().is_ok_and(|r| r == b) && v != b;
-        if on_bound(self.lower) || on_bound(self.upper) {
-            crate::error::Num(v).to_string()
-        } else {
-            short
+        let excluded = |text: &str| {
+            text.parse::<f64>().is_ok_and(|r| {
+                (self.lower_open && r == self.lower) || (self.upper_open && r == self.upper)
+            })
+        };
+        if !excluded(&short) {
+            return short;
         }
+        if v != 0.0 && v.abs() < 1e-3 {
+            return format!("{v:.3e}");
+        }
+        (0..=17)
+            .map(|d| format!("{v:.d$}"))
+            .find(|t| !excluded(t))
+            .unwrap_or_else(|| crate::error::Num(v).to_string())
     }
 
     /// Is `v` (file units) inside the hard bounds?
@@ -795,15 +806,18 @@ mod tests {
         let kappa = spec("kappa");
         assert_eq!(kappa.value_text(0.86077), "0.86077");
         assert_eq!(kappa.value_text(0.123456789), "0.12346");
-        assert_eq!(kappa.value_text(0.9999966), "0.9999966");
+        assert_eq!(kappa.value_text(0.9999966), "0.999997");
         assert_eq!(kappa.value_text(0.0), "0");
         let sca = spec("sigma_c_a");
         assert_eq!(sca.value_text(1e308), "1.0000e308");
         assert_eq!(sca.value_text(2.5e-7), "2.5000e-7");
         assert_eq!(sca.value_text(17.63), "17.630");
         assert_eq!(spec("alpha").value_text(-20.0), "-20.000");
-        assert_eq!(kappa.fixed_text(0.9999966, 2), "0.9999966");
+        assert_eq!(kappa.fixed_text(0.9999966, 2), "0.999997");
         assert_eq!(kappa.fixed_text(0.86077, 2), "0.86");
+        // A closed bound may show (sigma_c_a >= 0), an open one may not (beta_n > 0).
+        assert_eq!(sca.fixed_text(3.99e-6, 2), "0.00");
+        assert_eq!(spec("beta_n").fixed_text(7.32e-4, 2), "7.320e-4");
     }
 
     #[test]
