@@ -145,6 +145,14 @@ const PSI_MIN_SPAN: f64 = 1e-6;
 /// to Gauss-Legendre in `u`.
 const PHI_MIN_SPAN: f64 = 1e-9;
 
+/// Most pieces (psi pieces and quadrature nodes) of a scattered lobe that
+/// [`FarSlice::peak_rescale`] checks.
+const RESCALE_MAX_PIECES: usize = 16;
+/// Azimuths at which [`FarSlice::peak_rescale`] reads the built lobe.
+const RESCALE_PHIS: usize = 24;
+/// Rebuilds [`FarSlice::peak_rescale`] may ask for, each at a smaller budget.
+const RESCALE_ROUNDS: usize = 3;
+
 /// Values at one offset `u = asin h`, for all lobes at once.
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -412,6 +420,9 @@ struct Refine<'d> {
     splits_left: usize,
     /// A wanted split was refused ([`MAX_SPLITS`] or [`MAX_DEPTH`]).
     capped: bool,
+    /// Scattered lobes: the summed error bounds of the [`PsiPiece`]s accepted (each bounds
+    /// the piece's error at every `phi`), for [`FarSlice::peak_rescale`].
+    err_sum: f64,
     /// The azimuths `mu` (`phi`, `-phi` for the mirrored side) at which the part will be
     /// evaluated, when the slice serves one `phi` ([`FarSlice::far_at`]); empty: all.
     reach: Vec<f64>,
@@ -675,39 +686,62 @@ impl<'a> FarSlice<'a> {
                         b[l.index()] / (mult * TAU)
                     }
                 });
-                let tape = match mode {
-                    TapeMode::Off => Tape::Off,
-                    TapeMode::Record => Tape::Record(Vec::new()),
-                    TapeMode::Replay(d) => d
-                        .parts
-                        .get(k)
-                        .map_or(Tape::Off, |lobes| Tape::Replay(&lobes[l.index()], 0)),
+                let small = budget.map_or(0.0, |b| b[l.index()] / (mult * SMALL_SEGMENTS));
+                let reach: Vec<f64> = match target {
+                    Some(phi) if opts.cull => {
+                        part.signs().map(|sign| sign * wrap_angle(phi)).collect()
+                    }
+                    _ => Vec::new(),
                 };
-                let mut rf = Refine {
-                    tape,
-                    budget: bud,
-                    small: budget.map_or(0.0, |b| b[l.index()] / (mult * SMALL_SEGMENTS)),
+                let refine = |scale: f64| Refine {
+                    tape: match mode {
+                        TapeMode::Off => Tape::Off,
+                        TapeMode::Record => Tape::Record(Vec::new()),
+                        TapeMode::Replay(d) => d
+                            .parts
+                            .get(k)
+                            .map_or(Tape::Off, |lobes| Tape::Replay(&lobes[l.index()], 0)),
+                    },
+                    budget: bud.map(|b| b * scale),
+                    small: small * scale,
                     splits_left: MAX_SPLITS,
                     capped: false,
-                    reach: match target {
-                        Some(phi) if opts.cull => {
-                            part.signs().map(|sign| sign * wrap_angle(phi)).collect()
-                        }
-                        _ => Vec::new(),
-                    },
+                    err_sum: 0.0,
+                    reach: reach.clone(),
                 };
-                // The initial segmentation's size is a fact: a step that adds or removes an
-                // initial breakpoint (the TRT caustic, the medulla edge) leaves the
-                // recording's decisions for other segments.
-                rf.tape.fact_u32(nodes.len() as u32);
-                for seg in (0..nodes.len().saturating_sub(2)).step_by(2) {
-                    let (n0, nm, n1) = (nodes[seg], nodes[seg + 1], nodes[seg + 2]);
-                    if l.is_scattered() && rf.budget.is_some() {
-                        fs.build_psi(l, n0, nm, n1, 0, &mut rf, &mut part.scat[l.p() - 1]);
-                    } else if l.is_scattered() {
-                        fs.build_scat(l, n0, nm, n1, 0, &mut rf, &mut part.scat[l.p() - 1]);
-                    } else {
-                        fs.build_unsc(l.p(), n0, nm, n1, 0, &mut rf, &mut part.unsc[l.p()]);
+                let run = |fs: &FarSlice<'a>, rf: &mut Refine, part: &mut Part| {
+                    // The initial segmentation's size is a fact: a step that adds or
+                    // removes an initial breakpoint (the TRT caustic, the medulla edge)
+                    // leaves the recording's decisions for other segments.
+                    rf.tape.fact_u32(nodes.len() as u32);
+                    for seg in (0..nodes.len().saturating_sub(2)).step_by(2) {
+                        let (n0, nm, n1) = (nodes[seg], nodes[seg + 1], nodes[seg + 2]);
+                        if l.is_scattered() && rf.budget.is_some() {
+                            fs.build_psi(l, n0, nm, n1, 0, rf, &mut part.scat[l.p() - 1]);
+                        } else if l.is_scattered() {
+                            fs.build_scat(l, n0, nm, n1, 0, rf, &mut part.scat[l.p() - 1]);
+                        } else {
+                            fs.build_unsc(l.p(), n0, nm, n1, 0, rf, &mut part.unsc[l.p()]);
+                        }
+                    }
+                };
+                let mut rf = refine(1.0);
+                run(&fs, &mut rf, &mut part);
+                // A scattered lobe of few pieces, whose error bounds may add up at its
+                // peak: rebuilt with a smaller budget until they fit `tol` of the peak
+                // (a replay takes the recorded segmentation as it is).
+                if l.is_scattered() && !matches!(mode, TapeMode::Replay(_)) {
+                    let mut scale = 1.0;
+                    for _ in 0..RESCALE_ROUNDS {
+                        let lobe_mass = mass[l.index()];
+                        let Some(s) = fs.peak_rescale(&part, l, *mult, rf.err_sum, lobe_mass)
+                        else {
+                            break;
+                        };
+                        scale *= s;
+                        part.scat[l.p() - 1] = ScatNodes::default();
+                        rf = refine(scale);
+                        run(&fs, &mut rf, &mut part);
                     }
                 }
                 if rf.capped {
@@ -724,6 +758,49 @@ impl<'a> FarSlice<'a> {
         }
         decisions.capped = fs.capped;
         (fs, decisions)
+    }
+
+    /// When a scattered lobe of at most [`RESCALE_MAX_PIECES`] pieces has error bounds
+    /// that, added up, exceed `tol` of a lower bound of its peak (its built value at
+    /// [`RESCALE_PHIS`] azimuths less those bounds), the factor to scale its budget by
+    /// (half the ratio, at least 1/64); `None` when they fit or cannot be checked.
+    ///
+    /// The budget holds the bounds' sum to `tol` of the lobe's *mass*, i.e. `2 pi tol` of
+    /// its mean over `phi`: spread over many pieces the errors do not add up at one `phi`,
+    /// but a multi-scale range near `h = 1` has two or three pieces whose errors add at
+    /// the peak (1.7e-4 of it at `tol` 1e-4; accuracy search, 2026-11-28). Checking costs
+    /// an evaluation per azimuth per piece, so lobes of many pieces are not checked.
+    fn peak_rescale(
+        &self,
+        part: &Part,
+        l: Lobe,
+        mult: f64,
+        err_sum: f64,
+        mass: f64,
+    ) -> Option<f64> {
+        let tol = self.tol?;
+        let sn = &part.scat[l.p() - 1];
+        let pieces = sn.psi.len() + sn.nodes.len();
+        let bound = self.weight * mult * err_sum;
+        // The peak is at least the mean over phi, `weight mass / 2 pi` (the mass is
+        // estimated to 1 %, `MASS_REL`): bounds below that fit without evaluating.
+        let mean = self.weight * mass / TAU * (1.0 - 2.0 * MASS_REL);
+        if err_sum <= 0.0 || bound <= tol * mean || pieces == 0 || pieces > RESCALE_MAX_PIECES {
+            return None;
+        }
+        let built = (0..RESCALE_PHIS)
+            .map(|j| {
+                let phi = -PI + TAU * (j as f64 + 0.5) / RESCALE_PHIS as f64;
+                let mut v = LobeValues::default();
+                self.add_scattered(part, phi, &mut v);
+                v.get(l)
+            })
+            .fold(0.0f64, f64::max);
+        let peak = built - bound;
+        if bound <= tol * peak.max(0.0) {
+            return None;
+        }
+        Some((0.5 * tol * peak.max(0.0) / bound).clamp(1.0 / 64.0, 0.5))
     }
 
     /// Node values at `u`.
@@ -1317,6 +1394,7 @@ impl<'a> FarSlice<'a> {
             return;
         }
         let g = [0, 1].map(|j| quadratic_through([a.0, b.0, c.0], [a.1[j], b.1[j], c.1[j]]));
+        let mut psi_err = None;
         if let Some(bud) = rf.budget {
             // Error of the piece at any phi: each density's misfit times the mass of what
             // it multiplies over `len`: row i (at most `len * peak`, and 1.1, a row's mass
@@ -1340,6 +1418,7 @@ impl<'a> FarSlice<'a> {
             let var_part = e[0] * span * (span * rows.slope(row)).min(rows.peak);
             let row_part = (e[0] * (span * rows.peak).min(1.1)).min(mean_part + var_part);
             let err = row_part + e[1] * span * rows.gap(row);
+            psi_err = Some(err);
             if rf.tape.choose_bool(err > bud * len_u && err > rf.small) {
                 if let Some(depth) = rf.split(depth) {
                     self.build_psi(l, n0, q1, nm, depth, rf, out);
@@ -1347,6 +1426,9 @@ impl<'a> FarSlice<'a> {
                     return;
                 }
             }
+        }
+        if let Some(e) = psi_err {
+            rf.err_sum += e;
         }
         out.segments += 1;
         out.psi.push(PsiPiece {
