@@ -632,6 +632,8 @@ fn report_recomputes_the_nrmse_of_an_edited_fit_and_skips_the_ledger() {
         !shown.contains(&format!("{:.1}%", 100.0 * fitted)),
         "{shown}"
     );
+    let mvs = std::fs::read_to_string(root.join("reports/model_vs_simulation.md")).unwrap();
+    assert!(mvs.contains("Note: mouse: the file records NRMSE"), "{mvs}");
     // The recomputed value is the NRMSE of a fit holding every parameter at the edited
     // values (only the exposure solved, as the NRMSE's optimal exposure).
     let vals: Vec<f64> = furfit::ParamId::ALL

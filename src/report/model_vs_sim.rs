@@ -271,6 +271,14 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
             }
         );
     }
+    // A fit whose file recorded another NRMSE than its parameters give (nrmse.md says so
+    // too): the column shows the recomputed one.
+    for note in entries
+        .iter()
+        .filter_map(|e| e.fit.as_ref().and_then(|f| f.nrmse_note()))
+    {
+        let _ = writeln!(s, "\nNote: {note}.");
+    }
     let _ = writeln!(s, "\n{}", coverage_line(entries));
     for e in entries {
         let _ = writeln!(

@@ -360,7 +360,7 @@ impl FitFile {
 
     /// The note for a fit whose recorded NRMSE did not match its parameters: the file
     /// was edited, or (another `tool_version`) made by a build whose model differs.
-    fn nrmse_note(&self) -> Option<String> {
+    pub(crate) fn nrmse_note(&self) -> Option<String> {
         self.nrmse_recorded.map(|rec| {
             let why = if self.tool_version == crate::TOOL_VERSION {
                 "the file was changed after the fit".to_string()
