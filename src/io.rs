@@ -296,6 +296,9 @@ fn probe_dir(dir: &Path) -> std::io::Result<()> {
     }
 }
 
+/// What marks a [`kept_path`] in a file name.
+const KEPT: &str = ".kept-";
+
 /// A path beside `path` that nothing holds yet, for a result that may not go to `path`:
 /// `<name>.kept-<pid>`, then `-2`, `-3`, ... (`None` after 99 taken names).
 pub fn kept_path(path: &Path) -> Option<PathBuf> {
@@ -304,13 +307,19 @@ pub fn kept_path(path: &Path) -> Option<PathBuf> {
     (1..100)
         .map(|k| {
             let suffix = if k == 1 {
-                format!("kept-{pid}")
+                format!("{pid}")
             } else {
-                format!("kept-{pid}-{k}")
+                format!("{pid}-{k}")
             };
-            parent_dir(path).join(format!("{name}.{suffix}"))
+            parent_dir(path).join(format!("{name}{KEPT}{suffix}"))
         })
         .find(|p| std::fs::symlink_metadata(p).is_err())
+}
+
+/// Whether `path` is named like a [`kept_path`] (a result kept from a refused run).
+pub fn is_kept_path(path: &Path) -> bool {
+    path.file_name()
+        .is_some_and(|n| n.to_string_lossy().contains(KEPT))
 }
 
 /// Whether `path` is a symbolic link whose target does not exist (`exists()` says false,

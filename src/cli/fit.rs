@@ -270,14 +270,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     // Every output too, so `--all` cannot stop at the n-th species after n - 1 fits, nor
     // write two species' fits to one file (folders `fox` and `.fox` are both species fox).
+    let outs: Vec<PathBuf> = jobs
+        .iter()
+        .map(|j| crate::io::resolve_path(&j.out))
+        .collect();
     for (j, (job, inputs)) in jobs.iter().zip(&loaded).enumerate() {
         crate::fit::job::check_out(&job.out)?;
         crate::fit::job::check_replace_fit(&job.out, &inputs.files, job.force)?;
-        let same = crate::io::resolve_path(&job.out);
-        if let Some(other) = jobs[..j]
-            .iter()
-            .find(|o| crate::io::resolve_path(&o.out) == same)
-        {
+        if let Some(other) = (0..j).find(|&o| outs[o] == outs[j]).map(|o| &jobs[o]) {
             anyhow::bail!(
                 "{} and {} would both be fitted into {}; fit them one at a time with --out",
                 other.inputs[0].display(),

@@ -119,11 +119,9 @@ pub fn jobs_for_all(
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| p.is_dir())
         .partition(|p| {
-            // A simulation kept beside its refused output (`io::kept_path`) is no species.
-            let kept = p
-                .file_name()
-                .is_some_and(|n| n.to_string_lossy().contains(".kept-"));
-            !kept && profile::dir_profile_files(p).is_ok_and(|(f, _)| !f.is_empty())
+            // A simulation kept beside its refused output is no species.
+            !crate::io::is_kept_path(p)
+                && profile::dir_profile_files(p).is_ok_and(|(f, _)| !f.is_empty())
         });
     dirs.sort();
     passed.sort();
@@ -194,12 +192,7 @@ pub fn load_inputs_full(inputs: &[PathBuf], opts: &LoadOptions) -> Result<Loaded
         parts.pop().expect("one part").profile
     } else {
         let (merged, collapsed) = profile::merge_loaded(parts, opts)?;
-        if collapsed > 0 {
-            notes.push(format!(
-                "{collapsed} identical duplicate sample(s) across inputs collapsed (values equal \
-                 to 1e-12 of themselves: computed copies may differ in the last digits)"
-            ));
-        }
+        notes.extend(profile::collapsed_note(collapsed, "inputs"));
         merged
     };
     Ok(LoadedInputs {

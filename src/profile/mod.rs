@@ -932,12 +932,7 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
         parts.push(l);
     }
     let (mut profile, collapsed) = merge_loaded(parts, opts)?;
-    if collapsed > 0 {
-        notes.push(format!(
-            "{collapsed} identical duplicate sample(s) across files collapsed (values equal to \
-             1e-12 of themselves: computed copies may differ in the last digits)"
-        ));
-    }
+    notes.extend(collapsed_note(collapsed, "files"));
     notes.extend(provenance::apply_folder_label(&mut profile, dir)?);
     profile.source = Some(dir.to_path_buf());
     Ok(Loaded {
@@ -1040,6 +1035,17 @@ fn merge_with(
         ))
     })?;
     Ok((out, collapsed))
+}
+
+/// The loader note for `collapsed` duplicate samples found across `parts` (files, inputs)
+/// by [`merge_loaded`], if any.
+pub(crate) fn collapsed_note(collapsed: usize, parts: &str) -> Option<String> {
+    (collapsed > 0).then(|| {
+        format!(
+            "{collapsed} identical duplicate sample(s) across {parts} collapsed (values equal \
+             to 1e-12 of themselves: computed copies may differ in the last digits)"
+        )
+    })
 }
 
 /// [`merge`] of parts loaded with `opts` (files, or folders from [`load_dir`]). When a
@@ -1201,9 +1207,14 @@ pub fn same_f64(a: f64, b: f64) -> bool {
 }
 
 fn same_opt(a: Option<f64>, b: Option<f64>) -> bool {
+    both(a, b, same_f64)
+}
+
+/// Both absent, or both present and `eq`.
+fn both(a: Option<f64>, b: Option<f64>, eq: fn(f64, f64) -> bool) -> bool {
     match (a, b) {
         (None, None) => true,
-        (Some(x), Some(y)) => same_f64(x, y),
+        (Some(x), Some(y)) => eq(x, y),
         _ => false,
     }
 }
@@ -1224,11 +1235,7 @@ fn close_f64(a: f64, b: f64) -> bool {
 
 /// Both absent, or both present and [`close_f64`] (a sigma, like a value, computed twice).
 fn close_opt(a: Option<f64>, b: Option<f64>) -> bool {
-    match (a, b) {
-        (None, None) => true,
-        (Some(x), Some(y)) => close_f64(x, y),
-        _ => false,
-    }
+    both(a, b, close_f64)
 }
 
 /// Relative difference within which two copies of one direction are one value (the first
@@ -1910,32 +1917,24 @@ mod tests {
     fn copies_equal_to_rounding_merge_and_others_clash() {
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
-        let head = "theta_i,theta_r,phi,value\n";
-        std::fs::write(
-            d.join("a.csv"),
-            format!("{head}0,-10,90,0.06136276893559789\n"),
-        )
-        .unwrap();
-        std::fs::write(
-            d.join("b.csv"),
-            format!("{head}0,-10,90,0.061362768935597896\n"),
-        )
-        .unwrap();
+        // `values` of one direction as the rows of `name`.
+        let write = |name: &str, values: &[&str]| {
+            let rows: String = values.iter().map(|v| format!("0,-10,90,{v}\n")).collect();
+            std::fs::write(d.join(name), format!("theta_i,theta_r,phi,value\n{rows}")).unwrap();
+        };
+        write("a.csv", &["0.06136276893559789"]);
+        write("b.csv", &["0.061362768935597896"]);
         let p = load_dir(d, &LoadOptions::default()).unwrap();
         assert_eq!(p.profile.samples.len(), 1);
         assert_eq!(p.profile.samples[0].value, 0.06136276893559789);
-        std::fs::write(d.join("b.csv"), format!("{head}0,-10,90,0.0613627689357\n")).unwrap();
+        write("b.csv", &["0.0613627689357"]);
         let e = load_dir(d, &LoadOptions::default())
             .unwrap_err()
             .to_string();
         assert!(e.contains("with a different value"), "{e}");
         // Within one file too, and a valid sample is not called a no-signal marker.
         std::fs::remove_file(d.join("b.csv")).unwrap();
-        std::fs::write(
-            d.join("a.csv"),
-            format!("{head}0,-10,90,0.06136276893559789\n0,-10,90,0.061362768935597896\n"),
-        )
-        .unwrap();
+        write("a.csv", &["0.06136276893559789", "0.061362768935597896"]);
         let l = load_dir(d, &LoadOptions::default()).unwrap();
         assert_eq!(l.profile.samples.len(), 1);
         assert!(

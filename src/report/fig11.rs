@@ -387,11 +387,15 @@ fn draw<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Write `fig11_<label>.png` and `.svg` into `out` for this fit and profile ([`FitFile::label`]).
-/// The files [`write`] writes for `fit` into `out`.
+/// The files [`write`] writes for `fit` into `out` ([`outputs_of`] its label).
 pub fn outputs(fit: &FitFile, out: &Path) -> [std::path::PathBuf; 2] {
-    let name = fit.label();
-    ["png", "svg"].map(|e| out.join(format!("fig11_{name}.{e}")))
+    outputs_of(&fit.label(), out)
+}
+
+/// `fig11_<label>.png` and `.svg` in `out`: the figures of the fit labelled `label`
+/// ([`FitFile::label`]).
+pub fn outputs_of(label: &str, out: &Path) -> [std::path::PathBuf; 2] {
+    ["png", "svg"].map(|e| out.join(format!("fig11_{label}.{e}")))
 }
 
 /// The runs of consecutive points a log plot can show (finite, at least `lo`): a lobe that

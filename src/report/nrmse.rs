@@ -940,7 +940,7 @@ fn remove_stale_figures(
         .iter()
         .skip(2)
         .filter(|label| !label.is_empty() && !of_unread(label))
-        .flat_map(|label| ["png", "svg"].map(|e| out.join(format!("fig11_{label}.{e}"))))
+        .flat_map(|label| super::fig11::outputs_of(label, out))
         .filter(|p| {
             p.is_file()
                 && !figures.contains(p)

@@ -738,8 +738,8 @@ impl<'a> FarSlice<'a> {
                 // (red fox: 235 LM iterations, 13.6 s, against 170 and 7 s).
                 if l.is_scattered() && !full_width && !matches!(mode, TapeMode::Replay(_)) {
                     let mut scale = 1.0;
+                    let lobe_mass = mass[l.index()];
                     for _ in 0..RESCALE_ROUNDS {
-                        let lobe_mass = mass[l.index()];
                         let Some(s) = fs.peak_rescale(&part, l, *mult, rf.err_sum, lobe_mass)
                         else {
                             break;
@@ -1401,7 +1401,6 @@ impl<'a> FarSlice<'a> {
             return;
         }
         let g = [0, 1].map(|j| quadratic_through([a.0, b.0, c.0], [a.1[j], b.1[j], c.1[j]]));
-        let mut psi_err = None;
         if let Some(bud) = rf.budget {
             // Error of the piece at any phi: each density's misfit times the mass of what
             // it multiplies over `len`: row i (at most `len * peak`, and 1.1, a row's mass
@@ -1425,7 +1424,6 @@ impl<'a> FarSlice<'a> {
             let var_part = e[0] * span * (span * rows.slope(row)).min(rows.peak);
             let row_part = (e[0] * (span * rows.peak).min(1.1)).min(mean_part + var_part);
             let err = row_part + e[1] * span * rows.gap(row);
-            psi_err = Some(err);
             if rf.tape.choose_bool(err > bud * len_u && err > rf.small) {
                 if let Some(depth) = rf.split(depth) {
                     self.build_psi(l, n0, q1, nm, depth, rf, out);
@@ -1433,9 +1431,8 @@ impl<'a> FarSlice<'a> {
                     return;
                 }
             }
-        }
-        if let Some(e) = psi_err {
-            rf.err_sum += e;
+            // Accepted (or no split left): its bound counts toward the lobe's.
+            rf.err_sum += err;
         }
         out.segments += 1;
         out.psi.push(PsiPiece {
