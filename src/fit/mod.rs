@@ -804,10 +804,21 @@ pub fn channel_data(
         .as_ref()
         .map(|p| p.display().to_string())
         .unwrap_or_else(|| "profile".into());
+    // The channel as the file names it (an index would mean nothing to the reader); the
+    // one channel of a profile without names is just "the profile".
+    let channel_text = match profile.channels.get(channel) {
+        Some(name) => format!("channel {name}"),
+        None if profile.channels.is_empty() => "the profile".to_string(),
+        None => format!("channel {channel}"),
+    };
     if vals.is_empty() {
         return Err(Error::Invalid(format!(
-            "{what}: channel {channel} has no valid sample (all {} samples are <= 0, NaN or missing)",
-            profile.samples.iter().filter(|s| s.channel == channel).count()
+            "{what}: {channel_text} has no valid sample (all {} samples are <= 0, NaN or missing)",
+            profile
+                .samples
+                .iter()
+                .filter(|s| s.channel == channel)
+                .count()
         )));
     }
     if weighted {
@@ -823,7 +834,7 @@ pub fn channel_data(
                 .map(|o| format!(", {o}"))
                 .unwrap_or_default();
             return Err(Error::Invalid(format!(
-                "{what}: --weighted needs a sigma > 0 on every valid sample; {bad} of {} valid samples of channel {channel} have none (or 0), \
+                "{what}: --weighted needs a sigma > 0 on every valid sample; {bad} of {} valid samples of {channel_text} have none (or 0), \
                  the first (in angle order) at theta_i {}, theta_r {}, phi {} ({sigma}{at})",
                 rel.len(),
                 s.theta_i,
@@ -851,7 +862,7 @@ pub fn channel_data(
                 .map(|o| format!(" ({o})"))
                 .unwrap_or_default();
             return Err(Error::Invalid(format!(
-                "{what}: --weighted: the sample at theta_i {}, theta_r {}, phi {}{at} has sigma/value {least:.3e}, {:.3e} times below the median {median:.3e} of channel {channel}; its weight 1/(sigma/value)^2 would decide the fit alone (allowed: up to {} times below). Check its sigma, or fit without --weighted",
+                "{what}: --weighted: the sample at theta_i {}, theta_r {}, phi {}{at} has sigma/value {least:.3e}, {:.3e} times below the median {median:.3e} of {channel_text}; its weight 1/(sigma/value)^2 would decide the fit alone (allowed: up to {} times below). Check its sigma, or fit without --weighted",
                 s.theta_i,
                 s.theta_r,
                 s.phi,

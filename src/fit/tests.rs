@@ -194,10 +194,18 @@ fn weighted_names_the_first_sample_without_sigma() {
     };
     let e = channel_data(&p, 0, true, 0.0).unwrap_err().to_string();
     assert!(
-        e.contains("2 of 4 valid samples of channel 0 have none (or 0), the first (in angle order) at theta_i 10, theta_r 20, phi 60 (sigma 0)"),
+        e.contains("2 of 4 valid samples of the profile have none (or 0), the first (in angle order) at theta_i 10, theta_r 20, phi 60 (sigma 0)"),
         "{e}"
     );
     assert!(channel_data(&p, 0, false, 0.0).is_ok());
+    // A named channel is named as the file names it, not by its index.
+    let mut named = p.clone();
+    named.channels = vec!["r".into(), "g".into()];
+    named.samples.iter_mut().for_each(|s| s.channel = 1);
+    let e = channel_data(&named, 1, true, 0.0).unwrap_err().to_string();
+    assert!(e.contains("valid samples of channel g have none"), "{e}");
+    let e = channel_data(&named, 0, false, 0.0).unwrap_err().to_string();
+    assert!(e.contains("channel r has no valid sample"), "{e}");
     // Read from a file: its line too (the sample with sigma 0 sits on line 7 of b.csv).
     let mut p = p;
     p.files = vec!["a.csv".into(), "b.csv".into()];

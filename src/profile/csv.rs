@@ -251,14 +251,8 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
             Some(i) => number(i)?.filter(|p| !p.is_nan()).map(|p| p + 0.0),
             None => None,
         };
-        check_measured(value, sigma, phi_i).map_err(|(field, msg)| {
-            let i = match field {
-                Field::Value => Some(cols.value),
-                Field::Sigma => cols.sigma,
-                Field::PhiI => cols.phi_i,
-            };
-            perr(line, label(i.unwrap_or(cols.value)), msg)
-        })?;
+        check_measured(value, sigma, phi_i)
+            .map_err(|(field, msg)| perr(line, label(cols.of(field)), msg))?;
         let channel = match cols.channel {
             None => 0,
             Some(i) => {
@@ -301,7 +295,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
         path,
         opts,
         &label(cols.phi),
-        &label(cols.value),
+        &|f| label(cols.of(f)),
     )?;
     notes.extend(label_notes);
     if separator_rows > 0 {
@@ -318,6 +312,8 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
             files: vec![path.to_path_buf()],
             layouts: vec![Layout::Rows {
                 value_column: label(cols.value),
+                sigma_column: cols.sigma.map(label),
+                phi_i_column: cols.phi_i.map(label),
             }],
         },
         notes,
@@ -337,6 +333,17 @@ struct Columns {
 }
 
 impl Columns {
+    /// The column of a measured field (the value column for one the file lacks, which
+    /// cannot then differ or be invalid).
+    fn of(&self, field: Field) -> usize {
+        match field {
+            Field::Value => Some(self.value),
+            Field::Sigma => self.sigma,
+            Field::PhiI => self.phi_i,
+        }
+        .unwrap_or(self.value)
+    }
+
     fn from_header(names: &[String], err: impl Fn(String, String) -> Error) -> Result<Columns> {
         let find = |want: &str| -> Result<Option<usize>> {
             let mut hits = names.iter().enumerate().filter(|(_, n)| *n == want);
@@ -569,6 +576,39 @@ mod tests {
         // A plain repeat says nothing of wrapping.
         let (_, notes) = p("theta_i,theta_r,phi,value\n30,10,5,1\n30,10,5,1\n").unwrap();
         assert!(!notes[0].contains("wrapped"), "{notes:?}");
+    }
+
+    /// A repeat that differs only in sigma or phi_i is reported on that column, in one file
+    /// and across the files of a folder (the value column was named before).
+    #[test]
+    fn duplicate_names_the_column_that_differs() {
+        let e = p("sigma,theta_i,theta_r,phi,value\n0.1,0,0,0,1\n0.2,0,0,0,1\n")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(":3: column 1 (sigma): duplicate") && e.contains("sigma (0.1 vs 0.2)"),
+            "{e}"
+        );
+        let e = p("theta_i,theta_r,phi,value,phi_i\n0,0,0,1,5\n0,0,0,1,6\n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains(":3: column 5 (phi_i): duplicate"), "{e}");
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        std::fs::write(
+            d.join("a.csv"),
+            "theta_i,theta_r,phi,value,sigma\n0,0,0,1,0.5\n",
+        )
+        .unwrap();
+        std::fs::write(d.join("b.csv"), "theta_i,theta_r,phi,value\n0,0,0,1\n").unwrap();
+        let e = super::super::load_dir(d, &LoadOptions::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("b.csv:2: column 4 (value): duplicate")
+                && e.contains("a.csv:2: column 5 (sigma)"),
+            "{e}"
+        );
     }
 
     /// A clash names the channel as the file does (`channel r`, not its index 0); a file

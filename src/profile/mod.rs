@@ -134,8 +134,13 @@ pub enum Layout {
     #[default]
     Unknown,
     /// A text file (CSV, Yan-2015): [`Origin::line`] is a row's line; `value_column`
-    /// labels its value column as the file's own errors do (`column 4 (value)`).
-    Rows { value_column: String },
+    /// labels its value column as the file's own errors do (`column 4 (value)`), and
+    /// likewise its sigma and phi_i columns if it has them.
+    Rows {
+        value_column: String,
+        sigma_column: Option<String>,
+        phi_i_column: Option<String>,
+    },
     /// A `.npz` / lone `.npy` grid whose `value` array has this shape: [`Origin::line`] is
     /// 1 + the cell's row-major index.
     Grid { shape: Vec<usize> },
@@ -178,12 +183,26 @@ fn origin_text(files: &[PathBuf], layouts: &[Layout], o: Origin) -> Option<Strin
 
 /// Where a duplicate's copy sits, as a single file's own duplicate error names it:
 /// `FILE:LINE: column N (value)` for a text row, `FILE: array 'value' index [i, j, k]` for
-/// a grid cell; [`origin_text`] when the layout is unknown.
-fn place_text(files: &[PathBuf], layouts: &[Layout], o: Origin) -> Option<String> {
+/// a grid cell, naming the column or array of `field` (the one that differs);
+/// [`origin_text`] when the layout is unknown.
+fn place_text(files: &[PathBuf], layouts: &[Layout], o: Origin, field: Field) -> Option<String> {
     let file = files.get(o.file as usize)?.display();
     match layouts.get(o.file as usize) {
-        Some(Layout::Rows { value_column }) if o.line > 0 => {
-            Some(format!("{file}:{}: {value_column}", o.line))
+        Some(Layout::Rows {
+            value_column,
+            sigma_column,
+            phi_i_column,
+        }) if o.line > 0 => {
+            let column = match field {
+                Field::Value => None,
+                Field::Sigma => sigma_column.as_ref(),
+                Field::PhiI => phi_i_column.as_ref(),
+            };
+            Some(format!(
+                "{file}:{}: {}",
+                o.line,
+                column.unwrap_or(value_column)
+            ))
         }
         Some(l @ Layout::Grid { .. }) => l.cell(o).map(|ix| {
             // A lone .npy is one unnamed array; an .npz names its `value` array.
@@ -193,7 +212,7 @@ fn place_text(files: &[PathBuf], layouts: &[Layout], o: Origin) -> Option<String
             if lone {
                 format!("{file}: index {ix:?}")
             } else {
-                format!("{file}: array 'value' index {ix:?}")
+                format!("{file}: array '{}' index {ix:?}", field.name())
             }
         }),
         _ => None,
@@ -692,10 +711,21 @@ pub(crate) fn escaped(t: &str) -> String {
     out
 }
 
-/// `t` from a file as messages quote it: `'...'`, [`escaped`].
+/// `t` from a file as messages quote it: `'...'`, [`escaped`], cut after
+/// [`QUOTE_MAX_CHARS`] characters (a 10 MB cell was echoed whole) with its length said.
 pub(crate) fn quoted(t: &str) -> String {
-    format!("'{}'", escaped(t))
+    match t.char_indices().nth(QUOTE_MAX_CHARS) {
+        Some((cut, _)) => format!(
+            "'{}...' ({} characters)",
+            escaped(&t[..cut]),
+            t.chars().count()
+        ),
+        None => format!("'{}'", escaped(t)),
+    }
 }
+
+/// Characters of a file's text a message quotes before cutting it ([`quoted`]).
+const QUOTE_MAX_CHARS: usize = 80;
 
 /// A number as a text file writes it (trimmed): Rust's f64 syntax, `nan` and `inf` in any
 /// case included. `Err` is a message for the caller to place: not a number, or a nonzero
@@ -828,7 +858,7 @@ pub fn is_profile_file(path: &Path) -> bool {
 
 /// Is this text meant as a Yan-2015 profile? It has a `# theta_i:` line (anywhere), or its
 /// first line that is neither blank nor a `#` comment starts with a number or `?` (the phi
-/// of a data row) or names two columns (`phi`, `theta`, `value`, also with a suffix such
+/// of a data row) not followed by a word (`12 June 2017` is a note) or names two columns (`phi`, `theta`, `value`, also with a suffix such
 /// as `theta_r` or `phi(deg)`: the column-name line labs export). A folder's `.txt`/`.dat`
 /// can be prose (`notes.txt`), which is skipped, not an error; a profile with a typo in
 /// its first row (`0 10 1,5`, `0, 10, 1`, a fourth column) or a header the reader does not
@@ -860,8 +890,15 @@ pub fn looks_like_yan(bytes: &[u8]) -> bool {
             .filter(|f| !f.is_empty())
             .collect();
         let first = fields.first().copied().unwrap_or("");
-        if first == "?"
-            || first.parse::<f64>().is_ok()
+        // A numbered or dated notes line (`1. Calibrate ...`, `12 June 2017`) starts with a
+        // number too, but its second field is a word; a row's second field is theta (a
+        // typo there, e.g. `l0`, has one letter and is still read and reported).
+        let word = |f: &str| {
+            f.parse::<f64>().is_err()
+                && f.starts_with(char::is_alphabetic)
+                && f.chars().filter(|c| c.is_alphabetic()).count() >= 2
+        };
+        if (first == "?" || first.parse::<f64>().is_ok()) && !fields.get(1).is_some_and(|f| word(f))
             // A column-name line: two to four fields, every one a column name (a notes
             // line that mentions phi and theta in a sentence is prose).
             || ((2..=4).contains(&fields.len()) && fields.iter().all(|f| names_a_column(f)))
@@ -875,20 +912,30 @@ pub fn looks_like_yan(bytes: &[u8]) -> bool {
 }
 
 /// The profile files of a directory that [`load_dir`] reads, sorted, and a note for each
-/// `.txt`/`.dat` it skips because it is not a Yan-2015 profile ([`looks_like_yan`]).
+/// `.txt`/`.dat` it skips because it is not a Yan-2015 profile ([`looks_like_yan`]), each
+/// subfolder and each hidden file with a profile extension.
 pub fn dir_profile_files(dir: &Path) -> Result<(Vec<PathBuf>, Vec<String>)> {
     let rd = std::fs::read_dir(dir).map_err(|e| Error::io(dir, e))?;
     let mut files = Vec::new();
+    // What a user may have meant as data but is not read: subfolders and hidden profile
+    // files (a dot-folder such as `.git` is nobody's data and gets no note).
+    let mut unread = Vec::new();
     for entry in rd {
         let entry = entry.map_err(|e| Error::io(dir, e))?;
         let p = entry.path();
+        let name = entry.file_name().to_string_lossy().into_owned();
         if is_profile_file(&p) {
             files.push(p);
+        } else if p.is_dir() && !name.starts_with('.') {
+            unread.push(format!("skipped {name}/: subfolders are not read"));
+        } else if name.starts_with('.') && p.is_file() && Format::from_path(&p).is_ok() {
+            unread.push(format!("skipped {name}: hidden file"));
         }
     }
     files.sort();
+    unread.sort();
     let mut kept = Vec::new();
-    let mut notes = Vec::new();
+    let mut notes = unread;
     for f in files {
         if Format::from_path(&f).ok() == Some(Format::Yan) {
             let bytes = std::fs::read(&f).map_err(|e| Error::io(&f, e))?;
@@ -1025,7 +1072,8 @@ fn merge_with(
         let hint = hint(a, b).map(|h| format!("; {h}")).unwrap_or_default();
         // Each copy named as its own file's duplicate error would name it.
         let name = |i: usize, part: usize| {
-            place_text(&files, &layouts, origins[i]).unwrap_or_else(|| sources[part].clone())
+            place_text(&files, &layouts, origins[i], c.field)
+                .unwrap_or_else(|| sources[part].clone())
         };
         Error::Invalid(format!(
             "{}: {}; the first copy is in {}{hint}",
@@ -1265,6 +1313,8 @@ pub(crate) struct Conflict {
     pub repeat: usize,
     /// What differs, e.g. `value (1 vs 1.1)`.
     pub diff: String,
+    /// The field that differs (the first of value, sigma, phi_i that does).
+    pub field: Field,
     /// The direction, e.g. `theta_i 30, theta_r 10, phi 0, channel r` (the channel by its
     /// name; none for the one channel of a profile without names).
     pub at: String,
@@ -1333,7 +1383,7 @@ where
 /// [`dedupe_notes`] for a text loader (CSV, Yan): sample `k` came from line
 /// `samples[k].origin.line` of `path`, its phi written as `raw_phi[k]`. A clash is named on
 /// `phi_column` when only the wrap made the two rows one direction ([`wrap_conflict`]),
-/// else on `value_column`.
+/// else on the column of the field that differs (`column`: its label).
 pub(crate) fn dedupe_rows(
     samples: &mut Vec<Sample>,
     channels: &[String],
@@ -1341,7 +1391,7 @@ pub(crate) fn dedupe_rows(
     path: &Path,
     opts: &LoadOptions,
     phi_column: &str,
-    value_column: &str,
+    column: &dyn Fn(Field) -> String,
 ) -> Result<Vec<String>> {
     let lines: Vec<usize> = samples.iter().map(|s| s.origin.line as usize).collect();
     dedupe_notes(
@@ -1354,13 +1404,16 @@ pub(crate) fn dedupe_rows(
             let first_at = format!("line {}", lines[i]);
             let (column, msg) = match wrap_conflict(raw_phi[i], raw_phi[j], &first_at, &c, "", opts)
             {
-                Some(m) => (phi_column, m),
-                None => (value_column, format!("{}; first on {first_at}", c.what())),
+                Some(m) => (phi_column.to_string(), m),
+                None => (
+                    column(c.field),
+                    format!("{}; first on {first_at}", c.what()),
+                ),
             };
             Error::Parse {
                 file: path.to_path_buf(),
                 line: lines[j],
-                column: column.to_string(),
+                column,
                 msg,
             }
         },
@@ -1418,27 +1471,29 @@ where
             Some(&i) => {
                 let a = &samples[i];
                 let diff = if !same_value(a, s) {
-                    Some(format!("value ({} vs {})", Num(a.value), Num(s.value)))
+                    Some((
+                        Field::Value,
+                        format!("value ({} vs {})", Num(a.value), Num(s.value)),
+                    ))
                 } else if !close_opt(a.sigma, s.sigma) {
-                    Some(format!(
-                        "sigma ({} vs {})",
-                        opt_text(a.sigma),
-                        opt_text(s.sigma)
+                    Some((
+                        Field::Sigma,
+                        format!("sigma ({} vs {})", opt_text(a.sigma), opt_text(s.sigma)),
                     ))
                 } else if !same_opt(a.phi_i, s.phi_i) {
-                    Some(format!(
-                        "phi_i ({} vs {})",
-                        opt_text(a.phi_i),
-                        opt_text(s.phi_i)
+                    Some((
+                        Field::PhiI,
+                        format!("phi_i ({} vs {})", opt_text(a.phi_i), opt_text(s.phi_i)),
                     ))
                 } else {
                     None
                 };
-                if let Some(diff) = diff {
+                if let Some((field, diff)) = diff {
                     return Err(conflict(Conflict {
                         first: i,
                         repeat: j,
                         diff,
+                        field,
                         at: format!(
                             "theta_i {}, theta_r {}, phi {}{}",
                             Num(s.theta_i),
@@ -1718,6 +1773,31 @@ mod tests {
         assert!(looks_like_yan(b"\xef\xbb\xbf-90 5 ?\r"));
         assert!(!looks_like_yan(b"Measured by A. Lab, 2015.\n0 10 1\n"));
         assert!(!looks_like_yan(b"# only comments\n"));
+        // A long text is quoted cut, with its length.
+        let long = "x".repeat(10_000);
+        assert_eq!(
+            quoted(&long),
+            format!("'{}...' (10000 characters)", "x".repeat(80))
+        );
+        assert_eq!(quoted("a\u{feff}"), "'a\\u{feff}'");
+        // Numbered or dated notes are prose; a typo in a row's theta or value is not.
+        for notes in [
+            "1. Calibrate lamp\n",
+            "12 June 2017\n",
+            "2017 notes\n",
+            "3 fibers\n",
+        ] {
+            assert!(!looks_like_yan(notes.as_bytes()), "{notes}");
+        }
+        for row in [
+            "0 l0 1\n",
+            "0 10deg 1\n",
+            "0 10 abc\n",
+            "0 nan 1\n",
+            "0 10 1 5\n",
+        ] {
+            assert!(looks_like_yan(row.as_bytes()), "{row}");
+        }
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         std::fs::write(d.join("a.csv"), "theta_i,theta_r,phi,value\n0,10,20,1\n").unwrap();
@@ -1730,6 +1810,24 @@ mod tests {
             "{:?}",
             l.notes
         );
+        // Data a user may have meant to include is named in a note, not read.
+        std::fs::create_dir(d.join("sub")).unwrap();
+        std::fs::write(
+            d.join("sub/b.csv"),
+            "theta_i,theta_r,phi,value\n0,10,30,1\n",
+        )
+        .unwrap();
+        std::fs::write(d.join(".c.csv"), "theta_i,theta_r,phi,value\n0,10,40,1\n").unwrap();
+        std::fs::create_dir(d.join(".git")).unwrap();
+        let l = load_dir(d, &LoadOptions::default()).unwrap();
+        assert_eq!(l.profile.samples.len(), 1);
+        for note in [
+            "skipped sub/: subfolders are not read",
+            "skipped .c.csv: hidden file",
+        ] {
+            assert!(l.notes.contains(&note.to_string()), "{:?}", l.notes);
+        }
+        assert!(!l.notes.iter().any(|n| n.contains(".git")), "{:?}", l.notes);
         // Named on its own it is still read as Yan, and fails.
         let e = load(&d.join("notes.txt"), &LoadOptions::default()).unwrap_err();
         assert!(e.to_string().contains("notes.txt:1:"), "{e}");
@@ -2011,12 +2109,17 @@ mod tests {
         ];
         let at = |file| Origin { file, line: 2 };
         assert_eq!(
-            place_text(&files, &layouts, at(0)).unwrap(),
+            place_text(&files, &layouts, at(0), Field::Value).unwrap(),
             "v.npy: index [1, 0, 0]"
         );
         assert_eq!(
-            place_text(&files, &layouts, at(1)).unwrap(),
+            place_text(&files, &layouts, at(1), Field::Value).unwrap(),
             "w.npz: array 'value' index [1, 0, 0]"
+        );
+        // A clash in sigma names the sigma array.
+        assert_eq!(
+            place_text(&files, &layouts, at(1), Field::Sigma).unwrap(),
+            "w.npz: array 'sigma' index [1, 0, 0]"
         );
     }
 

@@ -68,6 +68,11 @@ use std::path::Path;
 
 /// Largest array (decompressed bytes) the reader accepts.
 const MAX_ARRAY_BYTES: u64 = 1 << 29;
+/// Largest `meta_json` (bytes of JSON text) the reader accepts.
+const MAX_META_BYTES: u64 = 1 << 24;
+/// Longest `.npy` header the reader accepts (numpy writes under 1 KB; version 1 allows
+/// 64 KiB).
+const MAX_HEADER_BYTES: u64 = 1 << 20;
 /// Largest grid (cells) the writer produces; a sparser profile should be saved as CSV.
 const MAX_WRITE_CELLS: usize = 50_000_000;
 
@@ -109,6 +114,25 @@ fn npy_header_with(
     bytes: &[u8],
     dtype: impl Fn(&NpyHeader) -> std::result::Result<(), String>,
 ) -> std::result::Result<NpyHeader, String> {
+    let (h, end, need) = npy_layout(bytes, dtype, Some(MAX_READ_CELLS))?;
+    let have = bytes.len() - end;
+    if h.kind().1 > 0 && need != have {
+        return Err(format!(
+            "truncated or corrupt: header declares shape {:?} of '{}' ({need} bytes) but {have} bytes follow",
+            h.shape, h.descr
+        ));
+    }
+    Ok(h)
+}
+
+/// The header of an `.npy` (its dtype checked by `dtype`, its cells by `max_cells`, a
+/// profile grid's limit), where it ends, and the data bytes it declares. `bytes` need hold
+/// only the header: [`entry`] reads an archive member's header first.
+fn npy_layout(
+    bytes: &[u8],
+    dtype: impl Fn(&NpyHeader) -> std::result::Result<(), String>,
+    max_cells: Option<usize>,
+) -> std::result::Result<(NpyHeader, usize, usize), String> {
     const MAGIC: &[u8] = b"\x93NUMPY";
     let n = bytes.len().min(MAGIC.len());
     if bytes[..n] != MAGIC[..n] {
@@ -167,7 +191,7 @@ fn npy_header_with(
     let size = h.kind().1;
     // Checked on the header, before anything is decoded or allocated.
     let cells = h.shape.iter().try_fold(1usize, |n, &d| n.checked_mul(d));
-    if cells.is_none_or(|n| n > MAX_READ_CELLS) {
+    if max_cells.is_some_and(|max| cells.is_none_or(|n| n > max)) {
         return Err(format!(
             "shape {:?} holds more than the {MAX_READ_CELLS} cells a profile may hold (each \
              sample takes ~190 bytes once loaded); split the grid into several files",
@@ -179,14 +203,7 @@ fn npy_header_with(
         .iter()
         .try_fold(size.max(1), |a, &n| a.checked_mul(n))
         .ok_or("corrupt .npy header: shape overflows")?;
-    let have = bytes.len() - end;
-    if size > 0 && need != have {
-        return Err(format!(
-            "truncated or corrupt: header declares shape {:?} of '{}' ({need} bytes) but {have} bytes follow",
-            h.shape, h.descr
-        ));
-    }
-    Ok(h)
+    Ok((h, end, need))
 }
 
 fn arr_err(path: &Path, array: &str, msg: impl Into<String>) -> Error {
@@ -253,13 +270,26 @@ fn read_axis(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
     }
 }
 
+/// The bytes of a bool `.npy` with its dtype rewritten to `u1` (same length, so the data
+/// stay where they are): `b1` is the only `b1` in a header (its keys and shape hold none).
+fn bool_header_as_u8(bytes: &[u8]) -> Vec<u8> {
+    let mut v = bytes.to_vec();
+    let end = v.iter().position(|&c| c == b'\n').unwrap_or(0);
+    if let Some(k) = v[..end].windows(2).position(|w| w == b"b1") {
+        v[k] = b'u';
+    }
+    v
+}
+
 /// Decode a byte array (uint8 or bool).
 fn read_bytes_array(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<u8>> {
     let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
     let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
     match h.kind() {
         ('u', 1) => ArrayD::<u8>::read_npy(bytes).map_err(npy),
-        ('b', 1) => Ok(ArrayD::<bool>::read_npy(bytes).map_err(npy)?.mapv(u8::from)),
+        // Read as the bytes they are, so a byte other than 0 or 1 reaches the caller's
+        // check, which names its cell (the bool reader only says it failed).
+        ('b', 1) => ArrayD::<u8>::read_npy(&bool_header_as_u8(bytes)[..]).map_err(npy),
         _ => Err(arr_err(
             path,
             name,
@@ -296,19 +326,69 @@ fn entry<R: Read + std::io::Seek>(
     let mut f = zip
         .by_index(idx)
         .map_err(|e| arr_err(path, name, format!("unreadable archive entry: {e}")))?;
+    let corrupt = |e: std::io::Error| {
+        arr_err(
+            path,
+            name,
+            format!("truncated or corrupt archive entry: {e}"),
+        )
+    };
+    // The header first: the shape it declares bounds what is decompressed after it, so a
+    // small archive whose member inflates far past its header's size stops there.
     let mut out = Vec::new();
+    (&mut f).take(12).read_to_end(&mut out).map_err(corrupt)?;
+    let header_len = match out.get(6) {
+        Some(1) if out.len() >= 10 => 10 + u16::from_le_bytes([out[8], out[9]]) as u64,
+        Some(2 | 3) if out.len() >= 12 => {
+            12 + u32::from_le_bytes([out[8], out[9], out[10], out[11]]) as u64
+        }
+        // Not an .npy: the array's reader names what is wrong.
+        _ => return Ok(Some(out)),
+    };
+    if header_len > MAX_HEADER_BYTES {
+        return Err(arr_err(
+            path,
+            name,
+            format!("corrupt .npy header: {header_len} bytes long (at most {MAX_HEADER_BYTES})"),
+        ));
+    }
     (&mut f)
-        .take(MAX_ARRAY_BYTES + 1)
+        .take(header_len.saturating_sub(out.len() as u64))
         .read_to_end(&mut out)
-        .map_err(|e| {
-            arr_err(
-                path,
-                name,
-                format!("truncated or corrupt archive entry: {e}"),
-            )
-        })?;
-    if out.len() as u64 > MAX_ARRAY_BYTES {
-        return Err(arr_err(path, name, "array too large"));
+        .map_err(corrupt)?;
+    // The metadata text is no grid: bounded by its bytes, not a grid's cells.
+    let (max_cells, max_bytes) = if name == "meta_json" {
+        (None, MAX_META_BYTES)
+    } else {
+        (Some(MAX_READ_CELLS), MAX_ARRAY_BYTES)
+    };
+    let (h, end, need) =
+        npy_layout(&out, |_| Ok(()), max_cells).map_err(|m| arr_err(path, name, m))?;
+    let total = (end as u64).saturating_add(need as u64);
+    if need as u64 > max_bytes {
+        return Err(arr_err(
+            path,
+            name,
+            format!(
+                "array too large: shape {:?} of '{}' is {need} bytes (at most {max_bytes})",
+                h.shape, h.descr
+            ),
+        ));
+    }
+    // One byte past the declared size tells a member longer than its header says.
+    (&mut f)
+        .take(total + 1 - out.len() as u64)
+        .read_to_end(&mut out)
+        .map_err(corrupt)?;
+    if out.len() as u64 > total {
+        return Err(arr_err(
+            path,
+            name,
+            format!(
+                "truncated or corrupt: header declares shape {:?} of '{}' ({need} bytes) but more follow",
+                h.shape, h.descr
+            ),
+        ));
     }
     Ok(Some(out))
 }
@@ -499,9 +579,24 @@ struct Axes {
     theta_r: Vec<f64>,
     phi: Vec<f64>,
     phi_written: Vec<f64>,
+    /// Where phi came from: the archive's `phi` array, or `--phi` (a lone .npy).
+    phi_name: String,
 }
 
 impl Axes {
+    /// The error of element `k` of the phi axis, placed where that axis came from.
+    fn phi_err(&self, path: &Path, k: usize, msg: String) -> Error {
+        if self.phi_name == "phi" {
+            arr_err(path, "phi", format!("element {k}: {msg}"))
+        } else {
+            Error::Invalid(format!(
+                "{}: {} element {k}: {msg}",
+                path.display(),
+                self.phi_name
+            ))
+        }
+    }
+
     /// Axes from checked inclinations and phi as written (checked here by
     /// [`read_phi`] under the name `phi_name`; `err(element, message)` places its error).
     fn new(
@@ -525,6 +620,7 @@ impl Axes {
                 .collect(),
             phi,
             phi_written,
+            phi_name: phi_name.to_string(),
         })
     }
 
@@ -685,10 +781,10 @@ fn grid_to_profile(
         let first_at = format!("element {pa}");
         let (wa, wb) = (axes.phi_written[pa], axes.phi_written[pb]);
         match wrap_conflict(wa, wb, &first_at, &c, &pair, opts) {
-            Some(m) => arr_err(path, "phi", format!("element {pb}: {m}")),
+            Some(m) => axes.phi_err(path, pb, m),
             None => arr_err(
                 path,
-                "value",
+                c.field.name(),
                 format!(
                     "{}: cells {} and {}",
                     c.what(),
@@ -1088,6 +1184,55 @@ mod tests {
         assert!(e.contains("truncated"), "{e}");
     }
 
+    /// An archive member that inflates past the size its header declares (a small zip
+    /// bomb) is refused once that size is passed, not decompressed whole.
+    #[test]
+    fn member_longer_than_its_header_is_refused_at_the_declared_size() {
+        use std::io::Write;
+        let npy = |a: ArrayD<f64>| {
+            let mut w = Vec::new();
+            ndarray_npy::WriteNpyExt::write_npy(&a, &mut w).unwrap();
+            w
+        };
+        let axis = |n: usize| npy(ArrayD::from_shape_fn(IxDyn(&[n]), |i| i[0] as f64));
+        let mut value = npy(ArrayD::from_elem(IxDyn(&[2, 3, 4]), 1.0));
+        value.extend(std::iter::repeat_n(0u8, 8 << 20));
+        let mut z = zip::ZipWriter::new(Cursor::new(Vec::new()));
+        let opt = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Deflated);
+        for (name, bytes) in [
+            ("theta_i.npy", axis(2)),
+            ("theta_r.npy", axis(3)),
+            ("phi.npy", axis(4)),
+            ("value.npy", value),
+        ] {
+            z.start_file(name, opt).unwrap();
+            z.write_all(&bytes).unwrap();
+        }
+        let bytes = z.finish().unwrap().into_inner();
+        assert!(bytes.len() < 100_000, "{} bytes", bytes.len());
+        let e = parse_npz(&bytes, Path::new("bomb.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("'value'") && e.contains("(192 bytes) but more follow"),
+            "{e}"
+        );
+    }
+
+    /// A bool mask holding a byte other than 0 or 1 reads as that byte, so the caller names
+    /// its cell (the bool reader failed without an index).
+    #[test]
+    fn bool_mask_keeps_a_stray_byte_for_the_cell_check() {
+        let a = ArrayD::<bool>::from_elem(IxDyn(&[1, 2, 2]), true);
+        let mut w = Vec::new();
+        ndarray_npy::WriteNpyExt::write_npy(&a, &mut w).unwrap();
+        let last = w.len() - 1;
+        w[last] = 2;
+        let m = read_bytes_array(&w, Path::new("x.npz"), "present").unwrap();
+        assert_eq!(m.as_slice().unwrap(), &[1, 1, 1, 2]);
+    }
+
     #[test]
     fn lone_npy_needs_axes() {
         let mut w = Vec::new();
@@ -1109,10 +1254,24 @@ mod tests {
         assert_eq!(p.samples[2].phi, 180.0);
         let bad = LoadOptions {
             phi: Some(vec![0.0, 90.0]),
-            ..opts
+            ..opts.clone()
         };
         let e = parse_npy(&w, path, &bad).unwrap_err().to_string();
         assert!(e.contains("'value'") && e.contains("wrong shape"), "{e}");
+        // A wrap clash among --phi values is placed on --phi (the file has no phi array).
+        let mut w4 = Vec::new();
+        let a = ArrayD::<f64>::from_shape_vec(IxDyn(&[1, 1, 4]), vec![1.0, 2.0, 3.0, 4.0]).unwrap();
+        ndarray_npy::WriteNpyExt::write_npy(&a, &mut w4).unwrap();
+        let wraps = LoadOptions {
+            theta_r: Some(vec![0.0]),
+            phi: Some(vec![0.0, 90.0, 180.0, 360.0]),
+            ..opts
+        };
+        let e = parse_npy(&w4, path, &wraps).unwrap_err().to_string();
+        assert!(
+            e.starts_with("v.npy: --phi element 3: phi 360 wraps to 0"),
+            "{e}"
+        );
     }
 
     /// A float32 axis reads as the decimals it was written for (0.1f32 widened is

@@ -266,7 +266,8 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
         path,
         opts,
         &label(0),
-        &label(2),
+        // Yan-2015 rows have only a value.
+        &|_| label(2),
     )?);
     notes.extend(label_notes);
     Ok((
@@ -278,6 +279,8 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             files: vec![path.to_path_buf()],
             layouts: vec![Layout::Rows {
                 value_column: label(2),
+                sigma_column: None,
+                phi_i_column: None,
             }],
         },
         notes,
