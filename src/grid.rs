@@ -3,14 +3,15 @@
 
 use crate::error::{Error, Result};
 
+/// Most values a `start:stop:step` range may expand to.
+const MAX_RANGE_VALUES: usize = 10_000_000;
+
 /// Parse an angle grid. `what` names the option in errors (e.g. `--theta-r`).
 pub fn parse_grid(what: &str, text: &str) -> Result<Vec<f64>> {
     let bad = |msg: String| Error::Invalid(format!("{what} '{text}': {msg}"));
     let num = |s: &str| -> Result<f64> {
-        let v: f64 = s
-            .trim()
-            .parse()
-            .map_err(|_| bad(format!("'{}' is not a number", s.trim())))?;
+        // A file's number syntax: `1e-400` is refused, not read as 0.
+        let v = crate::profile::parse_number(s.trim()).map_err(bad)?;
         if v.is_finite() {
             Ok(v)
         } else {
@@ -34,10 +35,14 @@ pub fn parse_grid(what: &str, text: &str) -> Result<Vec<f64>> {
             return Err(bad("stop must be >= start".into()));
         }
         // Count with a tolerance so 0:1:0.1 includes 1 despite rounding.
-        let n = ((b - a) / s + 1e-9).floor() as usize;
-        if n > 10_000_000 {
-            return Err(bad("grid too large".into()));
+        let n = ((b - a) / s + 1e-9).floor();
+        if n >= MAX_RANGE_VALUES as f64 {
+            return Err(bad(format!(
+                "grid too large: {:.0} values (at most {MAX_RANGE_VALUES})",
+                n + 1.0
+            )));
         }
+        let n = n as usize;
         // a + i*s, not repeated addition, so values are reproducible; rounded to the
         // decimals written, so 0:1:0.1 gives 0.3 (as a lab file writes it), not
         // 0.30000000000000004, which matches no other file's 0.3.
@@ -155,6 +160,17 @@ pub fn wrap_deg(v: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A value below the f64 range is refused as in a file, not read as 0; a zero spelled
+    /// with an exponent is still 0.
+    #[test]
+    fn values_below_the_f64_range_are_refused() {
+        let e = parse_grid("--theta-i", "0,1e-400").unwrap_err().to_string();
+        assert!(e.contains("'1e-400' is below the f64 range"), "{e}");
+        assert_eq!(parse_grid("--theta-i", "0e-400").unwrap(), vec![0.0]);
+        assert!(crate::cli::number("1e-400").is_err());
+        assert_eq!(crate::cli::number(" -2.5 "), Ok(-2.5));
+    }
 
     /// Values are the decimals written (0.3 is the f64 nearest 0.3, as a file's "0.3"
     /// parses), and an exponent form is left unrounded.

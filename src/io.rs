@@ -528,15 +528,19 @@ pub fn sha256_hex(bytes: &[u8]) -> String {
 
 /// Make sure `dir` can take new files before a long job (the directory is created if
 /// missing): a read-only folder otherwise failed `stability` after its two-minute sweep.
-pub fn probe_writable(dir: &Path) -> Result<()> {
+/// Returns whether it created the directory (the CLI says so: a mistyped path is then no
+/// silent success).
+pub fn probe_writable(dir: &Path) -> Result<bool> {
     check_out_dir(dir)?;
+    let created = !dir.exists();
     std::fs::create_dir_all(dir).map_err(|e| Error::io(dir, e))?;
     probe_dir(dir).map_err(|e| {
         Error::file(
             dir,
             format!("cannot write into this folder ({e}); nothing was run"),
         )
-    })
+    })?;
+    Ok(created)
 }
 
 /// The fit files of a folder, sorted by name: its `*.json` files except hidden ones (a
@@ -547,7 +551,8 @@ pub fn fit_files(dir: &Path) -> Result<Vec<PathBuf>> {
     let mut paths: Vec<PathBuf> = rd
         .filter_map(|e| e.ok().map(|e| e.path()))
         .filter(|p| {
-            p.extension().is_some_and(|x| x == "json")
+            p.extension()
+                .is_some_and(|x| x.eq_ignore_ascii_case("json"))
                 && p.file_name()
                     .is_some_and(|n| !n.to_string_lossy().starts_with('.'))
         })

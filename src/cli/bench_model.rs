@@ -7,8 +7,9 @@ pub struct Args {
     /// Output directory for far_field_error_vs_time.{csv,png,svg,md}.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
-    /// Only print the grid-synthesis throughput (4 x 61 x 181 samples), no error sweep.
-    #[arg(long)]
+    /// Only print the grid-synthesis throughput (4 x 61 x 181 samples), no error sweep
+    /// (writes nothing: --out and --force do not apply).
+    #[arg(long, conflicts_with_all = ["out", "force"])]
     pub synth_only: bool,
     /// Replace existing output files that furfit did not write (or that changed since).
     #[arg(long)]
@@ -21,7 +22,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     // The sweep takes minutes: a bad --out fails first, naming the path.
-    crate::io::probe_writable(&a.out)?;
+    super::prepare_out_dir(&a.out)?;
     let paths =
         ["csv", "png", "svg", "md"].map(|e| a.out.join(format!("far_field_error_vs_time.{e}")));
     crate::io::check_replaceable(&paths, a.force)?;

@@ -56,7 +56,7 @@ pub struct LoadArgs {
     pub phi: Option<String>,
     /// Degrees (within [-360, 360]) added to every file's phi (after --flip-phi) before
     /// wrapping to (-180, 180] (data in another azimuth convention; any format).
-    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = number)]
     pub phi_offset: f64,
     /// Negate every file's phi (any format; applied before --phi-offset).
     #[arg(long)]
@@ -125,12 +125,24 @@ pub fn parse_size(
 /// would exhaust the process's threads, or hang spawning them, before any work.
 pub const MAX_THREADS: usize = 1024;
 
+/// A number option: the syntax of a profile file's numbers, so a nonzero value below the
+/// f64 range (`1e-400`, which would read as 0) is refused as a file's is
+/// ([`crate::profile::parse_number`]).
+pub fn number(s: &str) -> Result<f64, String> {
+    crate::profile::parse_number(s.trim())
+}
+
+/// [`crate::io::probe_writable`], saying when it created the folder.
+pub fn prepare_out_dir(dir: &std::path::Path) -> crate::Result<()> {
+    if crate::io::probe_writable(dir)? {
+        eprintln!("note: created folder {}", dir.display());
+    }
+    Ok(())
+}
+
 /// A number in [0, 1) (a fraction of a peak).
 pub fn unit_fraction(s: &str) -> Result<f64, String> {
-    let v: f64 = s
-        .trim()
-        .parse()
-        .map_err(|_| format!("'{s}' is not a number"))?;
+    let v = number(s)?;
     if (0.0..1.0).contains(&v) {
         Ok(v)
     } else {

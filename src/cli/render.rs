@@ -2,7 +2,7 @@
 
 use crate::model::{Lobe, LobeSet};
 use crate::params::FurParams;
-use crate::render::bsdf::{Mode, Tint};
+use crate::render::bsdf::{MedullaEnergy, Mode, Tint};
 use crate::render::math::V3;
 use crate::render::scene::{DirectionalLight, Environment, MAX_FIBERS};
 use crate::render::{output, render_scene, RenderSettings, Scene};
@@ -47,25 +47,25 @@ pub struct Args {
     #[arg(long, default_value_t = 0, value_parser = super::threads_parser())]
     pub threads: usize,
     /// Camera distance from the lock's centre, in world units (the lock is about 1.1
-    /// units long).
-    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true)]
+    /// units long): finite and > 0.
+    #[arg(long, default_value_t = 3.0, allow_negative_numbers = true, value_parser = super::number)]
     pub cam_dist: f64,
     /// Camera elevation in degrees above the horizontal, -90..=90 (90 = straight down from
     /// above).
-    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 10.0, allow_negative_numbers = true, value_parser = super::number)]
     pub cam_elev: f64,
-    /// Camera azimuth in degrees about the vertical.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    /// Camera azimuth in degrees about the vertical (any finite value).
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub cam_azim: f64,
-    /// Vertical field of view in degrees.
-    #[arg(long, default_value_t = 26.0, allow_negative_numbers = true)]
+    /// Vertical field of view in degrees, in (0, 170).
+    #[arg(long, default_value_t = 26.0, allow_negative_numbers = true, value_parser = super::number)]
     pub fov: f64,
     /// Direction toward the key light, x,y,z: any finite, non-zero vector (only its
     /// direction is used).
     #[arg(long, default_value = "-0.5,0.6,0.62", allow_hyphen_values = true)]
     pub light_dir: String,
     /// Key light irradiance, 0..=1e6 (0 = no key light).
-    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 2.5, allow_negative_numbers = true, value_parser = super::number)]
     pub light_intensity: f64,
     /// Environment radiance: one value (constant) or TOP,BOTTOM (vertical grey gradient),
     /// each in 0..=1e6.
@@ -78,7 +78,7 @@ pub struct Args {
     pub tint: Option<String>,
     /// Exposure in photographic stops (EV: x 2^EV) applied before the tone map, -64..=64;
     /// not a fit file's exposure k, which scales measurements, not light.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub exposure: f64,
     /// Number of fibers in the test lock, 1..=100000 (building the scene takes about 45 KB
     /// of memory per fiber: 4.5 GB at the cap).
@@ -87,9 +87,9 @@ pub struct Args {
     /// Longest path in fiber vertices, 1..=1024.
     #[arg(long, default_value_t = 16, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_DEPTH as u64))]
     pub max_depth: usize,
-    /// Multiplier of the pixel coverage in --mode multiscale (0 = near field, large = far
-    /// field); default 1.
-    #[arg(long, allow_negative_numbers = true)]
+    /// Multiplier of the pixel coverage in --mode multiscale, finite and >= 0 (0 = near
+    /// field, large = far field); default 1.
+    #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub footprint_scale: Option<f64>,
     /// Evaluate the far field / multi-scale term with the analytic engine at every query
     /// instead of the per-render table (exact, much slower).
@@ -100,6 +100,13 @@ pub struct Args {
     /// noise (see `render::integrator`).
     #[arg(long)]
     pub env_nee: bool,
+    /// How the scattered lobes' longitudinal term is read: `fit` (as fitted, the light
+    /// incident; its tables are not reciprocal, so a fiber with a medulla returns more light
+    /// than it receives under a uniform environment, and again at each bounce) or
+    /// `conserve` (each camera-side column scaled to hold at most 1: no gain, scattered
+    /// lobes dimmer than fitted where a column held more)
+    #[arg(long, default_value = "fit")]
+    pub medulla_energy: String,
     /// Skip the per-lobe AOV images.
     #[arg(long)]
     pub no_aovs: bool,
@@ -225,6 +232,7 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
         tint,
         far_table: !a.exact_far,
         env_nee: a.env_nee,
+        medulla_energy: MedullaEnergy::parse(&a.medulla_energy).context("--medulla-energy")?,
         ..RenderSettings::default()
     };
     s.camera.dist = a.cam_dist;
@@ -399,13 +407,16 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let mut dirs: Vec<PathBuf> = planned.iter().map(|p| crate::io::parent_dir(p)).collect();
     dirs.dedup();
     for d in &dirs {
-        crate::io::probe_writable(d)?;
+        super::prepare_out_dir(d)?;
     }
+    let built = std::time::Instant::now();
     let scene = Scene::build(&s.strand);
+    // Said apart: each image's wall time below covers its own setup and tracing only.
     outln!(
-        "scene: {} fibers, {} segments; {}x{} at {} spp, mode {}",
+        "scene: {} fibers, {} segments, built in {:.2} s; {}x{} at {} spp, mode {}",
         s.strand.fibers,
         scene.bvh.segments().len(),
+        built.elapsed().as_secs_f64(),
         s.width,
         s.height,
         s.spp,
@@ -455,7 +466,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     "Description",
                     format!(
                         "{what} rendered by furfit from {about}; mode {}, {}x{}, {} spp, \
-                         seed {}, lobes {}; colour: {}; {}",
+                         seed {}, lobes {}, medulla energy {}; colour: {}; {}",
                         s.mode.name(),
                         s.width,
                         s.height,
@@ -466,6 +477,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                             .map(|l| l.name())
                             .collect::<Vec<_>>()
                             .join(","),
+                        s.medulla_energy.name(),
                         s.tint,
                         if linear {
                             "linear scene radiance (the ACES tone map and --exposure apply \

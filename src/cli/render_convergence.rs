@@ -84,6 +84,13 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             a.max_spp
         );
     }
+    if !a.culling_study && !a.max_spp.is_power_of_two() {
+        eprintln!(
+            "note: --max-spp {} is not a power of two: the curves stop at {} spp",
+            a.max_spp,
+            1usize << a.max_spp.ilog2()
+        );
+    }
     let names: &[&str] = if a.culling_study {
         &["render_culling.md"]
     } else {
@@ -95,7 +102,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ]
     };
     let paths: Vec<PathBuf> = names.iter().map(|n| a.out.join(n)).collect();
-    crate::io::probe_writable(&a.out)?;
+    super::prepare_out_dir(&a.out)?;
     for p in &paths {
         crate::io::check_out_file(p)?;
     }

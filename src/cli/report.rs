@@ -25,7 +25,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     // The fits first: a refused run leaves no empty --out folder behind.
     let (fits, unread) = crate::report::nrmse::read_fits(&a.fits)?;
-    crate::io::probe_writable(&a.out)?;
+    super::prepare_out_dir(&a.out)?;
     let sum =
         crate::report::nrmse::write_fit_reports(&fits, &unread, &a.measurements, &a.out, a.force)?;
     for p in &sum.written {

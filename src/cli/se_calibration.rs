@@ -18,7 +18,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     // Before the folder is probed (which creates it): a refused run leaves nothing.
     crate::report::se_calibration::check_reps(a.reps)?;
-    crate::io::probe_writable(&a.out)?;
+    super::prepare_out_dir(&a.out)?;
     let paths = ["se_calibration.md", "se_calibration.csv"].map(|n| a.out.join(n));
     crate::io::check_replaceable(&paths, a.force)?;
     let written = crate::report::se_calibration::run(&a.out, a.reps, &mut |l| eprintln!("{l}"))?;

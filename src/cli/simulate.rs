@@ -29,11 +29,11 @@ pub struct Args {
     pub paths: u64,
     /// Instead of --paths: choose the path count (from a pilot run) so that the median
     /// relative standard error of bins above --noise-above x peak is this fraction.
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub rel_noise: Option<f64>,
     /// Threshold (fraction of the peak) of the bins whose median relative error
     /// --rel-noise aims at and the run reports (printed and in metadata.json).
-    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true, value_parser = super::number)]
     pub noise_above: f64,
     /// Upper bound on the paths per incidence angle of --rel-noise, its pilot run
     /// included; default 200000000.
@@ -47,26 +47,26 @@ pub struct Args {
     #[arg(long, value_parser = super::threads_parser())]
     pub threads: Option<usize>,
     /// Detector floor: values below this fraction of the peak are invalid (0 = off).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub floor: f64,
     /// Half-angle (degrees) of the cone around the light direction where the camera would
     /// occlude the beam; samples there are invalid (0 = off).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub wedge: f64,
     /// Fraction of samples dropped at random (invalid).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub drop: f64,
     /// Shot noise: photons counted at the profile peak (off by default).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub shot_photons: Option<f64>,
     /// Multiplicative log-normal noise std (0 = off).
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub mult_noise: f64,
     /// Elliptical cross-section: axis ratio minor/major in [0.01, 1] (Marschner 2003's a).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub ellipse: Option<f64>,
     /// Medulla IOR (default: equal to eta, index matched).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub medulla_eta: Option<f64>,
     /// Output directory (e.g. measurements/red-fox/).
     #[arg(long, required_unless_present = "bench")]

@@ -15,7 +15,7 @@ pub struct Args {
 pub fn run(a: Args) -> anyhow::Result<()> {
     // The sweep takes a minute and more (about 100 s on two cores): a bad --out fails
     // first.
-    crate::io::probe_writable(&a.out)?;
+    super::prepare_out_dir(&a.out)?;
     let paths = ["stability.md", "stability.csv"].map(|n| a.out.join(n));
     crate::io::check_replaceable(&paths, a.force)?;
     let summary = crate::report::stability::run(&a.out, &mut |line| outln!("{line}"))?;

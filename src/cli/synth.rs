@@ -34,7 +34,7 @@ pub struct Args {
     #[arg(long)]
     pub channel: Option<String>,
     /// Exposure scale k (default: the parameter file's, else 1).
-    #[arg(long, allow_negative_numbers = true)]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub exposure: Option<f64>,
     #[command(flatten)]
     pub far: super::FarArgs,
@@ -54,6 +54,7 @@ fn check_out(out: &Path, force: bool) -> anyhow::Result<()> {
     crate::io::check_out_file(out)?;
     crate::profile::save_format(out)?;
     if out.symlink_metadata().is_err() {
+        super::prepare_out_dir(&crate::io::parent_dir(out))?;
         return Ok(());
     }
     if !force {
@@ -130,8 +131,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
-    let kind = ModelKind::parse(&a.model)?;
-    let lobes = LobeSet::parse(&a.lobes)?;
+    let kind = ModelKind::parse(&a.model).context("--model")?;
+    let lobes = LobeSet::parse(&a.lobes).context("--lobes")?;
     if let Some(k) = a.exposure.filter(|k| !(k.is_finite() && *k > 0.0)) {
         anyhow::bail!(
             "--exposure must be a finite number > 0, got {}",

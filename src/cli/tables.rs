@@ -36,7 +36,7 @@ pub struct BuildArgs {
     #[arg(long)]
     pub rank: Option<usize>,
     /// Relative L2 error at which the rank search stops, in (0, 1).
-    #[arg(long, default_value_t = 0.03, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.03, allow_negative_numbers = true, value_parser = super::number)]
     pub target_error: f64,
     /// Output file (.bin); an existing file is replaced only if it is a tables file.
     #[arg(long, default_value = "assets/medulla_tables.bin")]

@@ -96,14 +96,32 @@ pub struct Absorption {
 /// Attenuation of unscattered lobe p at cuticle reflectance `f_cut` (seed Eqs. 13-14):
 /// `A_0 = F`, `A_p = (1 - F)^2 F^(p-1) T_c T_m` with
 /// `T_c = exp(-2 p s_c sigma_c_a / cos theta_d)` and
-/// `T_m = exp(-2 p s_m (sigma_m_a + sigma_m_s) / cos theta_d)`.
+/// `T_m = exp(-2 p s_m (sigma_m_a + sigma_m_s) / cos theta_d)`: [`a_p_cuticle`] times the
+/// exponential of [`a_p_exponent`].
 pub fn a_p(p: usize, f_cut: f64, geo: &PathGeometry, ab: &Absorption) -> f64 {
     if p == 0 {
         return f_cut;
     }
+    a_p_cuticle(p, f_cut) * a_p_exponent(p, geo, ab).exp()
+}
+
+/// The cuticle part of [`a_p`]: `F`, `(1 - F)^2`, `(1 - F)^2 F` for p = 0, 1, 2. The far
+/// field fits it and the exponent separately (seed Appendix).
+pub fn a_p_cuticle(p: usize, f_cut: f64) -> f64 {
+    match p {
+        0 => f_cut,
+        _ => (1.0 - f_cut).powi(2) * f_cut.powi(p as i32 - 1),
+    }
+}
+
+/// The absorption exponent of [`a_p`], `ln(T_c T_m) = -2 p (s_c sigma_c_a + s_m (sigma_m_a
+/// + sigma_m_s)) / cos theta_d` (0 for R).
+pub fn a_p_exponent(p: usize, geo: &PathGeometry, ab: &Absorption) -> f64 {
+    if p == 0 {
+        return 0.0;
+    }
     let pf = p as f64;
-    let tau = 2.0 * pf * (geo.s_c * ab.sigma_c_a + geo.s_m * ab.sigma_m_t) * ab.inv_cos_d;
-    (1.0 - f_cut).powi(2) * f_cut.powi(p as i32 - 1) * (-tau).exp()
+    -(2.0 * pf * (geo.s_c * ab.sigma_c_a + geo.s_m * ab.sigma_m_t) * ab.inv_cos_d)
 }
 
 /// Attenuation of scattered lobe p (1 = TTs, 2 = TRTs), seed Eq. 20:
@@ -113,14 +131,25 @@ pub fn a_p(p: usize, f_cut: f64, geo: &PathGeometry, ab: &Absorption) -> f64 {
 /// `T_b = exp(-[kappa sigma_m_a + (1 - kappa) sigma_c_a] / cos theta_d)` (from the medulla
 /// centre out, no cuticle event on exit). Zero where the p-th segment misses the medulla.
 /// (Table 3 of the seed prints `F` for TTs; Eq. 20 and MODEL.md give `1 - F`, used here.)
+/// [`a_s_p_cuticle`] times the exponential of [`a_s_p_exponent`].
 pub fn a_s_p(p: usize, f_cut: f64, geo: &PathGeometry, ab: &Absorption) -> f64 {
     if !geo.meets_medulla() {
         return 0.0;
     }
+    a_s_p_cuticle(p, f_cut) * a_s_p_exponent(p, geo, ab).exp()
+}
+
+/// The cuticle part of [`a_s_p`]: `(1 - F) F^(p-1)`.
+pub fn a_s_p_cuticle(p: usize, f_cut: f64) -> f64 {
+    (1.0 - f_cut) * f_cut.powi(p as i32 - 1)
+}
+
+/// The absorption exponent of [`a_s_p`], `ln(T_a T_b)`.
+pub fn a_s_p_exponent(p: usize, geo: &PathGeometry, ab: &Absorption) -> f64 {
     let pf = p as f64;
     let ta = (2.0 * pf - 1.0) * geo.s_c * ab.sigma_c_a + 2.0 * (pf - 1.0) * geo.s_m * ab.sigma_m_t;
     let tb = ab.kappa * ab.sigma_m_a + (1.0 - ab.kappa) * ab.sigma_c_a;
-    (1.0 - f_cut) * f_cut.powi(p as i32 - 1) * (-(ta + tb) * ab.inv_cos_d).exp()
+    -(ta + tb) * ab.inv_cos_d
 }
 
 /// Unscattered azimuthal distribution `D_p(h, phi) = G(Phi_p(h) - phi; beta_p)` (Eq. 7),

@@ -1471,15 +1471,23 @@ impl MedullaSampler {
         (if half == 1 { -v } else { v }, pdf)
     }
 
+    /// The mass of the column [`Self::sample_cm_incident`] samples,
+    /// `∫ M_s(theta_i, theta_r, phi) dtheta_i` over both signs of `theta_i` (1 would make
+    /// `C^M` conserve energy read this way; it is normalised over `theta_r` instead).
+    pub fn column_mass(&self, theta_r: f64, phi: f64) -> f64 {
+        let tr = if theta_r.is_nan() { 0.0 } else { theta_r };
+        self.cm_col_comps(tr, phi)
+            .iter()
+            .flat_map(|c| c.iter())
+            .map(|(w, p)| w * p.mass())
+            .sum()
+    }
+
     /// The pdf [`Self::sample_cm_incident`] samples, at `theta_i`.
     pub fn pdf_cm_incident(&self, theta_r: f64, theta_i: f64, phi: f64) -> f64 {
         let tr = if theta_r.is_nan() { 0.0 } else { theta_r };
         let halves = self.cm_col_comps(tr, phi);
-        let total: f64 = halves
-            .iter()
-            .flat_map(|c| c.iter())
-            .map(|(w, p)| w * p.mass())
-            .sum();
+        let total = self.column_mass(tr, phi);
         if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return 1.0 / (INCLINATION_RANGE.1 - INCLINATION_RANGE.0);
         }

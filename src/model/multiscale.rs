@@ -1,5 +1,5 @@
-//! Multi-scale BCSDF helpers (seed Sec. 5.2): the pixel coverage of a fiber (Eq. 27) and the
-//! offset range `[h1, h2]` it integrates over. The integral itself is
+//! Multi-scale BCSDF helpers (seed Sec. 5.2), used by the renderer: the pixel coverage of a
+//! fiber (Eq. 27) and the offset range `[h1, h2]` it integrates over. The integral itself is
 //! [`AzimuthalSlice::multiscale`](crate::model::AzimuthalSlice::multiscale) (Eq. 26).
 
 /// Pixel coverage of a fiber in units of `h` (seed Eq. 27):

@@ -32,7 +32,10 @@
 //!   cancels exactly);
 //! * the albedo is `∫∫ sum M_p N_p dtheta dphi`, equal to `sum_p A_p` times the part of
 //!   each `M_p` inside `[-90°, 90°]` when `A_p` does not vary with `theta_d` — the white
-//!   furnace test checks `<= 1` and `≈ A_0 + A_1 + A_2`.
+//!   furnace test checks `<= 1` and `≈ A_0 + A_1 + A_2` with `kappa = 0`. The scattered
+//!   lobes break the bound: their `M_s` is normalised over the exit inclination, and read
+//!   here over the light's it can hold up to about 2 ([`MedullaEnergy`]; `conserve` caps
+//!   it at 1).
 //!
 //! `cos theta_light` is floored at [`MIN_COS`] (a light exactly along the fiber).
 //!
@@ -80,7 +83,7 @@ use super::select::{SelectTable, Selection};
 use crate::model::azimuthal::{self, medulla_offset, wrap_angle};
 use crate::model::far::FarOptions;
 use crate::model::geometry::PathGeometry;
-use crate::model::{geometry, longitudinal, FurModel, Lobe, LobeSet, LobeValues};
+use crate::model::{geometry, longitudinal, multiscale, FurModel, Lobe, LobeSet, LobeValues};
 use crate::params::FurParams;
 use std::f64::consts::{FRAC_PI_2, PI, SQRT_2};
 use std::sync::Arc;
@@ -130,13 +133,53 @@ pub enum HRange {
 
 impl HRange {
     /// Multi-scale range for a hit at `h` with pixel coverage `c` (seed Eq. 27, in units of
-    /// `h`): `[h - c/2, h + c/2]` clamped to [-1, 1]; a width below 1e-6 is the near field.
+    /// `h`): [`multiscale::offset_range`]; a width below 1e-6 is the near field.
     pub fn footprint(h: f64, c: f64) -> HRange {
-        let (h1, h2) = ((h - 0.5 * c).max(-1.0), (h + 0.5 * c).min(1.0));
+        let (h1, h2) = multiscale::offset_range(h, c);
         if h2 - h1 < 1e-6 {
             HRange::At(h)
         } else {
             HRange::Span(h1, h2)
+        }
+    }
+}
+
+/// How the renderer reads the scattered lobes' longitudinal term `M_s` (seed Eq. 19's
+/// `C^M` tables, normalised over the exit inclination for each incident one).
+///
+/// A path tracer gathers at a fixed camera side over the light's inclination, i.e. down a
+/// column of `C^M`, and `C^M` is not reciprocal: a column's mass is not 1 (red fox preset:
+/// 1.50 front and 1.81 back at `theta_o = 0`, 0.83 and 0.59 at 60 degrees). So a fiber with
+/// a medulla returns more light than it receives under a uniform environment, and each
+/// bounce between fibers gains again (`tests/render_scene.rs`: a lossless fiber in a white
+/// furnace renders at 1.40).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum MedullaEnergy {
+    /// `M_s` exactly as fitted (the light incident, as a goniometer sample): the render
+    /// shows the lobes the fit measured, and the gain above.
+    #[default]
+    Fit,
+    /// `M_s` divided by its column's mass `∫ M_s(theta, theta_o, phi) dtheta` where that
+    /// exceeds 1: no light is gained, at the price of dimmer scattered lobes than fitted
+    /// (by that mass) where a column holds more than 1.
+    Conserve,
+}
+
+impl MedullaEnergy {
+    pub fn parse(s: &str) -> crate::Result<MedullaEnergy> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "fit" => Ok(MedullaEnergy::Fit),
+            "conserve" => Ok(MedullaEnergy::Conserve),
+            other => Err(crate::Error::Invalid(format!(
+                "unknown medulla energy '{other}' (expected fit or conserve)"
+            ))),
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            MedullaEnergy::Fit => "fit",
+            MedullaEnergy::Conserve => "conserve",
         }
     }
 }
@@ -322,6 +365,8 @@ pub struct MisPrep {
 pub struct FiberBsdf {
     models: [FurModel; 3],
     lobes: LobeSet,
+    /// How the scattered lobes' `M_s` is read ([`MedullaEnergy`]).
+    pub medulla_energy: MedullaEnergy,
     /// Options of the far field / multi-scale integration (culling, tolerance).
     pub far_opts: FarOptions,
     /// Tabulated far field / multi-scale term ([`super::ntable`]); `None` evaluates the
@@ -369,6 +414,7 @@ impl FiberBsdf {
         FiberBsdf {
             models,
             lobes,
+            medulla_energy: MedullaEnergy::Fit,
             far_opts: FarOptions::default(),
             far_table: None,
             select: None,
@@ -433,7 +479,7 @@ impl FiberBsdf {
     /// [`Self::eval_near`] at a prepared [`NearPoint`].
     fn eval_near_at(&self, at: &NearPoint, theta_o: f64, theta: f64, phi: f64) -> LobeRgb {
         let m0 = &self.models[0];
-        let m = m0.longitudinal(theta, theta_o, phi, self.lobes);
+        let m = self.longitudinal(theta_o, theta, phi);
         let s0 = m0.azimuthal(at.td);
         let geo = &at.geo;
         let mut out = [[0.0; 3]; 5];
@@ -461,7 +507,7 @@ impl FiberBsdf {
     /// (seed Eqs. 22, 26; [`crate::model::AzimuthalSlice::far`] for `[-1, 1]`,
     /// [`crate::model::AzimuthalSlice::multiscale`] otherwise), per channel.
     pub fn eval_span(&self, theta_o: f64, theta: f64, phi: f64, h1: f64, h2: f64) -> LobeRgb {
-        let m = self.models[0].longitudinal(theta, theta_o, phi, self.lobes);
+        let m = self.longitudinal(theta_o, theta, phi);
         let td = geometry::theta_d(theta_o, theta);
         let full = h1 <= -1.0 && h2 >= 1.0;
         let mut out = [[0.0; 3]; 5];
@@ -485,6 +531,25 @@ impl FiberBsdf {
             }
         }
         out
+    }
+
+    /// `M_p` of the lobes for camera-side `theta_o` and light-side (`theta`, `phi`): the
+    /// model's, the light as the incident side (module doc), with the scattered lobes'
+    /// `M_s` divided by its column's mass where that exceeds 1 under
+    /// [`MedullaEnergy::Conserve`].
+    fn longitudinal(&self, theta_o: f64, theta: f64, phi: f64) -> LobeValues {
+        let mut m = self.models[0].longitudinal(theta, theta_o, phi, self.lobes);
+        if self.medulla_energy == MedullaEnergy::Conserve {
+            let mass = self.models[0]
+                .medulla()
+                .map_or(1.0, |med| med.sampler().column_mass(theta_o, phi));
+            if mass > 1.0 {
+                for l in [Lobe::TTs, Lobe::TRTs] {
+                    m.set(l, m.get(l) / mass);
+                }
+            }
+        }
+        m
     }
 
     /// Lobe selection probabilities at (`theta_o`, `h`) (module doc, step 2).

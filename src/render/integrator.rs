@@ -24,6 +24,7 @@ use super::bsdf::{
 use super::bvh::{Bvh, DirTree};
 use super::math::{luminance, Rgb, V3};
 use super::scene::{Camera, DirectionalLight, Environment};
+use crate::model::multiscale;
 use rand::Rng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::f64::consts::PI;
@@ -79,7 +80,8 @@ impl Integrator<'_> {
             Mode::Near => HRange::At(h),
             Mode::Far => HRange::Span(-1.0, 1.0),
             Mode::Multiscale => {
-                HRange::footprint(h, self.footprint_scale * cos_look * width / radius)
+                let c_hit = self.footprint_scale * width;
+                HRange::footprint(h, multiscale::pixel_coverage(cos_look, c_hit, radius))
             }
         }
     }

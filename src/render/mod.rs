@@ -145,6 +145,8 @@ pub struct RenderSettings {
     pub far_table: bool,
     /// Next-event estimation of the environment with MIS ([`Integrator::env_nee`]).
     pub env_nee: bool,
+    /// How the scattered lobes' `M_s` is read ([`bsdf::MedullaEnergy`]).
+    pub medulla_energy: bsdf::MedullaEnergy,
 }
 
 impl Default for RenderSettings {
@@ -175,6 +177,7 @@ impl Default for RenderSettings {
             far_cull: true,
             far_table: true,
             env_nee: false,
+            medulla_energy: bsdf::MedullaEnergy::Fit,
         }
     }
 }
@@ -311,6 +314,7 @@ fn render_in_pool(
 ) -> crate::Result<RenderOutput> {
     let mut bsdf = FiberBsdf::new(params, s.tint, s.lobes);
     bsdf.far_opts.cull = s.far_cull;
+    bsdf.medulla_energy = s.medulla_energy;
     let setup = Instant::now();
     // Multi-scale with footprint 0 only ever queries the near field.
     let spans = s.mode == Mode::Far || (s.mode == Mode::Multiscale && s.footprint_scale > 0.0);

@@ -844,18 +844,15 @@ impl<'a> FarSlice<'a> {
         }
         if scattered && self.lobes.intersect(LobeSet::SCATTERED) != LobeSet::NONE {
             let meets = geo.meets_medulla();
-            let tb = ab.kappa * ab.sigma_m_a + (1.0 - ab.kappa) * ab.sigma_c_a;
             for p in 1..3 {
                 let pf = p as f64;
-                let ta = (2.0 * pf - 1.0) * geo.s_c * ab.sigma_c_a
-                    + 2.0 * (pf - 1.0) * geo.s_m * ab.sigma_m_t;
                 let l = 2 + p;
                 n.pre[l] = if meets {
-                    (1.0 - f) * f.powi(p as i32 - 1) * cu
+                    azimuthal::a_s_p_cuticle(p, f) * cu
                 } else {
                     0.0
                 };
-                n.lam[l] = (-(ta + tb) * ab.inv_cos_d).max(LAM_MIN);
+                n.lam[l] = azimuthal::a_s_p_exponent(p, &geo, ab).max(LAM_MIN);
                 n.phis[p - 1] = azimuthal::phi_s_p(p, &geo);
                 // Phi^s_p = (gamma_t - u) + (p - 1)(pi + 2 gamma_t), dgamma_t/du as above.
                 n.dphis[p - 1] = (2.0 * pf - 1.0) * cu / (az.eta_prime * ct) - 1.0;
@@ -872,21 +869,13 @@ impl<'a> FarSlice<'a> {
     /// The factor of unscattered lobe `p`'s `A_p cos u` outside its exponential
     /// (seed Eqs. 13-14): `F cos u`, `(1 - F)^2 cos u`, `(1 - F)^2 F cos u`.
     fn unsc_pre(p: usize, f: f64, cu: f64) -> f64 {
-        match p {
-            0 => f * cu,
-            1 => (1.0 - f) * (1.0 - f) * cu,
-            _ => (1.0 - f) * (1.0 - f) * f * cu,
-        }
+        azimuthal::a_p_cuticle(p, f) * cu
     }
 
     /// The log of `T_c T_m` of unscattered lobe `p` (seed Eq. 14; 0 for R), clamped at
     /// [`LAM_MIN`].
     fn unsc_lam(p: usize, geo: &PathGeometry, ab: &Absorption) -> f64 {
-        if p == 0 {
-            return 0.0;
-        }
-        let pf = p as f64;
-        (-2.0 * pf * (geo.s_c * ab.sigma_c_a + geo.s_m * ab.sigma_m_t) * ab.inv_cos_d).max(LAM_MIN)
+        azimuthal::a_p_exponent(p, geo, ab).max(LAM_MIN)
     }
 
     /// A Gauss-Legendre node of unscattered lobe `p` at `u`: `(Phi_p, pre, lam)` as
