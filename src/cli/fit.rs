@@ -151,10 +151,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         let (k, v) = f
             .split_once('=')
             .with_context(|| format!("--fix '{f}': expected NAME=VALUE"))?;
-        let v: f64 = v
-            .trim()
-            .parse()
-            .with_context(|| format!("--fix '{f}': '{v}' is not a number"))?;
+        let v = super::number(v).map_err(|m| anyhow::anyhow!("--fix '{f}': {m}"))?;
         opts.fix(k.trim(), v)?;
     }
     if let Some(names) = &a.profile {

@@ -236,10 +236,7 @@ impl FarArgs {
             opts.tol = if t.trim().eq_ignore_ascii_case("none") {
                 None
             } else {
-                let v: f64 = t
-                    .trim()
-                    .parse()
-                    .with_context(|| format!("--tol '{t}' is not a number"))?;
+                let v = number(t).map_err(|m| anyhow::anyhow!("--tol: {m}"))?;
                 if !(MIN_TOL..1.0).contains(&v) {
                     let why = if v > 0.0 && v < MIN_TOL {
                         format!(
@@ -263,10 +260,7 @@ impl FarArgs {
             opts.scattered_step = if t.trim().eq_ignore_ascii_case("strict") {
                 SCATTERED_STEP_STRICT
             } else {
-                let v: f64 = t
-                    .trim()
-                    .parse()
-                    .with_context(|| format!("--scattered-step '{t}' is not a number"))?;
+                let v = number(t).map_err(|m| anyhow::anyhow!("--scattered-step: {m}"))?;
                 if !(v > 0.0 && v <= 1.0) {
                     anyhow::bail!(
                         "--scattered-step must be in (0, 1] radians or 'strict', got {}",

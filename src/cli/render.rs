@@ -118,11 +118,10 @@ pub struct Args {
 fn parse_list(what: &str, s: &str) -> anyhow::Result<Vec<f64>> {
     s.split(',')
         .map(|p| {
-            p.trim()
-                .parse::<f64>()
+            super::number(p)
                 .ok()
                 .filter(|v| v.is_finite())
-                .with_context(|| format!("--{what}: '{p}' is not a number"))
+                .with_context(|| format!("--{what}: '{p}' is not a finite number in range"))
         })
         .collect()
 }
@@ -539,10 +538,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             (
                 "Description",
                 format!(
-                    "contact sheet rendered by furfit, mode {}, {} spp, seed {}: {}",
+                    "contact sheet rendered by furfit, mode {}, {} spp, seed {}, medulla energy {}: {}",
                     s.mode.name(),
                     s.spp,
                     s.seed,
+                    s.medulla_energy.name(),
                     sheet_about.join("; ")
                 ),
             ),

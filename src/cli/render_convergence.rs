@@ -102,12 +102,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ]
     };
     let paths: Vec<PathBuf> = names.iter().map(|n| a.out.join(n)).collect();
+    let (params, _, _) = super::load_params(&a.params)?;
     super::prepare_out_dir(&a.out)?;
     for p in &paths {
         crate::io::check_out_file(p)?;
     }
     crate::io::check_replaceable(&paths, a.force)?;
-    let (params, _, _) = super::load_params(&a.params)?;
     // What each render's pool gets: --threads 0 is rayon's default, the global pool's size.
     let threads = match a.threads {
         0 => rayon::current_num_threads(),

@@ -54,7 +54,6 @@ fn check_out(out: &Path, force: bool) -> anyhow::Result<()> {
     crate::io::check_out_file(out)?;
     crate::profile::save_format(out)?;
     if out.symlink_metadata().is_err() {
-        super::prepare_out_dir(&crate::io::parent_dir(out))?;
         return Ok(());
     }
     if !force {
@@ -152,6 +151,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for w in a.far.ignored(&opts, unused.as_deref()) {
         eprintln!("warning: {w}");
     }
+    // Every option checked: only now may the output's folder be made.
+    super::prepare_out_dir(&crate::io::parent_dir(&a.out))?;
     let t0 = std::time::Instant::now();
     let mut prof = match channels.as_slice() {
         [(name, p, k)] => {

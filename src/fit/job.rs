@@ -108,7 +108,8 @@ pub fn check_replace_fit(out: &Path, files: &[ReadFile], force: bool) -> Result<
 
 /// Every species folder under `measurements` (sorted), one job each (replacing a fit of
 /// other data when `force`), and the folders passed over for holding no profile file or
-/// a simulation kept from a refused run (`*.kept-<pid>`; the caller says so).
+/// a simulation kept from a refused run (`*.kept-<pid>`; the caller says so); a hidden
+/// folder without profile files (`.git`) is not listed.
 pub fn jobs_for_all(
     measurements: &Path,
     fits_dir: &Path,
@@ -124,6 +125,12 @@ pub fn jobs_for_all(
                 && profile::dir_profile_files(p).is_ok_and(|(f, _)| !f.is_empty())
         });
     dirs.sort();
+    // A hidden folder without data (`.git`) is nobody's species: passed over unsaid.
+    passed.retain(|p| {
+        !p.file_name()
+            .is_some_and(|n| n.to_string_lossy().starts_with('.'))
+            || crate::io::is_kept_path(p)
+    });
     passed.sort();
     if dirs.is_empty() {
         return Err(Error::file(

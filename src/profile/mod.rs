@@ -142,14 +142,18 @@ pub enum Layout {
         phi_i_column: Option<String>,
     },
     /// A `.npz` / lone `.npy` grid whose `value` array has this shape: [`Origin::line`] is
-    /// 1 + the cell's row-major index.
-    Grid { shape: Vec<usize> },
+    /// 1 + the cell's row-major index; whether it has `sigma` and `phi_i` arrays.
+    Grid {
+        shape: Vec<usize>,
+        sigma: bool,
+        phi_i: bool,
+    },
 }
 
 impl Layout {
     /// The index `[i, j, k(, c)]` of grid cell `o` (by its shape), if `o` is one.
     fn cell(&self, o: Origin) -> Option<Vec<usize>> {
-        let Layout::Grid { shape } = self else {
+        let Layout::Grid { shape, .. } = self else {
             return None;
         };
         let mut flat = (o.line as usize).checked_sub(1)?;
@@ -204,7 +208,13 @@ fn place_text(files: &[PathBuf], layouts: &[Layout], o: Origin, field: Field) ->
                 column.unwrap_or(value_column)
             ))
         }
-        Some(l @ Layout::Grid { .. }) => l.cell(o).map(|ix| {
+        Some(l @ Layout::Grid { sigma, phi_i, .. }) => l.cell(o).map(|ix| {
+            // The differing field's array, if the file has one (else its value array).
+            let array = match field {
+                Field::Sigma if *sigma => "sigma",
+                Field::PhiI if *phi_i => "phi_i",
+                _ => "value",
+            };
             // A lone .npy is one unnamed array; an .npz names its `value` array.
             let lone = files[o.file as usize]
                 .extension()
@@ -212,7 +222,7 @@ fn place_text(files: &[PathBuf], layouts: &[Layout], o: Origin, field: Field) ->
             if lone {
                 format!("{file}: index {ix:?}")
             } else {
-                format!("{file}: array '{}' index {ix:?}", field.name())
+                format!("{file}: array '{array}' index {ix:?}")
             }
         }),
         _ => None,
@@ -858,7 +868,8 @@ pub fn is_profile_file(path: &Path) -> bool {
 
 /// Is this text meant as a Yan-2015 profile? It has a `# theta_i:` line (anywhere), or its
 /// first line that is neither blank nor a `#` comment starts with a number or `?` (the phi
-/// of a data row) not followed by a word (`12 June 2017` is a note) or names two columns (`phi`, `theta`, `value`, also with a suffix such
+/// of a data row), or has numbers in two of its first three fields, and its second field
+/// is no word (`12 June 2017` is a note), or names two columns (`phi`, `theta`, `value`, also with a suffix such
 /// as `theta_r` or `phi(deg)`: the column-name line labs export). A folder's `.txt`/`.dat`
 /// can be prose (`notes.txt`), which is skipped, not an error; a profile with a typo in
 /// its first row (`0 10 1,5`, `0, 10, 1`, a fourth column) or a header the reader does not
@@ -893,15 +904,25 @@ pub fn looks_like_yan(bytes: &[u8]) -> bool {
         // A numbered or dated notes line (`1. Calibrate ...`, `12 June 2017`) starts with a
         // number too, but its second field is a word; a row's second field is theta (a
         // typo there, e.g. `l0`, has one letter and is still read and reported).
+        // Three letters at least, and no spelling of a missing value (`NA`, `None`, `null`,
+        // `n/a`: a data row with a gap, read and reported).
         let word = |f: &str| {
             f.parse::<f64>().is_err()
                 && f.starts_with(char::is_alphabetic)
-                && f.chars().filter(|c| c.is_alphabetic()).count() >= 2
+                && f.chars().filter(|c| c.is_alphabetic()).count() >= 3
+                && !["none", "null", "nan", "n/a"].contains(&f.to_ascii_lowercase().as_str())
         };
-        if (first == "?" || first.parse::<f64>().is_ok()) && !fields.get(1).is_some_and(|f| word(f))
-            // A column-name line: two to four fields, every one a column name (a notes
-            // line that mentions phi and theta in a sentence is prose).
-            || ((2..=4).contains(&fields.len()) && fields.iter().all(|f| names_a_column(f)))
+        let number = |f: &str| f == "?" || f.parse::<f64>().is_ok();
+        // A row: a number first, or numbers in two of the first three fields (a typo in phi,
+        // `l0 10 1`, is still read and reported).
+        let row = number(first) || fields.iter().take(3).filter(|f| number(f)).count() >= 2;
+        let names = fields.iter().filter(|f| names_a_column(f)).count();
+        if row && !fields.get(1).is_some_and(|f| word(f))
+            // A column-name line: two to four fields, every one a column name, or three of
+            // which two are (a misspelt `phi theta valu`; a notes line that mentions phi and
+            // theta in a longer sentence is prose).
+            || ((2..=4).contains(&fields.len()) && names == fields.len())
+            || (fields.len() == 3 && names >= 2)
         {
             return true;
         }
@@ -971,8 +992,21 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let mut notes = skipped;
     let mut format = None;
     let mut read = Vec::new();
+    let mut total = 0usize;
     for f in &files {
         let mut l = load_file(f, opts)?;
+        // Each file is bounded by MAX_READ_CELLS; the folder as a whole is too, so a few
+        // small archives of large grids cannot together exhaust memory.
+        total += l.profile.samples.len();
+        if total > MAX_READ_CELLS {
+            return Err(Error::file(
+                dir,
+                format!(
+                    "its files hold more than {MAX_READ_CELLS} samples together (up to {}                      read); fit them as several folders",
+                    f.display()
+                ),
+            ));
+        }
         format.get_or_insert(l.format);
         read.extend(l.files.iter().cloned());
         notes.extend(l.notes.drain(..).map(|n| format!("{}: {n}", f.display())));
@@ -1795,6 +1829,11 @@ mod tests {
             "0 10 abc\n",
             "0 nan 1\n",
             "0 10 1 5\n",
+            "l0 10 1\n",
+            "phi theta valu\n0 10 1\n",
+            "0 NA 1\n",
+            "0 None 1\n",
+            "0 null 1\n",
         ] {
             assert!(looks_like_yan(row.as_bytes()), "{row}");
         }
@@ -2093,6 +2132,8 @@ mod tests {
         assert!(name.ends_with("a.npz index [0, 1, 2]"), "{name}");
         let g = Layout::Grid {
             shape: vec![2, 3, 4, 2],
+            sigma: false,
+            phi_i: false,
         };
         assert_eq!(g.cell(Origin::at_cell(47)), Some(vec![1, 2, 3, 1]));
         assert_eq!(g.cell(Origin::at_cell(48)), None);
@@ -2102,9 +2143,13 @@ mod tests {
         let layouts = [
             Layout::Grid {
                 shape: vec![2, 1, 1],
+                sigma: false,
+                phi_i: false,
             },
             Layout::Grid {
                 shape: vec![2, 1, 1],
+                sigma: true,
+                phi_i: false,
             },
         ];
         let at = |file| Origin { file, line: 2 };
@@ -2116,10 +2161,15 @@ mod tests {
             place_text(&files, &layouts, at(1), Field::Value).unwrap(),
             "w.npz: array 'value' index [1, 0, 0]"
         );
-        // A clash in sigma names the sigma array.
+        // A clash in sigma names the sigma array, one in phi_i the value array of a file
+        // without a phi_i array.
         assert_eq!(
             place_text(&files, &layouts, at(1), Field::Sigma).unwrap(),
             "w.npz: array 'sigma' index [1, 0, 0]"
+        );
+        assert_eq!(
+            place_text(&files, &layouts, at(1), Field::PhiI).unwrap(),
+            "w.npz: array 'value' index [1, 0, 0]"
         );
     }
 

@@ -206,6 +206,16 @@ fn npy_layout(
     Ok((h, end, need))
 }
 
+/// A reader error of ndarray-npy on one line (its header parser's messages span several).
+fn npy_err(path: &Path, array: &str, e: ndarray_npy::ReadNpyError) -> Error {
+    let text = e.to_string();
+    arr_err(
+        path,
+        array,
+        text.split_whitespace().collect::<Vec<_>>().join(" "),
+    )
+}
+
 fn arr_err(path: &Path, array: &str, msg: impl Into<String>) -> Error {
     Error::Array {
         file: path.to_path_buf(),
@@ -218,7 +228,7 @@ fn arr_err(path: &Path, array: &str, msg: impl Into<String>) -> Error {
 fn read_float(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
     let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
 
-    let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
+    let npy = |e: ndarray_npy::ReadNpyError| npy_err(path, name, e);
     match h.kind() {
         ('f', 8) => ArrayD::<f64>::read_npy(bytes).map_err(npy),
         ('f', 4) => Ok(ArrayD::<f32>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
@@ -242,7 +252,7 @@ fn f32_angle(v: f32) -> f64 {
 /// integer type, since `np.array([0, 15, 30])` is int64 and whole-degree grids are common.
 fn read_axis(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<f64>> {
     let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
-    let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
+    let npy = |e: ndarray_npy::ReadNpyError| npy_err(path, name, e);
     // Integers beyond 2^53 round, but such an angle fails the range check anyway.
     match h.kind() {
         ('i', 1) => Ok(ArrayD::<i8>::read_npy(bytes).map_err(npy)?.mapv(f64::from)),
@@ -284,7 +294,7 @@ fn bool_header_as_u8(bytes: &[u8]) -> Vec<u8> {
 /// Decode a byte array (uint8 or bool).
 fn read_bytes_array(bytes: &[u8], path: &Path, name: &str) -> Result<ArrayD<u8>> {
     let h = npy_header(bytes).map_err(|m| arr_err(path, name, m))?;
-    let npy = |e: ndarray_npy::ReadNpyError| arr_err(path, name, e.to_string());
+    let npy = |e: ndarray_npy::ReadNpyError| npy_err(path, name, e);
     match h.kind() {
         ('u', 1) => ArrayD::<u8>::read_npy(bytes).map_err(npy),
         // Read as the bytes they are, so a byte other than 0 or 1 reaches the caller's
@@ -364,6 +374,22 @@ fn entry<R: Read + std::io::Seek>(
     };
     let (h, end, need) =
         npy_layout(&out, |_| Ok(()), max_cells).map_err(|m| arr_err(path, name, m))?;
+    if !(matches!(h.kind().0, 'f' | 'i' | 'u' | 'b') && h.kind().1 > 0) {
+        // A dtype whose item size the header does not give plainly (strings, objects,
+        // dates): read within the byte limit and let the array's reader name the dtype.
+        (&mut f)
+            .take(max_bytes + 1)
+            .read_to_end(&mut out)
+            .map_err(corrupt)?;
+        if out.len() as u64 > max_bytes + header_len {
+            return Err(arr_err(
+                path,
+                name,
+                format!("array too large: more than {max_bytes} bytes"),
+            ));
+        }
+        return Ok(Some(out));
+    }
     let total = (end as u64).saturating_add(need as u64);
     if need as u64 > max_bytes {
         return Err(arr_err(
@@ -644,6 +670,7 @@ fn grid_to_profile(
     meta: MetaJson,
 ) -> Result<(Profile, Vec<String>)> {
     let shape = value.shape().to_vec();
+    let (has_sigma, has_phi_i) = (extras.sigma.is_some(), extras.phi_i.is_some());
     let lens = axes.lens();
     if !(shape.len() == 3 || shape.len() == 4) || shape[..3] != lens {
         return Err(arr_err(
@@ -801,7 +828,11 @@ fn grid_to_profile(
             metadata: meta.metadata,
             source: Some(path.to_path_buf()),
             files: vec![path.to_path_buf()],
-            layouts: vec![Layout::Grid { shape }],
+            layouts: vec![Layout::Grid {
+                shape,
+                sigma: has_sigma,
+                phi_i: has_phi_i,
+            }],
         },
         notes,
     ))
@@ -1188,7 +1219,6 @@ mod tests {
     /// bomb) is refused once that size is passed, not decompressed whole.
     #[test]
     fn member_longer_than_its_header_is_refused_at_the_declared_size() {
-        use std::io::Write;
         let npy = |a: ArrayD<f64>| {
             let mut w = Vec::new();
             ndarray_npy::WriteNpyExt::write_npy(&a, &mut w).unwrap();
@@ -1197,19 +1227,13 @@ mod tests {
         let axis = |n: usize| npy(ArrayD::from_shape_fn(IxDyn(&[n]), |i| i[0] as f64));
         let mut value = npy(ArrayD::from_elem(IxDyn(&[2, 3, 4]), 1.0));
         value.extend(std::iter::repeat_n(0u8, 8 << 20));
-        let mut z = zip::ZipWriter::new(Cursor::new(Vec::new()));
-        let opt = zip::write::SimpleFileOptions::default()
-            .compression_method(zip::CompressionMethod::Deflated);
-        for (name, bytes) in [
+        let members = [
             ("theta_i.npy", axis(2)),
             ("theta_r.npy", axis(3)),
             ("phi.npy", axis(4)),
             ("value.npy", value),
-        ] {
-            z.start_file(name, opt).unwrap();
-            z.write_all(&bytes).unwrap();
-        }
-        let bytes = z.finish().unwrap().into_inner();
+        ];
+        let bytes = zip_of(&members);
         assert!(bytes.len() < 100_000, "{} bytes", bytes.len());
         let e = parse_npz(&bytes, Path::new("bomb.npz"))
             .unwrap_err()
@@ -1218,6 +1242,34 @@ mod tests {
             e.contains("'value'") && e.contains("(192 bytes) but more follow"),
             "{e}"
         );
+        // A dtype whose size the header does not state plainly is read whole (within the
+        // limit) for its reader to name: np.array(s) as meta_json gets the how-to, not
+        // "corrupt".
+        let mut members = members.to_vec();
+        members[3].1 = npy(ArrayD::from_elem(IxDyn(&[2, 3, 4]), 1.0));
+        let mut text = npy_header_bytes("{'descr': '<U2', 'fortran_order': False, 'shape': (), }");
+        text.extend([b'{', 0, 0, 0, b'}', 0, 0, 0]);
+        members.push(("meta_json.npy", text));
+        let e = parse_npz(&zip_of(&members), Path::new("m.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("array 'meta_json': dtype '<U2': meta_json must be"),
+            "{e}"
+        );
+    }
+
+    /// A deflated zip of the named members.
+    fn zip_of(members: &[(&str, Vec<u8>)]) -> Vec<u8> {
+        use std::io::Write;
+        let mut z = zip::ZipWriter::new(Cursor::new(Vec::new()));
+        let opt = zip::write::SimpleFileOptions::default()
+            .compression_method(zip::CompressionMethod::Deflated);
+        for (name, bytes) in members {
+            z.start_file(*name, opt).unwrap();
+            z.write_all(bytes).unwrap();
+        }
+        z.finish().unwrap().into_inner()
     }
 
     /// A bool mask holding a byte other than 0 or 1 reads as that byte, so the caller names

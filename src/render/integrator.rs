@@ -80,8 +80,9 @@ impl Integrator<'_> {
             Mode::Near => HRange::At(h),
             Mode::Far => HRange::Span(-1.0, 1.0),
             Mode::Multiscale => {
-                let c_hit = self.footprint_scale * width;
-                HRange::footprint(h, multiscale::pixel_coverage(cos_look, c_hit, radius))
+                // The scale folded into the cosine keeps the product's rounding as before.
+                let cos = self.footprint_scale * cos_look;
+                HRange::footprint(h, multiscale::pixel_coverage(cos, width, radius))
             }
         }
     }
