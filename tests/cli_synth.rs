@@ -807,3 +807,39 @@ fn synth_notes_an_exposure_that_underflows_only_a_deep_tail() {
     );
     assert!(out.exists());
 }
+
+/// An output folder is made only once every option is checked (a refused run left it
+/// behind), and when it is made, stderr says so.
+#[test]
+fn output_folder_is_made_after_the_checks_and_said() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, bad) in [
+        ["--lobes", "XX"],
+        ["--model", "nope"],
+        ["--exposure", "-1"],
+        ["--exposure", "1e-400"],
+    ]
+    .iter()
+    .enumerate()
+    {
+        let out = dir.path().join(format!("n{i}/a/s.csv"));
+        let st = tiny_synth()
+            .args(bad)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        assert!(!st.status.success(), "{bad:?}");
+        assert!(!dir.path().join(format!("n{i}")).exists(), "{bad:?}");
+    }
+    let out = dir.path().join("made/s.csv");
+    let st = tiny_synth().arg("--out").arg(&out).output().unwrap();
+    assert!(
+        st.status.success(),
+        "{}",
+        String::from_utf8_lossy(&st.stderr)
+    );
+    let err = String::from_utf8_lossy(&st.stderr);
+    assert!(err.contains("note: created folder"), "{err}");
+    assert!(out.exists());
+}

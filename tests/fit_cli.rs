@@ -1483,6 +1483,8 @@ fn fit_all_names_every_bad_species_and_the_folders_passed_over() {
         .unwrap();
     }
     std::fs::create_dir_all(root.join("measurements/notes")).unwrap();
+    // A hidden folder without data (version control) is passed over unsaid.
+    std::fs::create_dir_all(root.join("measurements/.git")).unwrap();
     let o = furfit()
         .current_dir(root)
         .args(["fit", "--all", "--starts", "8", "--lm-starts", "1"])
@@ -1498,6 +1500,7 @@ fn fit_all_names_every_bad_species_and_the_folders_passed_over() {
         err.contains("notes: not a species folder (no profile file"),
         "{err}"
     );
+    assert!(!err.contains(".git"), "{err}");
     assert!(!root.join("fits/vole.json").exists());
 }
 

@@ -373,7 +373,7 @@ impl Columns {
                     format!("column '{want}'"),
                     format!(
                         "required column '{want}' is missing from the header (found: {}){hint}",
-                        escaped(&names.join(", "))
+                        super::cut_text(&names.join(", "), 200)
                     ),
                 )
             })

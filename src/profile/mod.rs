@@ -724,13 +724,18 @@ pub(crate) fn escaped(t: &str) -> String {
 /// `t` from a file as messages quote it: `'...'`, [`escaped`], cut after
 /// [`QUOTE_MAX_CHARS`] characters (a 10 MB cell was echoed whole) with its length said.
 pub(crate) fn quoted(t: &str) -> String {
-    match t.char_indices().nth(QUOTE_MAX_CHARS) {
+    format!("'{}'", cut_text(t, QUOTE_MAX_CHARS))
+}
+
+/// `t` [`escaped`], cut after `max` characters with `...` and its length in characters.
+pub(crate) fn cut_text(t: &str, max: usize) -> String {
+    match t.char_indices().nth(max) {
         Some((cut, _)) => format!(
-            "'{}...' ({} characters)",
+            "{}... ({} characters)",
             escaped(&t[..cut]),
             t.chars().count()
         ),
-        None => format!("'{}'", escaped(t)),
+        None => escaped(t),
     }
 }
 
@@ -1811,7 +1816,7 @@ mod tests {
         let long = "x".repeat(10_000);
         assert_eq!(
             quoted(&long),
-            format!("'{}...' (10000 characters)", "x".repeat(80))
+            format!("'{}... (10000 characters)'", "x".repeat(80))
         );
         assert_eq!(quoted("a\u{feff}"), "'a\\u{feff}'");
         // Numbered or dated notes are prose; a typo in a row's theta or value is not.

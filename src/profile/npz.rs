@@ -446,6 +446,19 @@ pub fn parse_npz_with(
             format!("not a readable .npz (zip) archive (truncated or corrupt?): {e}"),
         )
     })?;
+    // Two members of one array (`value.npy` twice, or `value.npy` and `value`): which one
+    // a reader takes would be the zip library's choice.
+    let mut seen = std::collections::HashSet::new();
+    for i in 0..zip.len() {
+        let name = zip.name_for_index(i).unwrap_or_default();
+        let array = name.strip_suffix(".npy").unwrap_or(name).to_string();
+        if !seen.insert(array.clone()) {
+            return Err(Error::file(
+                path,
+                format!("the archive holds array {} twice", quoted(&array)),
+            ));
+        }
+    }
     let mut required = |name: &str| -> Result<Vec<u8>> {
         entry(&mut zip, path, name)?
             .ok_or_else(|| arr_err(path, name, "missing from the archive (required)"))
@@ -1257,6 +1270,12 @@ mod tests {
             e.contains("array 'meta_json': dtype '<U2': meta_json must be"),
             "{e}"
         );
+        // Two members of one array are refused, not one of them taken.
+        let twice = [members[3].clone(), ("value", members[3].1.clone())];
+        let e = parse_npz(&zip_of(&twice), Path::new("two.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("holds array 'value' twice"), "{e}");
     }
 
     /// A deflated zip of the named members.
