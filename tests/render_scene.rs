@@ -79,13 +79,7 @@ fn furnace_with_a_medulla_gains_light_unless_conserved() {
     s.spp = 16;
     let scene = Scene::build(&s.strand);
     let fiber_mean = |r: &furfit::render::RenderOutput| {
-        let v: Vec<f64> = r
-            .beauty
-            .data
-            .iter()
-            .map(|c| c[1])
-            .filter(|v| (v - 1.0).abs() > 1e-12)
-            .collect();
+        let v = fiber_pixels(r);
         v.iter().sum::<f64>() / v.len() as f64
     };
     // Measured 1.40 here (at most 16 bounces); the furnace bound allows 1 + 4 standard
@@ -97,14 +91,18 @@ fn furnace_with_a_medulla_gains_light_unless_conserved() {
     furnace_check(&conserved, false);
 }
 
-fn furnace_check(r: &furfit::render::RenderOutput, env_nee: bool) {
-    let fiber: Vec<f64> = r
-        .beauty
+/// The green values of a furnace image's pixels that show fiber (the background is 1).
+fn fiber_pixels(r: &furfit::render::RenderOutput) -> Vec<f64> {
+    r.beauty
         .data
         .iter()
         .map(|c| c[1])
         .filter(|v| (v - 1.0).abs() > 1e-12)
-        .collect();
+        .collect()
+}
+
+fn furnace_check(r: &furfit::render::RenderOutput, env_nee: bool) {
+    let fiber = fiber_pixels(r);
     // The scene must actually show fibers (else the test could not fail).
     assert!(fiber.len() > 200, "{} fiber pixels", fiber.len());
     let mean = fiber.iter().sum::<f64>() / fiber.len() as f64;
