@@ -45,16 +45,22 @@ fn fur() -> FurParams {
     FurParams::preset("red-fox").unwrap()
 }
 
-#[test]
-fn white_furnace_scene_stays_at_or_below_one() {
-    // kappa = 0, no absorption, l = 1, constant white environment, no key light.
-    let p =
-        FurParams::from_file_units([1.55, 0.0, 2.0, 8.0, 20.0, 0.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+/// A white furnace: constant environment 1, no key light, grey fibers, near field.
+fn furnace() -> RenderSettings {
     let mut s = small(Mode::Near);
     s.light = None;
     s.env = Environment::constant(1.0);
     s.tint = Tint::GREY;
     s.spp = 16;
+    s
+}
+
+#[test]
+fn white_furnace_scene_stays_at_or_below_one() {
+    // kappa = 0, no absorption, l = 1, constant white environment, no key light.
+    let p =
+        FurParams::from_file_units([1.55, 0.0, 2.0, 8.0, 20.0, 0.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+    let mut s = furnace();
     let scene = Scene::build(&s.strand);
     // Both estimators of the environment: BCSDF sampling alone (the default) and
     // next-event estimation with MIS.
@@ -72,11 +78,7 @@ fn furnace_with_a_medulla_gains_light_unless_conserved() {
     // No absorption, l = 1, kappa 0.86 with medulla scattering (red-fox-like geometry).
     let p = FurParams::from_file_units([1.7, 0.86, 1.93, 7.08, 10.0, 0.0, 1.77, 0.0, 0.6, 1.0])
         .unwrap();
-    let mut s = small(Mode::Near);
-    s.light = None;
-    s.env = Environment::constant(1.0);
-    s.tint = Tint::GREY;
-    s.spp = 16;
+    let mut s = furnace();
     let scene = Scene::build(&s.strand);
     let fiber_mean = |r: &furfit::render::RenderOutput| {
         let v = fiber_pixels(r);
