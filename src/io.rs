@@ -437,6 +437,14 @@ pub fn read_json(path: &Path) -> Result<serde_json::Value> {
 /// and column. A leading UTF-8 byte-order mark (Windows editors save one) is skipped.
 pub fn parse_json(text: &str, path: &Path) -> Result<serde_json::Value> {
     let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    if let Some((line, column, msg)) = underflowing_number(text) {
+        return Err(Error::Parse {
+            file: path.into(),
+            line,
+            column: format!("column {column}"),
+            msg,
+        });
+    }
     serde_json::from_str::<UniqueKeys>(text)
         .map(|u| u.0)
         .map_err(|e| Error::Parse {
@@ -453,6 +461,51 @@ pub fn parse_json(text: &str, path: &Path) -> Result<serde_json::Value> {
                 format!("invalid JSON: {}", m.strip_suffix(&place).unwrap_or(&m))
             },
         })
+}
+
+/// The first number of JSON `text` (outside strings) below the f64 range, which serde_json
+/// would read as 0 (`"kappa": 1e-400`), as (line, column, message); the same rule as a
+/// profile file's numbers ([`crate::profile::parse_number`]).
+fn underflowing_number(text: &str) -> Option<(usize, usize, String)> {
+    let (mut line, mut col) = (1, 0);
+    let (mut in_string, mut escaped) = (false, false);
+    let mut chars = text.char_indices().peekable();
+    while let Some((i, c)) = chars.next() {
+        col += 1;
+        if c == '\n' {
+            (line, col) = (line + 1, 0);
+            continue;
+        }
+        if in_string {
+            match (escaped, c) {
+                (true, _) => escaped = false,
+                (false, '\\') => escaped = true,
+                (false, '"') => in_string = false,
+                _ => {}
+            }
+            continue;
+        }
+        if c == '"' {
+            in_string = true;
+        } else if c == '-' || c.is_ascii_digit() {
+            let (start, at) = (i, col);
+            let mut end = i + c.len_utf8();
+            while let Some(&(j, d)) = chars.peek() {
+                if !(d.is_ascii_digit() || matches!(d, '.' | 'e' | 'E' | '+' | '-')) {
+                    break;
+                }
+                end = j + d.len_utf8();
+                col += 1;
+                chars.next();
+            }
+            // Only the below-range rule: a malformed number is serde_json's to report.
+            let token = &text[start..end];
+            if let (Ok(0.0), Err(m)) = (token.parse::<f64>(), crate::profile::parse_number(token)) {
+                return Some((line, at, m));
+            }
+        }
+    }
+    None
 }
 
 /// A JSON value read with every object's keys checked to be distinct ([`parse_json`]).
@@ -881,6 +934,28 @@ mod tests {
         let v = parse_json("{\"a\": {\"l\": 1}, \"b\": [{\"l\": 2.5}, null, true]}", p).unwrap();
         assert_eq!(v["b"][0]["l"], 2.5);
         assert_eq!(v["a"]["l"], 1);
+    }
+
+    /// A number below the f64 range is refused at its line and column (serde_json reads it
+    /// as 0); zeros, subnormals and such text inside strings are fine.
+    #[test]
+    fn json_numbers_below_the_f64_range_are_refused() {
+        let p = Path::new("p.json");
+        let e = parse_json("{\"eta\": 1.5,\n \"kappa\": -1e-400}", p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("p.json:2: column 11: '-1e-400' is below the f64 range"),
+            "{e}"
+        );
+        let v = parse_json(
+            "{\"a\": 0e-400, \"b\": 5e-324, \"c\": \"1e-400 \\\" 1e-400\"}",
+            p,
+        )
+        .unwrap();
+        assert_eq!(v["a"], 0.0);
+        assert_eq!(v["b"], 5e-324);
+        assert_eq!(v["c"], "1e-400 \" 1e-400");
     }
 
     #[test]
