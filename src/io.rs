@@ -467,13 +467,13 @@ pub fn parse_json(text: &str, path: &Path) -> Result<serde_json::Value> {
 /// would read as 0 (`"kappa": 1e-400`), as (line, column, message); the same rule as a
 /// profile file's numbers ([`crate::profile::parse_number`]).
 fn underflowing_number(text: &str) -> Option<(usize, usize, String)> {
-    let (mut line, mut col) = (1, 0);
+    // Columns in bytes from 1, as serde_json counts them for its own errors.
+    let (mut line, mut line_start) = (1, 0);
     let (mut in_string, mut escaped) = (false, false);
     let mut chars = text.char_indices().peekable();
     while let Some((i, c)) = chars.next() {
-        col += 1;
         if c == '\n' {
-            (line, col) = (line + 1, 0);
+            (line, line_start) = (line + 1, i + 1);
             continue;
         }
         if in_string {
@@ -488,20 +488,18 @@ fn underflowing_number(text: &str) -> Option<(usize, usize, String)> {
         if c == '"' {
             in_string = true;
         } else if c == '-' || c.is_ascii_digit() {
-            let (start, at) = (i, col);
-            let mut end = i + c.len_utf8();
+            let mut end = i + 1;
             while let Some(&(j, d)) = chars.peek() {
                 if !(d.is_ascii_digit() || matches!(d, '.' | 'e' | 'E' | '+' | '-')) {
                     break;
                 }
-                end = j + d.len_utf8();
-                col += 1;
+                end = j + 1;
                 chars.next();
             }
             // Only the below-range rule: a malformed number is serde_json's to report.
-            let token = &text[start..end];
+            let token = &text[i..end];
             if let (Ok(0.0), Err(m)) = (token.parse::<f64>(), crate::profile::parse_number(token)) {
-                return Some((line, at, m));
+                return Some((line, i - line_start + 1, m));
             }
         }
     }
@@ -948,6 +946,9 @@ mod tests {
             e.starts_with("p.json:2: column 11: '-1e-400' is below the f64 range"),
             "{e}"
         );
+        // Columns count bytes, as serde_json's own errors do.
+        let e = parse_json("{\"ü\": 1e-400}", p).unwrap_err().to_string();
+        assert!(e.starts_with("p.json:1: column 8:"), "{e}");
         let v = parse_json(
             "{\"a\": 0e-400, \"b\": 5e-324, \"c\": \"1e-400 \\\" 1e-400\"}",
             p,

@@ -117,11 +117,10 @@ pub struct Args {
 
 fn parse_list(what: &str, s: &str) -> anyhow::Result<Vec<f64>> {
     s.split(',')
-        .map(|p| {
-            super::number(p)
-                .ok()
-                .filter(|v| v.is_finite())
-                .with_context(|| format!("--{what}: '{p}' is not a finite number in range"))
+        .map(|p| match super::number(p) {
+            Ok(v) if v.is_finite() => Ok(v),
+            Ok(_) => bail!("--{what}: '{}' is not finite", p.trim()),
+            Err(m) => bail!("--{what}: {m}"),
         })
         .collect()
 }

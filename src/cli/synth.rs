@@ -151,8 +151,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for w in a.far.ignored(&opts, unused.as_deref()) {
         eprintln!("warning: {w}");
     }
-    // Every option checked: only now may the output's folder be made.
-    super::prepare_out_dir(&crate::io::parent_dir(&a.out))?;
     let t0 = std::time::Instant::now();
     let mut prof = match channels.as_slice() {
         [(name, p, k)] => {
@@ -251,6 +249,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     prof.set_meta("command", super::command_line());
+    // Every check passed (the exposure's needs the values): only now is a folder made.
+    super::prepare_out_dir(&crate::io::parent_dir(&a.out))?;
     synth::save(&a.out, &prof)?;
     let n = prof.samples.len();
     outln!(

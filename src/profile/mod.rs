@@ -724,7 +724,14 @@ pub(crate) fn escaped(t: &str) -> String {
 /// `t` from a file as messages quote it: `'...'`, [`escaped`], cut after
 /// [`QUOTE_MAX_CHARS`] characters (a 10 MB cell was echoed whole) with its length said.
 pub(crate) fn quoted(t: &str) -> String {
-    format!("'{}'", cut_text(t, QUOTE_MAX_CHARS))
+    match t.char_indices().nth(QUOTE_MAX_CHARS) {
+        Some((cut, _)) => format!(
+            "'{}...' ({} characters)",
+            escaped(&t[..cut]),
+            t.chars().count()
+        ),
+        None => format!("'{}'", escaped(t)),
+    }
 }
 
 /// `t` [`escaped`], cut after `max` characters with `...` and its length in characters.
@@ -872,21 +879,40 @@ pub fn is_profile_file(path: &Path) -> bool {
 }
 
 /// Is this text meant as a Yan-2015 profile? It has a `# theta_i:` line (anywhere), or its
-/// first line that is neither blank nor a `#` comment starts with a number or `?` (the phi
-/// of a data row), or has numbers in two of its first three fields, and its second field
-/// is no word (`12 June 2017` is a note), or names two columns (`phi`, `theta`, `value`, also with a suffix such
-/// as `theta_r` or `phi(deg)`: the column-name line labs export). A folder's `.txt`/`.dat`
-/// can be prose (`notes.txt`), which is skipped, not an error; a profile with a typo in
-/// its first row (`0 10 1,5`, `0, 10, 1`, a fourth column) or a header the reader does not
-/// take ([`yan`] skips only `phi theta value`) still counts, so it is read and its error
-/// reported, never silently left out.
+/// first line that is neither blank nor a `#` comment is a row or a column-name line:
+/// - a row: two to four fields, one of the first three a number, `?` or a missing-value
+///   spelling (`NA`, `None`, `null`, `n/a`), and neither of the first two a word (two
+///   letters or more, starting with one: `12 June 2017`, `1. We measured`, `Fiber 3, 45
+///   deg` are notes; `0 l0 1`, `l0 10 1`, `0 10 abc`, `0 10deg 1` are rows with a typo);
+/// - a column-name line: two to four fields, each naming a column (`phi`, `theta`,
+///   `value`, also with a suffix such as `theta_r` or `phi(deg)`, as labs export), three
+///   of which do, or three fields of which two do and the third begins one (`phi theta
+///   valu`; `Phi and theta` is a note).
+///
+/// A folder's `.txt`/`.dat` can be prose (`notes.txt`), which is skipped with a note, not
+/// an error; a profile with a typo in its first row or a header the reader does not take
+/// ([`yan`] skips only `phi theta value`) still counts, so it is read and its error
+/// reported, never left out.
 pub fn looks_like_yan(bytes: &[u8]) -> bool {
+    const COLUMNS: [&str; 3] = ["phi", "theta", "value"];
     let names_a_column = |f: &str| {
         let f = f.trim_matches(['"', '\'']).to_ascii_lowercase();
-        ["phi", "theta", "value"].iter().any(|n| {
+        COLUMNS.iter().any(|n| {
             f.strip_prefix(n)
                 .is_some_and(|rest| !rest.starts_with(|c: char| c.is_ascii_alphabetic()))
         })
+    };
+    let begins_a_column = |f: &str| {
+        let f = f.to_ascii_lowercase();
+        f.len() >= 2 && COLUMNS.iter().any(|n| n.starts_with(&f))
+    };
+    let missing =
+        |f: &str| ["na", "nan", "none", "null", "n/a"].contains(&f.to_ascii_lowercase().as_str());
+    let number = |f: &str| f == "?" || f.parse::<f64>().is_ok() || missing(f);
+    let word = |f: &str| {
+        !number(f)
+            && f.starts_with(char::is_alphabetic)
+            && f.chars().filter(|c| c.is_alphabetic()).count() >= 2
     };
     let mut prose = false;
     for raw in split_lines(bytes) {
@@ -905,30 +931,22 @@ pub fn looks_like_yan(bytes: &[u8]) -> bool {
             .split(|c: char| c.is_whitespace() || c == ',' || c == ';')
             .filter(|f| !f.is_empty())
             .collect();
-        let first = fields.first().copied().unwrap_or("");
-        // A numbered or dated notes line (`1. Calibrate ...`, `12 June 2017`) starts with a
-        // number too, but its second field is a word; a row's second field is theta (a
-        // typo there, e.g. `l0`, has one letter and is still read and reported).
-        // Three letters at least, and no spelling of a missing value (`NA`, `None`, `null`,
-        // `n/a`: a data row with a gap, read and reported).
-        let word = |f: &str| {
-            f.parse::<f64>().is_err()
-                && f.starts_with(char::is_alphabetic)
-                && f.chars().filter(|c| c.is_alphabetic()).count() >= 3
-                && !["none", "null", "nan", "n/a"].contains(&f.to_ascii_lowercase().as_str())
-        };
-        let number = |f: &str| f == "?" || f.parse::<f64>().is_ok();
-        // A row: a number first, or numbers in two of the first three fields (a typo in phi,
-        // `l0 10 1`, is still read and reported).
-        let row = number(first) || fields.iter().take(3).filter(|f| number(f)).count() >= 2;
+        let fits = (2..=4).contains(&fields.len());
+        // More than four fields: a row only when its first three are numbers.
+        let row = (fits
+            && fields.iter().take(3).any(|f| number(f))
+            && !fields.iter().take(2).any(|f| word(f)))
+            || (fields.len() > 4 && fields.iter().take(3).all(|f| number(f)));
         let names = fields.iter().filter(|f| names_a_column(f)).count();
-        if row && !fields.get(1).is_some_and(|f| word(f))
-            // A column-name line: two to four fields, every one a column name, or three of
-            // which two are (a misspelt `phi theta valu`; a notes line that mentions phi and
-            // theta in a longer sentence is prose).
-            || ((2..=4).contains(&fields.len()) && names == fields.len())
-            || (fields.len() == 3 && names >= 2)
-        {
+        let header = fits
+            && (names == fields.len()
+                || names >= 3
+                || (fields.len() == 3
+                    && names == 2
+                    && fields
+                        .iter()
+                        .any(|f| !names_a_column(f) && begins_a_column(f))));
+        if row || header {
             return true;
         }
         // Prose: still a profile if a `# theta_i:` line follows.
@@ -1007,7 +1025,7 @@ pub fn load_dir(dir: &Path, opts: &LoadOptions) -> Result<Loaded> {
             return Err(Error::file(
                 dir,
                 format!(
-                    "its files hold more than {MAX_READ_CELLS} samples together (up to {}                      read); fit them as several folders",
+                    "its files hold more than {MAX_READ_CELLS} samples together (up to {} read); fit them as several folders",
                     f.display()
                 ),
             ));
@@ -1816,7 +1834,7 @@ mod tests {
         let long = "x".repeat(10_000);
         assert_eq!(
             quoted(&long),
-            format!("'{}... (10000 characters)'", "x".repeat(80))
+            format!("'{}...' (10000 characters)", "x".repeat(80))
         );
         assert_eq!(quoted("a\u{feff}"), "'a\\u{feff}'");
         // Numbered or dated notes are prose; a typo in a row's theta or value is not.
@@ -1825,6 +1843,14 @@ mod tests {
             "12 June 2017\n",
             "2017 notes\n",
             "3 fibers\n",
+            "June 12, 2017\n",
+            "1. We measured\n",
+            "3 of 5 fibres broke\n",
+            "10 mm hairs\n",
+            "Fiber 3, 45 deg\n",
+            "Phi and theta\n",
+            "theta vs phi\n",
+            "Value of phi\n",
         ] {
             assert!(!looks_like_yan(notes.as_bytes()), "{notes}");
         }
@@ -1839,6 +1865,9 @@ mod tests {
             "0 NA 1\n",
             "0 None 1\n",
             "0 null 1\n",
+            "ph theta value\n",
+            "phi theta value extra\n",
+            "0 10 1 5 6\n",
         ] {
             assert!(looks_like_yan(row.as_bytes()), "{row}");
         }

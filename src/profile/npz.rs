@@ -375,19 +375,9 @@ fn entry<R: Read + std::io::Seek>(
     let (h, end, need) =
         npy_layout(&out, |_| Ok(()), max_cells).map_err(|m| arr_err(path, name, m))?;
     if !(matches!(h.kind().0, 'f' | 'i' | 'u' | 'b') && h.kind().1 > 0) {
-        // A dtype whose item size the header does not give plainly (strings, objects,
-        // dates): read within the byte limit and let the array's reader name the dtype.
-        (&mut f)
-            .take(max_bytes + 1)
-            .read_to_end(&mut out)
-            .map_err(corrupt)?;
-        if out.len() as u64 > max_bytes + header_len {
-            return Err(arr_err(
-                path,
-                name,
-                format!("array too large: more than {max_bytes} bytes"),
-            ));
-        }
+        // No profile array has such a dtype (strings, objects, dates: the header gives no
+        // plain item size), and every reader refuses it from the header before the data:
+        // the header alone lets it name the dtype, and nothing more is decompressed.
         return Ok(Some(out));
     }
     let total = (end as u64).saturating_add(need as u64);
@@ -1270,6 +1260,15 @@ mod tests {
             e.contains("array 'meta_json': dtype '<U2': meta_json must be"),
             "{e}"
         );
+        // Nor is a string member decompressed past its header: its dtype is refused there.
+        let mut strings =
+            npy_header_bytes("{'descr': '<U1', 'fortran_order': False, 'shape': (2, 3, 4), }");
+        strings.extend(std::iter::repeat_n(0u8, 8 << 20));
+        members[3].1 = strings;
+        let e = parse_npz(&zip_of(&members[..4]), Path::new("s.npz"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("array 'value': unsupported dtype '<U1'"), "{e}");
         // Two members of one array are refused, not one of them taken.
         let twice = [members[3].clone(), ("value", members[3].1.clone())];
         let e = parse_npz(&zip_of(&twice), Path::new("two.npz"))
