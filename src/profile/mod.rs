@@ -41,6 +41,11 @@ pub const MAX_READ_CELLS: usize = 20_000_000;
 
 /// Before reading sample `n + 1` on `line` of `path`: an error once `n` reaches `limit`
 /// ([`MAX_READ_CELLS`] for the text loaders).
+/// Largest profile file the loaders read (1 GiB): above the largest profile of
+/// [`MAX_READ_CELLS`] samples in any format (a CSV row of ~40 bytes, an npz cell of value,
+/// sigma, phi_i and mask in 25).
+pub const MAX_FILE_BYTES: u64 = 1 << 30;
+
 pub(crate) fn check_sample_count(n: usize, limit: usize, path: &Path, line: usize) -> Result<()> {
     if n < limit {
         return Ok(());
@@ -662,6 +667,20 @@ pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
 /// once to the merged profile).
 fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     let format = Format::from_path(path)?;
+    // Read whole (the fit records its digest), so bounded first: an archive padded with
+    // a gigabyte of other members was read into memory before its arrays were looked at.
+    let size = std::fs::metadata(path)
+        .map_err(|e| Error::io(path, e))?
+        .len();
+    if size > MAX_FILE_BYTES {
+        return Err(Error::file(
+            path,
+            format!(
+                "{size} bytes: a profile file may hold at most {MAX_FILE_BYTES} bytes (a \
+                 profile of the most samples a file may hold, {MAX_READ_CELLS}, fits); split it"
+            ),
+        ));
+    }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
     if matches!(format, Format::Csv | Format::Yan) {
         check_not_binary(&bytes, path)?;
@@ -879,42 +898,32 @@ pub fn is_profile_file(path: &Path) -> bool {
 }
 
 /// Is this text meant as a Yan-2015 profile? It has a `# theta_i:` line (anywhere), or its
-/// first line that is neither blank nor a `#` comment is a row or a column-name line:
-/// - a row: two to four fields, one of the first three a number, `?` or a missing-value
-///   spelling (`NA`, `None`, `null`, `n/a`), and neither of the first two a word (two
-///   letters or more, starting with one: `12 June 2017`, `1. We measured`, `Fiber 3, 45
-///   deg` are notes; `0 l0 1`, `l0 10 1`, `0 10 abc`, `0 10deg 1` are rows with a typo);
-/// - a column-name line: two to four fields, each naming a column (`phi`, `theta`,
-///   `value`, also with a suffix such as `theta_r` or `phi(deg)`, as labs export), three
-///   of which do, or three fields of which two do and the third begins one (`phi theta
-///   valu`; `Phi and theta` is a note).
+/// first line that is neither blank nor a `#` comment names the columns (two to four
+/// fields, each `phi`, `theta` or `value`, also with a suffix such as `theta_r` or
+/// `phi(deg)`, as labs export), or more than half of its first [`SNIFF_LINES`] such lines
+/// are rows of three or four numbers (`?` and the spellings `NA`, `None`, `null`, `n/a` of
+/// a missing value count as numbers).
 ///
-/// A folder's `.txt`/`.dat` can be prose (`notes.txt`), which is skipped with a note, not
-/// an error; a profile with a typo in its first row or a header the reader does not take
-/// ([`yan`] skips only `phi theta value`) still counts, so it is read and its error
-/// reported, never left out.
+/// The whole head decides, not the first line: a notes file may begin like a row (`20 C
+/// freezer`, `2017 06 12`) and a profile may begin with a typo (`0 l0 1`) or a misspelt
+/// header (`phi theta vlaue`). A folder's `.txt`/`.dat` that is not a profile
+/// (`notes.txt`) is skipped with a note, not an error; a profile whose first row or
+/// header the reader does not take ([`yan`] skips only `phi theta value`) still counts,
+/// so it is read and its error reported.
 pub fn looks_like_yan(bytes: &[u8]) -> bool {
-    const COLUMNS: [&str; 3] = ["phi", "theta", "value"];
     let names_a_column = |f: &str| {
         let f = f.trim_matches(['"', '\'']).to_ascii_lowercase();
-        COLUMNS.iter().any(|n| {
+        ["phi", "theta", "value"].iter().any(|n| {
             f.strip_prefix(n)
                 .is_some_and(|rest| !rest.starts_with(|c: char| c.is_ascii_alphabetic()))
         })
     };
-    let begins_a_column = |f: &str| {
-        let f = f.to_ascii_lowercase();
-        f.len() >= 2 && COLUMNS.iter().any(|n| n.starts_with(&f))
+    let number = |f: &str| {
+        f == "?"
+            || f.parse::<f64>().is_ok()
+            || ["na", "none", "null", "n/a"].contains(&f.to_ascii_lowercase().as_str())
     };
-    let missing =
-        |f: &str| ["na", "nan", "none", "null", "n/a"].contains(&f.to_ascii_lowercase().as_str());
-    let number = |f: &str| f == "?" || f.parse::<f64>().is_ok() || missing(f);
-    let word = |f: &str| {
-        !number(f)
-            && f.starts_with(char::is_alphabetic)
-            && f.chars().filter(|c| c.is_alphabetic()).count() >= 2
-    };
-    let mut prose = false;
+    let (mut lines, mut rows) = (0usize, 0usize);
     for raw in split_lines(bytes) {
         let text = String::from_utf8_lossy(raw);
         let t = text.trim().trim_start_matches('\u{feff}').trim();
@@ -924,36 +933,27 @@ pub fn looks_like_yan(bytes: &[u8]) -> bool {
             }
             continue;
         }
-        if t.is_empty() || prose {
+        if t.is_empty() || lines >= SNIFF_LINES {
             continue;
         }
         let fields: Vec<&str> = t
             .split(|c: char| c.is_whitespace() || c == ',' || c == ';')
             .filter(|f| !f.is_empty())
             .collect();
-        let fits = (2..=4).contains(&fields.len());
-        // More than four fields: a row only when its first three are numbers.
-        let row = (fits
-            && fields.iter().take(3).any(|f| number(f))
-            && !fields.iter().take(2).any(|f| word(f)))
-            || (fields.len() > 4 && fields.iter().take(3).all(|f| number(f)));
-        let names = fields.iter().filter(|f| names_a_column(f)).count();
-        let header = fits
-            && (names == fields.len()
-                || names >= 3
-                || (fields.len() == 3
-                    && names == 2
-                    && fields
-                        .iter()
-                        .any(|f| !names_a_column(f) && begins_a_column(f))));
-        if row || header {
+        if lines == 0 && (2..=4).contains(&fields.len()) && fields.iter().all(|f| names_a_column(f))
+        {
             return true;
         }
-        // Prose: still a profile if a `# theta_i:` line follows.
-        prose = true;
+        lines += 1;
+        if (3..=4).contains(&fields.len()) && fields.iter().all(|f| number(f)) {
+            rows += 1;
+        }
     }
-    false
+    2 * rows > lines
 }
+
+/// Lines (neither blank nor comments) whose rows [`looks_like_yan`] counts.
+const SNIFF_LINES: usize = 50;
 
 /// The profile files of a directory that [`load_dir`] reads, sorted, and a note for each
 /// `.txt`/`.dat` it skips because it is not a Yan-2015 profile ([`looks_like_yan`]), each
@@ -1837,39 +1837,41 @@ mod tests {
             format!("'{}...' (10000 characters)", "x".repeat(80))
         );
         assert_eq!(quoted("a\u{feff}"), "'a\\u{feff}'");
-        // Numbered or dated notes are prose; a typo in a row's theta or value is not.
-        for notes in [
-            "1. Calibrate lamp\n",
-            "12 June 2017\n",
-            "2017 notes\n",
-            "3 fibers\n",
-            "June 12, 2017\n",
-            "1. We measured\n",
-            "3 of 5 fibres broke\n",
-            "10 mm hairs\n",
-            "Fiber 3, 45 deg\n",
-            "Phi and theta\n",
-            "theta vs phi\n",
-            "Value of phi\n",
+        // A notes file is prose however its first line begins (a number and a unit, a
+        // date); a profile is one whatever the typo in its first row or header, as its
+        // other rows show.
+        for first in [
+            "1. Calibrate lamp",
+            "12 June 2017",
+            "2017 notes",
+            "June 12, 2017",
+            "3 of 5 fibres broke",
+            "Phi and theta",
+            "Value of phi",
+            "20 C freezer",
+            "5 V supply",
+            "3 x 5 fibres",
+            "2017 06 12",
+            "1,5 mm hairs",
         ] {
+            let notes = format!("{first}\nFox fiber 3, combed.\nSee a.csv.\n");
             assert!(!looks_like_yan(notes.as_bytes()), "{notes}");
         }
-        for row in [
-            "0 l0 1\n",
-            "0 10deg 1\n",
-            "0 10 abc\n",
-            "0 nan 1\n",
-            "0 10 1 5\n",
-            "l0 10 1\n",
-            "phi theta valu\n0 10 1\n",
-            "0 NA 1\n",
-            "0 None 1\n",
-            "0 null 1\n",
-            "ph theta value\n",
-            "phi theta value extra\n",
-            "0 10 1 5 6\n",
+        for first in [
+            "0 l0 1",
+            "0 10deg 1",
+            "0 10 abc",
+            "0 ten 1",
+            "l0 10 1",
+            "0 NA 1",
+            "phi theta valu",
+            "phi theta vlaue",
+            "ph theta value",
+            "phi theta value extra",
+            "0 10 1 5 6",
         ] {
-            assert!(looks_like_yan(row.as_bytes()), "{row}");
+            let data = format!("{first}\n0 20 1.5\n0 30 ?\n");
+            assert!(looks_like_yan(data.as_bytes()), "{data}");
         }
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
@@ -1883,6 +1885,19 @@ mod tests {
             "{:?}",
             l.notes
         );
+        // A file above the size limit is refused before it is read (a sparse file: no
+        // disk used).
+        let big = d.join("big.npz");
+        std::fs::File::create(&big)
+            .unwrap()
+            .set_len(MAX_FILE_BYTES + 1)
+            .unwrap();
+        let e = load(&big, &LoadOptions::default()).unwrap_err().to_string();
+        assert!(
+            e.contains("a profile file may hold at most 1073741824 bytes"),
+            "{e}"
+        );
+        std::fs::remove_file(&big).unwrap();
         // Data a user may have meant to include is named in a note, not read.
         std::fs::create_dir(d.join("sub")).unwrap();
         std::fs::write(
