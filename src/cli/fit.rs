@@ -300,6 +300,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             give_up(j, e);
         }
     }
+    // Folders the fits will create (said when they are, as the other commands do).
+    let mut missing: Vec<PathBuf> = jobs
+        .iter()
+        .map(|j| crate::io::parent_dir(&j.out))
+        .filter(|d| !d.exists())
+        .collect();
+    missing.sort();
+    missing.dedup();
     for (j, ((job, inputs), floor_notes)) in jobs.iter().zip(&loaded).zip(&floor_notes).enumerate()
     {
         if skip[j] {
@@ -452,6 +460,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                     rayon::current_num_threads()
                 );
             }
+        }
+        let dir = crate::io::parent_dir(&job.out);
+        if let Some(k) = missing.iter().position(|d| *d == dir) {
+            eprintln!("note: created folder {}", missing.remove(k).display());
         }
         outln!("  wrote {}", job.out.display());
     }
