@@ -582,6 +582,14 @@ mod tests {
     /// and across the files of a folder (the value column was named before).
     #[test]
     fn duplicate_names_the_column_that_differs() {
+        // Copies without signal are one invalid sample whatever their sigma (README).
+        let (pr, notes) =
+            p("sigma,theta_i,theta_r,phi,value\n0.1,0,0,0,nan\n0.2,0,0,0,-1\n").unwrap();
+        assert_eq!(pr.samples.len(), 1);
+        assert!(
+            notes[0].contains("not identical but both without signal"),
+            "{notes:?}"
+        );
         let e = p("sigma,theta_i,theta_r,phi,value\n0.1,0,0,0,1\n0.2,0,0,0,1\n")
             .unwrap_err()
             .to_string();
@@ -897,8 +905,9 @@ mod tests {
         assert_eq!(notes.len(), 1, "{notes:?}");
         assert!(
             notes[0].starts_with("2 identical duplicate row(s) collapsed")
-                && notes[0]
-                    .contains("2 of them not identical but two no-signal values, e.g. NaN and -1"),
+                && notes[0].contains(
+                    "2 of them not identical but both without signal, e.g. values NaN and -1"
+                ),
             "{notes:?}"
         );
         let e = p("theta_i,theta_r,phi,value\n0,0,0,nan\n0,0,360,2\n")

@@ -1424,8 +1424,8 @@ where
     // the kept one's spelling is no surprise.
     if let Some((a, b)) = markers.first() {
         why.push_str(&format!(
-            " ({} of them not identical but two no-signal values, e.g. {} and {}: one invalid \
-             sample, the first kept)",
+            " ({} of them not identical but both without signal, e.g. values {} and {}: one \
+             invalid sample, the first kept)",
             markers.len(),
             Num(*a),
             Num(*b)
@@ -1527,11 +1527,16 @@ where
             }
             Some(&i) => {
                 let a = &samples[i];
+                // Two copies without signal are one invalid sample whatever their sigma or
+                // phi_i say: none of it enters a fit (README: they collapse).
+                let no_signal = !a.is_valid() && !s.is_valid();
                 let diff = if !same_value(a, s) {
                     Some((
                         Field::Value,
                         format!("value ({} vs {})", Num(a.value), Num(s.value)),
                     ))
+                } else if no_signal {
+                    None
                 } else if !close_opt(a.sigma, s.sigma) {
                     Some((
                         Field::Sigma,
@@ -1566,7 +1571,10 @@ where
                         phi: s.phi,
                     }));
                 }
-                if !same_f64(a.value, s.value) && !a.is_valid() && !s.is_valid() {
+                let same_fields = same_f64(a.value, s.value)
+                    && same_opt(a.sigma, s.sigma)
+                    && same_opt(a.phi_i, s.phi_i);
+                if no_signal && !same_fields {
                     markers.push((a.value, s.value));
                 }
                 drop[j] = true;
