@@ -463,7 +463,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         let dir = crate::io::parent_dir(&job.out);
         if let Some(k) = missing.iter().position(|d| *d == dir) {
-            eprintln!("note: created folder {}", missing.remove(k).display());
+            super::note_created_folder(&missing.remove(k));
         }
         outln!("  wrote {}", job.out.display());
     }

@@ -135,9 +135,14 @@ pub fn number(s: &str) -> Result<f64, String> {
 /// [`crate::io::probe_writable`], saying when it created the folder.
 pub fn prepare_out_dir(dir: &std::path::Path) -> crate::Result<()> {
     if crate::io::probe_writable(dir)? {
-        eprintln!("note: created folder {}", dir.display());
+        note_created_folder(dir);
     }
     Ok(())
+}
+
+/// The note every command prints when it created an output folder.
+pub fn note_created_folder(dir: &std::path::Path) {
+    eprintln!("note: created folder {}", dir.display());
 }
 
 /// A number in [0, 1) (a fraction of a peak).

@@ -1476,7 +1476,12 @@ impl MedullaSampler {
     /// `C^M` conserve energy read this way; it is normalised over `theta_r` instead).
     pub fn column_mass(&self, theta_r: f64, phi: f64) -> f64 {
         let tr = if theta_r.is_nan() { 0.0 } else { theta_r };
-        self.cm_col_comps(tr, phi)
+        Self::comps_mass(&self.cm_col_comps(tr, phi))
+    }
+
+    /// The mass of a column's components ([`Self::cm_col_comps`]), both halves.
+    fn comps_mass(halves: &[[(f64, &PlDensity); 4]; 2]) -> f64 {
+        halves
             .iter()
             .flat_map(|c| c.iter())
             .map(|(w, p)| w * p.mass())
@@ -1487,7 +1492,7 @@ impl MedullaSampler {
     pub fn pdf_cm_incident(&self, theta_r: f64, theta_i: f64, phi: f64) -> f64 {
         let tr = if theta_r.is_nan() { 0.0 } else { theta_r };
         let halves = self.cm_col_comps(tr, phi);
-        let total = self.column_mass(tr, phi);
+        let total = Self::comps_mass(&halves);
         if total.partial_cmp(&0.0) != Some(std::cmp::Ordering::Greater) {
             return 1.0 / (INCLINATION_RANGE.1 - INCLINATION_RANGE.0);
         }

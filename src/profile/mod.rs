@@ -743,25 +743,25 @@ pub(crate) fn escaped(t: &str) -> String {
 /// `t` from a file as messages quote it: `'...'`, [`escaped`], cut after
 /// [`QUOTE_MAX_CHARS`] characters (a 10 MB cell was echoed whole) with its length said.
 pub(crate) fn quoted(t: &str) -> String {
-    match t.char_indices().nth(QUOTE_MAX_CHARS) {
-        Some((cut, _)) => format!(
-            "'{}...' ({} characters)",
-            escaped(&t[..cut]),
-            t.chars().count()
-        ),
-        None => format!("'{}'", escaped(t)),
+    match cut_at(t, QUOTE_MAX_CHARS) {
+        (head, Some(n)) => format!("'{}...' ({n} characters)", escaped(head)),
+        (_, None) => format!("'{}'", escaped(t)),
     }
 }
 
 /// `t` [`escaped`], cut after `max` characters with `...` and its length in characters.
 pub(crate) fn cut_text(t: &str, max: usize) -> String {
+    match cut_at(t, max) {
+        (head, Some(n)) => format!("{}... ({n} characters)", escaped(head)),
+        (_, None) => escaped(t),
+    }
+}
+
+/// The first `max` characters of `t` and, when that cuts it, its length in characters.
+fn cut_at(t: &str, max: usize) -> (&str, Option<usize>) {
     match t.char_indices().nth(max) {
-        Some((cut, _)) => format!(
-            "{}... ({} characters)",
-            escaped(&t[..cut]),
-            t.chars().count()
-        ),
-        None => escaped(t),
+        Some((cut, _)) => (&t[..cut], Some(t.chars().count())),
+        None => (t, None),
     }
 }
 

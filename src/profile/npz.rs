@@ -125,6 +125,19 @@ fn npy_header_with(
     Ok(h)
 }
 
+/// Where an `.npy` header's text starts and how long it is, by the format version (1:
+/// a 16-bit length, 2 and 3: 32-bit), if `bytes` hold that much of the preamble.
+fn header_span(bytes: &[u8]) -> Option<(usize, usize)> {
+    match bytes.get(6)? {
+        1 if bytes.len() >= 10 => Some((10, u16::from_le_bytes([bytes[8], bytes[9]]) as usize)),
+        2 | 3 if bytes.len() >= 12 => Some((
+            12,
+            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
+        )),
+        _ => None,
+    }
+}
+
 /// The header of an `.npy` (its dtype checked by `dtype`, its cells by `max_cells`, a
 /// profile grid's limit), where it ends, and the data bytes it declares. `bytes` need hold
 /// only the header: [`entry`] reads an archive member's header first.
@@ -141,14 +154,8 @@ fn npy_layout(
     if bytes.len() < 10 {
         return Err("truncated .npy header".into());
     }
-    let (hlen, start): (usize, usize) = match bytes[6] {
-        1 => (u16::from_le_bytes([bytes[8], bytes[9]]) as usize, 10),
-        2 | 3 if bytes.len() >= 12 => (
-            u32::from_le_bytes([bytes[8], bytes[9], bytes[10], bytes[11]]) as usize,
-            12,
-        ),
-        v => return Err(format!("unsupported .npy version {v} or truncated header")),
-    };
+    let (start, hlen) = header_span(bytes)
+        .ok_or_else(|| format!("unsupported .npy version {} or truncated header", bytes[6]))?;
     let end = start
         .checked_add(hlen)
         .filter(|e| *e <= bytes.len())
@@ -347,14 +354,11 @@ fn entry<R: Read + std::io::Seek>(
     // small archive whose member inflates far past its header's size stops there.
     let mut out = Vec::new();
     (&mut f).take(12).read_to_end(&mut out).map_err(corrupt)?;
-    let header_len = match out.get(6) {
-        Some(1) if out.len() >= 10 => 10 + u16::from_le_bytes([out[8], out[9]]) as u64,
-        Some(2 | 3) if out.len() >= 12 => {
-            12 + u32::from_le_bytes([out[8], out[9], out[10], out[11]]) as u64
-        }
+    let Some((start, hlen)) = header_span(&out) else {
         // Not an .npy: the array's reader names what is wrong.
-        _ => return Ok(Some(out)),
+        return Ok(Some(out));
     };
+    let header_len = (start + hlen) as u64;
     if header_len > MAX_HEADER_BYTES {
         return Err(arr_err(
             path,
