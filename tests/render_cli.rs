@@ -248,7 +248,11 @@ fn convergence(out: &Path, extra: &[&str]) -> Output {
     ];
     // The culling study refuses these (it does not use them).
     if !extra.contains(&"--culling-study") {
-        defaults.extend([("--ref-spp", "2"), ("--repeats", "1"), ("--modes", "near")]);
+        defaults.extend([("--ref-spp", "2"), ("--repeats", "1")]);
+        // The noise budget compares its own two modes.
+        if !extra.contains(&"--noise-budget") {
+            defaults.push(("--modes", "near"));
+        }
     }
     with_defaults(&["render-convergence"], &defaults, extra)
 }
@@ -350,6 +354,36 @@ fn convergence_reports_state_their_threads() {
     let md = std::fs::read_to_string(rc.join("render_culling.md")).unwrap();
     assert!(md.contains("1 thread(s)"), "{md}");
     assert!(!md.contains("machine shared"), "{md}");
+}
+
+/// The noise budget writes one row per lighting, refuses the options it does not read,
+/// and leaves the convergence report's files alone.
+#[test]
+fn noise_budget_reports_each_lighting() {
+    let dir = tempfile::tempdir().unwrap();
+    let rc = dir.path().join("rc");
+    for flag in ["--modes", "--env-nee"] {
+        let mut extra = vec!["--noise-budget", flag];
+        if flag == "--modes" {
+            extra.push("near");
+        }
+        let o = convergence(&rc, &extra);
+        refused(&o, flag);
+    }
+    assert!(!rc.exists(), "files written by a refused run");
+    let o = convergence(&rc, &["--noise-budget", "--repeats", "2"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let md = std::fs::read_to_string(rc.join("render_noise_budget.md")).unwrap();
+    assert!(md.contains("--noise-budget --params red-fox"), "{md}");
+    assert!(md.contains("1 thread(s)"), "{md}");
+    for row in [
+        "| key light + environment, multiple scattering (the default scene) | ",
+        "| key light only, multiple scattering | ",
+        "| key light only, direct (first fiber vertex) | ",
+    ] {
+        assert_eq!(md.matches(row).count(), 1, "{row}: {md}");
+    }
+    assert!(!rc.join("render_convergence.md").exists());
 }
 
 /// Options the chosen mode does not read are said on stderr, not silently ignored.

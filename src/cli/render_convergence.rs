@@ -1,9 +1,12 @@
 //! `furfit render-convergence`: RMSE vs spp/time per BCSDF scale on a patch of the test
 //! lock, the equal-quality speedup of multi-scale over near field, and (with
-//! `--culling-study`) the time saved by far-field culling with its image difference.
+//! `--culling-study`) the time saved by far-field culling with its image difference, or
+//! (with `--noise-budget`) the speedup under lightings that isolate the noise of `h`.
 
 use crate::render::bsdf::Mode;
-use crate::render::study::{convergence, culling_study, plot_convergence_bytes};
+use crate::render::study::{
+    convergence, culling_study, noise_budget, noise_budget_markdown, plot_convergence_bytes,
+};
 use crate::render::{RenderSettings, Scene, MAX_PIXELS, MAX_SIDE, MAX_SPP};
 use anyhow::{bail, Context};
 use clap::builder::RangedU64ValueParser;
@@ -55,6 +58,12 @@ pub struct Args {
     /// only, one seed, at --max-spp; --modes, --ref-spp and --repeats do not apply.
     #[arg(long, conflicts_with_all = ["modes", "ref_spp", "repeats"])]
     pub culling_study: bool,
+    /// Run the noise budget instead (writes render_noise_budget.md to --out): near and
+    /// multi-scale curves under three lightings (the default scene, key light only, key
+    /// light direct), which shows how much of the near field's noise multi-scale can
+    /// remove; --modes does not apply.
+    #[arg(long, conflicts_with_all = ["modes", "culling_study", "env_nee"])]
+    pub noise_budget: bool,
     /// Output directory.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
@@ -93,6 +102,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let names: &[&str] = if a.culling_study {
         &["render_culling.md"]
+    } else if a.noise_budget {
+        &["render_noise_budget.md"]
     } else {
         &[
             "render_convergence.csv",
@@ -178,6 +189,36 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     }
     let scene = Scene::build(&base.strand);
     let spp = (a.max_spp, a.ref_spp);
+    if a.noise_budget {
+        let rows = noise_budget(&scene, &params, &base, spp, a.repeats, |m| outln!("{m}"))?;
+        let command = format!(
+            "furfit render-convergence --noise-budget --params {} --size {pw}x{ph} --frame \
+             {fw}x{fh} --max-spp {} --ref-spp {} --seed {} --repeats {} --threads {} --out {}",
+            super::shell_quote(&a.params),
+            a.max_spp,
+            a.ref_spp,
+            a.seed,
+            a.repeats,
+            a.threads,
+            super::shell_quote(&a.out.display().to_string())
+        );
+        for (l, c) in &rows {
+            if let Some(x) = c.speedup(Mode::Near, Mode::Multiscale, 4) {
+                outln!(
+                    "{}: equal-quality speedup of multiscale over near {x:.2}x",
+                    l.describe()
+                );
+            }
+        }
+        let p = &paths[0];
+        crate::io::write_atomic(
+            p,
+            noise_budget_markdown(&rows, &command, 4, threads).as_bytes(),
+        )?;
+        crate::io::record_outputs(std::slice::from_ref(p))?;
+        outln!("wrote {}", p.display());
+        return Ok(());
+    }
     let c = convergence(&scene, &params, &base, &modes, spp, a.repeats, |m| {
         outln!("{m}")
     })?;

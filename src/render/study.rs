@@ -315,6 +315,122 @@ pub fn convergence(
     })
 }
 
+/// The lighting of one row of [`noise_budget`]: what reaches the camera.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum BudgetLighting {
+    /// The default scene: key light and environment, multiple scattering.
+    Full,
+    /// Key light only (black environment), multiple scattering.
+    Key,
+    /// Key light only, first fiber vertex only (`max_depth` 1): the one estimator where
+    /// multi-scale replaces the near field's `h` by its analytic average and nothing
+    /// else differs.
+    KeyDirect,
+}
+
+impl BudgetLighting {
+    pub const ALL: [BudgetLighting; 3] = [Self::Full, Self::Key, Self::KeyDirect];
+
+    pub fn describe(self) -> &'static str {
+        match self {
+            Self::Full => "key light + environment, multiple scattering (the default scene)",
+            Self::Key => "key light only, multiple scattering",
+            Self::KeyDirect => "key light only, direct (first fiber vertex)",
+        }
+    }
+
+    /// `base` with this lighting.
+    pub fn apply(self, base: &RenderSettings) -> RenderSettings {
+        let mut s = base.clone();
+        if self != Self::Full {
+            s.env = super::scene::Environment::constant(0.0);
+        }
+        if self == Self::KeyDirect {
+            s.max_depth = 1;
+        }
+        s
+    }
+}
+
+/// Where the noise that multi-scale does not remove comes from: the near / multi-scale
+/// [`convergence`] of the same patch under each [`BudgetLighting`]. Multi-scale only
+/// integrates over the offset `h` within the pixel footprint; the noise of which fiber a
+/// camera sample hits, of its shadow ray and of the paths beyond is the same in both
+/// modes, so the speedup under `KeyDirect` bounds what any `h` integration can gain there.
+pub fn noise_budget(
+    scene: &Scene,
+    params: &FurParams,
+    base: &RenderSettings,
+    spp: (usize, usize),
+    repeats: usize,
+    mut progress: impl FnMut(&str),
+) -> crate::Result<Vec<(BudgetLighting, Convergence)>> {
+    BudgetLighting::ALL
+        .iter()
+        .map(|&l| {
+            let c = convergence(
+                scene,
+                params,
+                &l.apply(base),
+                &[Mode::Near, Mode::Multiscale],
+                spp,
+                repeats,
+                |m| progress(&format!("{}: {m}", l.describe())),
+            )?;
+            Ok((l, c))
+        })
+        .collect()
+}
+
+/// Markdown table of a [`noise_budget`]: per lighting the two inefficiencies and the
+/// speedup with its bootstrap interval.
+pub fn noise_budget_markdown(
+    rows: &[(BudgetLighting, Convergence)],
+    command: &str,
+    min_spp: usize,
+    threads: usize,
+) -> String {
+    let mut s = format!(
+        "# Render noise budget\n\nCommand: `{command}` ({})\n\nThe equal-quality speedup \
+         of multi-scale over near field (as in `render_convergence.md`: RMSE^2 x seconds, \
+         median over spp >= {min_spp}, each mode against its own reference) under three \
+         lightings of the same patch, {threads} thread(s). Multi-scale integrates the \
+         offset `h` over the pixel footprint and changes nothing else, so with the key \
+         light direct (the estimator where it replaces `h` by its analytic average) the \
+         speedup is what removing the `h` noise can give; the rest of the noise (which \
+         fiber or background a camera sample hits, shadow rays, the paths beyond) is \
+         common to both modes.\n\n\
+         | lighting | near RMSE^2 x s | multi-scale RMSE^2 x s | speedup | 90 % interval |\n\
+         |---|---|---|---|---|\n",
+        crate::TOOL_VERSION
+    );
+    for (l, c) in rows {
+        let cell = |m: Mode| {
+            c.inefficiency(m, min_spp)
+                .map_or("n/a".to_string(), |v| format!("{v:.3e}"))
+        };
+        let speedup = c
+            .speedup(Mode::Near, Mode::Multiscale, min_spp)
+            .map_or("n/a".to_string(), |v| format!("{v:.2}x"));
+        let interval = c
+            .speedup_interval(
+                Mode::Near,
+                Mode::Multiscale,
+                min_spp,
+                0.9,
+                BOOTSTRAP_RESAMPLES,
+            )
+            .map_or("n/a".to_string(), |(a, b)| format!("{a:.2}-{b:.2}x"));
+        s += &format!(
+            "| {} | {} | {} | {speedup} | {interval} |\n",
+            l.describe(),
+            cell(Mode::Near),
+            cell(Mode::Multiscale)
+        );
+    }
+    s
+}
+
 /// Plot RMSE versus time (log-log) per mode; `svg` chooses the backend.
 pub fn plot_convergence(c: &Convergence, path: &std::path::Path, svg: bool) -> crate::Result<()> {
     crate::io::write_atomic(path, &plot_convergence_bytes(c, path, svg)?)
@@ -489,6 +605,22 @@ pub fn culling_study(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn budget_lightings_change_only_what_they_name() {
+        let base = RenderSettings::default();
+        let full = BudgetLighting::Full.apply(&base);
+        assert_eq!(full.max_depth, base.max_depth);
+        assert_eq!(full.env.top, base.env.top);
+        assert!(!full.env.is_black() && full.light.is_some());
+        let key = BudgetLighting::Key.apply(&base);
+        assert!(key.env.is_black() && key.light.is_some());
+        assert_eq!(key.max_depth, base.max_depth);
+        let direct = BudgetLighting::KeyDirect.apply(&base);
+        assert!(direct.env.is_black() && direct.light.is_some());
+        assert_eq!(direct.max_depth, 1);
+        assert_eq!(direct.spp, base.spp);
+    }
 
     fn point(mode: Mode, repeat: usize, spp: usize, seconds: f64, rmse: f64) -> ConvergencePoint {
         ConvergencePoint {
