@@ -371,7 +371,18 @@ fn noise_budget_reports_each_lighting() {
         refused(&o, flag);
     }
     assert!(!rc.exists(), "files written by a refused run");
-    let o = convergence(&rc, &["--noise-budget", "--repeats", "2"]);
+    let o = convergence(
+        &rc,
+        &[
+            "--noise-budget",
+            "--repeats",
+            "2",
+            "--max-spp",
+            "4",
+            "--ref-spp",
+            "8",
+        ],
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let md = std::fs::read_to_string(rc.join("render_noise_budget.md")).unwrap();
     assert!(md.contains("--noise-budget --params red-fox"), "{md}");
@@ -382,6 +393,16 @@ fn noise_budget_reports_each_lighting() {
         "| key light only, direct (first fiber vertex) | ",
     ] {
         assert_eq!(md.matches(row).count(), 1, "{row}: {md}");
+    }
+    // Each row has near, multi-scale and far inefficiencies, then two speedups.
+    let rows: Vec<&str> = md
+        .lines()
+        .filter(|l| l.starts_with("| key light"))
+        .collect();
+    assert_eq!(rows.len(), 3, "{md}");
+    for r in rows {
+        assert_eq!(r.matches(" | ").count(), 5, "{r}");
+        assert_eq!(r.matches("x (").count(), 2, "{r}");
     }
     assert!(!rc.join("render_convergence.md").exists());
 }

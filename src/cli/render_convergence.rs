@@ -58,10 +58,10 @@ pub struct Args {
     /// only, one seed, at --max-spp; --modes, --ref-spp and --repeats do not apply.
     #[arg(long, conflicts_with_all = ["modes", "ref_spp", "repeats"])]
     pub culling_study: bool,
-    /// Run the noise budget instead (writes render_noise_budget.md to --out): near and
-    /// multi-scale curves under three lightings (the default scene, key light only, key
-    /// light direct), which shows how much of the near field's noise multi-scale can
-    /// remove; --modes does not apply.
+    /// Run the noise budget instead (writes render_noise_budget.md to --out): near,
+    /// multi-scale and far-field curves under three lightings (the default scene, key
+    /// light only, key light direct), which shows how much of the near field's noise an
+    /// integration over h can remove; --modes does not apply.
     #[arg(long, conflicts_with_all = ["modes", "culling_study", "env_nee"])]
     pub noise_budget: bool,
     /// Output directory.
@@ -203,11 +203,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             super::shell_quote(&a.out.display().to_string())
         );
         for (l, c) in &rows {
-            if let Some(x) = c.speedup(Mode::Near, Mode::Multiscale, 4) {
-                outln!(
-                    "{}: equal-quality speedup of multiscale over near {x:.2}x",
-                    l.describe()
-                );
+            for m in [Mode::Multiscale, Mode::Far] {
+                if let Some(x) = c.speedup(Mode::Near, m, 4) {
+                    outln!(
+                        "{}: equal-quality speedup of {} over near {x:.2}x",
+                        l.describe(),
+                        m.name()
+                    );
+                }
             }
         }
         let p = &paths[0];

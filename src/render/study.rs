@@ -352,11 +352,16 @@ impl BudgetLighting {
     }
 }
 
-/// Where the noise that multi-scale does not remove comes from: the near / multi-scale
-/// [`convergence`] of the same patch under each [`BudgetLighting`]. Multi-scale only
-/// integrates over the offset `h` within the pixel footprint; the noise of which fiber a
-/// camera sample hits, of its shadow ray and of the paths beyond is the same in both
-/// modes, so the speedup under `KeyDirect` bounds what any `h` integration can gain there.
+/// The modes of a [`noise_budget`]: the far field integrates `h` over the whole fiber, so
+/// its speedup is what removing all of the `h` noise gives.
+pub const BUDGET_MODES: [Mode; 3] = [Mode::Near, Mode::Multiscale, Mode::Far];
+
+/// Where the noise that multi-scale does not remove comes from: the [`convergence`] of
+/// [`BUDGET_MODES`] on the same patch under each [`BudgetLighting`]. Multi-scale and far
+/// field only integrate over the offset `h` (within the pixel footprint, or over the whole
+/// fiber); the noise of which fiber a camera sample hits, of its shadow ray and of the
+/// paths beyond is the same in every mode, so the far field's speedup under `KeyDirect`
+/// bounds what any `h` integration can gain there.
 pub fn noise_budget(
     scene: &Scene,
     params: &FurParams,
@@ -372,7 +377,7 @@ pub fn noise_budget(
                 scene,
                 params,
                 &l.apply(base),
-                &[Mode::Near, Mode::Multiscale],
+                &BUDGET_MODES,
                 spp,
                 repeats,
                 |m| progress(&format!("{}: {m}", l.describe())),
@@ -382,8 +387,8 @@ pub fn noise_budget(
         .collect()
 }
 
-/// Markdown table of a [`noise_budget`]: per lighting the two inefficiencies and the
-/// speedup with its bootstrap interval.
+/// Markdown table of a [`noise_budget`]: per lighting the inefficiencies and the speedups
+/// over near field with their bootstrap intervals.
 pub fn noise_budget_markdown(
     rows: &[(BudgetLighting, Convergence)],
     command: &str,
@@ -392,40 +397,41 @@ pub fn noise_budget_markdown(
 ) -> String {
     let mut s = format!(
         "# Render noise budget\n\nCommand: `{command}` ({})\n\nThe equal-quality speedup \
-         of multi-scale over near field (as in `render_convergence.md`: RMSE^2 x seconds, \
-         median over spp >= {min_spp}, each mode against its own reference) under three \
-         lightings of the same patch, {threads} thread(s). Multi-scale integrates the \
-         offset `h` over the pixel footprint and changes nothing else, so with the key \
-         light direct (the estimator where it replaces `h` by its analytic average) the \
-         speedup is what removing the `h` noise can give; the rest of the noise (which \
-         fiber or background a camera sample hits, shadow rays, the paths beyond) is \
-         common to both modes.\n\n\
-         | lighting | near RMSE^2 x s | multi-scale RMSE^2 x s | speedup | 90 % interval |\n\
-         |---|---|---|---|---|\n",
+         over near field (as in `render_convergence.md`: RMSE^2 x seconds, median over spp \
+         >= {min_spp}, each mode against its own reference, 90 % bootstrap interval over the \
+         repeats) under three lightings of the same patch, {threads} thread(s). Multi-scale \
+         integrates the offset `h` over the pixel footprint (seed Eq. 26-27), the far field \
+         over the whole fiber, and neither changes anything else. With the key light direct \
+         (the estimator where both replace `h` by its analytic average) the far field's \
+         speedup is what removing all of the `h` noise gives; the rest (which fiber or the \
+         background a camera sample hits, shadow rays, the paths beyond) is common to the \
+         modes.\n\n\
+         | lighting | RMSE^2 x s: near | multi-scale | far | multi-scale speedup | far speedup |\n\
+         |---|---|---|---|---|---|\n",
         crate::TOOL_VERSION
     );
     for (l, c) in rows {
-        let cell = |m: Mode| {
+        let ineff = |m: Mode| {
             c.inefficiency(m, min_spp)
                 .map_or("n/a".to_string(), |v| format!("{v:.3e}"))
         };
-        let speedup = c
-            .speedup(Mode::Near, Mode::Multiscale, min_spp)
-            .map_or("n/a".to_string(), |v| format!("{v:.2}x"));
-        let interval = c
-            .speedup_interval(
-                Mode::Near,
-                Mode::Multiscale,
-                min_spp,
-                0.9,
-                BOOTSTRAP_RESAMPLES,
-            )
-            .map_or("n/a".to_string(), |(a, b)| format!("{a:.2}-{b:.2}x"));
+        let speedup = |m: Mode| {
+            let Some(x) = c.speedup(Mode::Near, m, min_spp) else {
+                return "n/a".to_string();
+            };
+            match c.speedup_interval(Mode::Near, m, min_spp, 0.9, BOOTSTRAP_RESAMPLES) {
+                Some((a, b)) => format!("{x:.2}x ({a:.2}-{b:.2}x)"),
+                None => format!("{x:.2}x"),
+            }
+        };
         s += &format!(
-            "| {} | {} | {} | {speedup} | {interval} |\n",
+            "| {} | {} | {} | {} | {} | {} |\n",
             l.describe(),
-            cell(Mode::Near),
-            cell(Mode::Multiscale)
+            ineff(Mode::Near),
+            ineff(Mode::Multiscale),
+            ineff(Mode::Far),
+            speedup(Mode::Multiscale),
+            speedup(Mode::Far)
         );
     }
     s
