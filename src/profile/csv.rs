@@ -601,6 +601,15 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains(":3: column 5 (phi_i): duplicate"), "{e}");
+        // phi_i is a direction: 5 and -355 (or 180 and -180) are one, and the copies
+        // collapse as a phi written two ways does.
+        for (a, b) in [("5", "-355"), ("180", "-180"), ("0", "360")] {
+            let (pr, _) = p(&format!(
+                "theta_i,theta_r,phi,value,phi_i\n0,0,0,1,{a}\n0,0,0,1,{b}\n"
+            ))
+            .unwrap();
+            assert_eq!(pr.samples.len(), 1, "phi_i {a} and {b}");
+        }
         let dir = tempfile::tempdir().unwrap();
         let d = dir.path();
         std::fs::write(

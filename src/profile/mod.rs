@@ -1315,6 +1315,12 @@ fn same_opt(a: Option<f64>, b: Option<f64>) -> bool {
     both(a, b, same_f64)
 }
 
+/// Do two incident azimuths `phi_i` name one direction? Wrapped to (-180, 180] as every
+/// loader wraps phi ([`read_phi`]), so `5` and `-355` (one sweep written two ways) agree.
+fn same_azimuth(a: Option<f64>, b: Option<f64>) -> bool {
+    both(a, b, |x, y| same_f64(wrap_phi(x), wrap_phi(y)))
+}
+
 /// Both absent, or both present and `eq`.
 fn both(a: Option<f64>, b: Option<f64>, eq: fn(f64, f64) -> bool) -> bool {
     match (a, b) {
@@ -1542,7 +1548,7 @@ where
                         Field::Sigma,
                         format!("sigma ({} vs {})", opt_text(a.sigma), opt_text(s.sigma)),
                     ))
-                } else if !same_opt(a.phi_i, s.phi_i) {
+                } else if !same_azimuth(a.phi_i, s.phi_i) {
                     Some((
                         Field::PhiI,
                         format!("phi_i ({} vs {})", opt_text(a.phi_i), opt_text(s.phi_i)),
