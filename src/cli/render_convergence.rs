@@ -191,17 +191,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let spp = (a.max_spp, a.ref_spp);
     if a.noise_budget {
         let rows = noise_budget(&scene, &params, &base, spp, a.repeats, |m| outln!("{m}"))?;
-        let command = format!(
-            "furfit render-convergence --noise-budget --params {} --size {pw}x{ph} --frame \
-             {fw}x{fh} --max-spp {} --ref-spp {} --seed {} --repeats {} --threads {} --out {}",
-            super::shell_quote(&a.params),
-            a.max_spp,
-            a.ref_spp,
-            a.seed,
-            a.repeats,
-            a.threads,
-            super::shell_quote(&a.out.display().to_string())
-        );
+        let command = command_line(&a, (pw, ph), (fw, fh));
         for (l, c) in &rows {
             for m in [Mode::Multiscale, Mode::Far] {
                 if let Some(x) = c.speedup(Mode::Near, m, 4) {
@@ -233,19 +223,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
-    let command = format!(
-        "furfit render-convergence --params {} --size {pw}x{ph} --frame {fw}x{fh} \
-         --max-spp {} --ref-spp {} --modes {} --seed {} --repeats {} --threads {}{} --out {}",
-        super::shell_quote(&a.params),
-        a.max_spp,
-        a.ref_spp,
-        super::shell_quote(&a.modes),
-        a.seed,
-        a.repeats,
-        a.threads,
-        if a.env_nee { " --env-nee" } else { "" },
-        super::shell_quote(&a.out.display().to_string())
-    );
+    let command = command_line(&a, (pw, ph), (fw, fh));
     // The report's files land together or not at all.
     let [csv, png, svg, md] = [0, 1, 2, 3].map(|i| paths[i].clone());
     let files = vec![
@@ -271,4 +249,31 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The command line a convergence report or noise budget records: every option it ran
+/// with (`--modes` and `--env-nee` only where they apply; the noise budget takes neither).
+fn command_line(a: &Args, (pw, ph): (usize, usize), (fw, fh): (usize, usize)) -> String {
+    let variant = if a.noise_budget {
+        " --noise-budget".to_string()
+    } else {
+        String::new()
+    };
+    let modes = if a.noise_budget {
+        String::new()
+    } else {
+        format!(" --modes {}", super::shell_quote(&a.modes))
+    };
+    format!(
+        "furfit render-convergence{variant} --params {} --size {pw}x{ph} --frame {fw}x{fh} \
+         --max-spp {} --ref-spp {}{modes} --seed {} --repeats {} --threads {}{} --out {}",
+        super::shell_quote(&a.params),
+        a.max_spp,
+        a.ref_spp,
+        a.seed,
+        a.repeats,
+        a.threads,
+        if a.env_nee { " --env-nee" } else { "" },
+        super::shell_quote(&a.out.display().to_string())
+    )
 }
