@@ -1036,6 +1036,32 @@ impl CnRows<'_> {
         acc.touched[i + 1] = true;
     }
 
+    /// Add the weights of [`Self::weights`]`(psi0, len, g)` on the row pair `(i, i + 1)`
+    /// to `acc` straight from the quadrature nodes: what [`Self::accumulate`] adds, up to
+    /// the order of the rounding, without the piece's own weight vectors (grid synthesis
+    /// accumulates a few hundred pieces per slice).
+    pub fn accumulate_piece(
+        &self,
+        acc: &mut RowWeights,
+        i: usize,
+        psi0: f64,
+        len: f64,
+        g: &[[f64; 3]; 2],
+    ) {
+        let n = self.n;
+        let (low, high) = acc.w.split_at_mut((i + 1) * n);
+        let (r0, r1) = (&mut low[i * n..], &mut high[..n]);
+        self.gl_nodes(psi0, len, g, |_, k, fr, a, b| {
+            let k1 = if k + 1 == n { 0 } else { k + 1 };
+            r0[k] += a * (1.0 - fr);
+            r0[k1] += a * fr;
+            r1[k] += b * (1.0 - fr);
+            r1[k1] += b * fr;
+        });
+        acc.touched[i] = true;
+        acc.touched[i + 1] = true;
+    }
+
     /// Add `w C^N_shape(|x|, psi0 + shift d)` to `acc` as weights on the four row nodes
     /// around `(|x|, psi0)`: the bilinear lerp of [`MedullaSlice::cn`] written as node
     /// weights, so [`Self::correlate`] reads a point query along a grid with the pieces.
@@ -1703,15 +1729,18 @@ mod tests {
     /// Pieces accumulated per table row and correlated along a grid equal the sum of their
     /// own dots at every grid point (1e-12 of the scale: the same products, summed in
     /// another order), for steps of either sign and overlapping pieces on neighbouring
-    /// row pairs.
+    /// row pairs; the same for the pieces added straight from their quadrature nodes
+    /// ([`CnRows::accumulate_piece`]).
     #[test]
     fn row_weights_correlate_equals_summed_dots() {
         let s = MedullaTables::builtin().slice(0.9, 0.4);
         let rows = s.cn_rows();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(47);
         let mut acc = rows.row_weights();
+        let mut fused = rows.row_weights();
         for step in [1i64, -1, 2, -3, 0, 180, -90, 7] {
             acc.clear();
+            fused.clear();
             let mut pieces = Vec::new();
             for _ in 0..30 {
                 let i = rng.random_range(0..rows.x_nodes().len() - 1);
@@ -1720,19 +1749,22 @@ mod tests {
                 let g = [0, 1].map(|_| std::array::from_fn(|_| rng.random_range(0.0..2.0)));
                 let w = rows.weights(psi0, len, &g);
                 rows.accumulate(&mut acc, i, &w);
+                rows.accumulate_piece(&mut fused, i, psi0, len, &g);
                 pieces.push((i, w, len));
             }
             let mut out = vec![0.0; 91];
             rows.correlate(&acc, step, &mut out);
+            let mut out_fused = vec![0.0; 91];
+            rows.correlate(&fused, step, &mut out_fused);
             let scale: f64 = pieces.iter().map(|p| p.2).sum::<f64>() * rows.peak * 10.0;
-            for (q, &o) in out.iter().enumerate() {
+            for (q, (&o, &f)) in out.iter().zip(&out_fused).enumerate() {
                 let sum: f64 = pieces
                     .iter()
                     .map(|(i, w, _)| rows.dot(*i, w, step * q as i64))
                     .sum();
                 assert!(
-                    (o - sum).abs() <= 1e-12 * scale,
-                    "step {step} q {q}: {o} vs {sum}"
+                    (o - sum).abs() <= 1e-12 * scale && (f - sum).abs() <= 1e-12 * scale,
+                    "step {step} q {q}: {o}, fused {f} vs {sum}"
                 );
             }
         }

@@ -482,9 +482,13 @@ pub fn throughput_grid() -> Vec<(f64, f64, f64)> {
         .collect()
 }
 
+/// Timed runs per mode of [`synth_throughput`] (each takes milliseconds).
+pub const SYNTH_RUNS: usize = 21;
+
 /// Print the throughput of grid synthesis (what `furfit synth` and the fitter do) on the
 /// issue's 4 x 61 x 181 grid, for the paper's fixed segments and the tolerance mode, on
-/// the current rayon pool. Best of three runs after one warm-up (machines are noisy).
+/// the current rayon pool: the best and the median of [`SYNTH_RUNS`] runs after one warm-up
+/// (machines are noisy: on a shared 2-core machine the median ran 1.2-1.4x the best).
 pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
     let pts = throughput_grid();
     let plan = crate::synth::GridPlan::new(&pts);
@@ -502,13 +506,16 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
                 t.elapsed().as_secs_f64()
             };
             run();
-            let best = (0..3).map(|_| run()).fold(f64::INFINITY, f64::min);
+            let mut t: Vec<f64> = (0..SYNTH_RUNS).map(|_| run()).collect();
+            t.sort_by(f64::total_cmp);
+            let (best, median) = (t[0], t[SYNTH_RUNS / 2]);
             log(&format!(
-                "synth {name} {mode}: 4 x 61 x 181 = {} samples in {:.3} s on {} threads = {:.3e} samples/s (best of 3)",
+                "synth {name} {mode}: 4 x 61 x 181 = {} samples in {:.4} s on {} threads = {:.3e} samples/s (best of {SYNTH_RUNS}; median {:.3e})",
                 pts.len(),
                 best,
                 rayon::current_num_threads(),
-                pts.len() as f64 / best
+                pts.len() as f64 / best,
+                pts.len() as f64 / median
             ));
             log(&slice_breakdown(&model, &plan, &opts));
         }

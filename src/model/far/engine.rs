@@ -53,6 +53,10 @@
 //! * Tolerance mode: each fitted segment is checked at its quarter points against the exact
 //!   integrand and bisected while its error exceeds `tol` of the lobe's mean
 //!   over `phi` (a lower bound of its peak).
+//! * Evaluation on an even `phi` grid: node Gaussians are swept along the grid by
+//!   recurrence, or, for a lobe wide enough that the wrapped Gaussian's Fourier series
+//!   (Poisson summation) has fewer terms than a node's window has grid points, summed in
+//!   Fourier space ([`FourierGrid`]): every image at once, a few dozen rotations per node.
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use super::closed_form::{poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through};
@@ -63,8 +67,10 @@ use crate::model::geometry::PathGeometry;
 use crate::model::medulla::{CnProfile, CnRows};
 use crate::model::quadrature::GaussLegendre;
 use crate::model::{AzimuthalSlice, Lobe, LobeSet, LobeValues};
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
+use std::hash::{BuildHasherDefault, Hasher};
 use std::sync::Arc;
 
 /// Floor of a node's log-attenuation: `exp` of it is 0 in f64 as `exp(-inf)` is, but a
@@ -152,6 +158,51 @@ const RESCALE_MAX_PIECES: usize = 16;
 const RESCALE_PHIS: usize = 24;
 /// Rebuilds [`FarSlice::peak_rescale`] may ask for, each at a smaller budget.
 const RESCALE_ROUNDS: usize = 3;
+
+/// The nodes one slice build has evaluated, by `u` and whether the scattered values were
+/// asked for (the sign bit of the key; `u >= 0`). The lobes of a family share their
+/// initial segments and bisect them alike, and the mass estimate evaluates the quarter
+/// points that the builders then check: without it two in five node evaluations of a
+/// slice were repeats (red fox, human). A node is a pure function of its key, so a memo
+/// hit returns the same bits as a fresh evaluation.
+struct NodeMemo(RefCell<MemoEntries>);
+
+/// The nodes of a [`NodeMemo`] and their index by key.
+struct MemoEntries {
+    index: HashMap<u64, u32, BuildHasherDefault<BitsHasher>>,
+    nodes: Vec<Node>,
+}
+
+impl NodeMemo {
+    fn new() -> Self {
+        // Room for a typical slice's few hundred nodes without regrowing.
+        NodeMemo(RefCell::new(MemoEntries {
+            index: HashMap::with_capacity_and_hasher(512, Default::default()),
+            nodes: Vec::with_capacity(512),
+        }))
+    }
+}
+
+/// A hasher for `f64` bit patterns: one multiply (Fibonacci hashing), enough for keys that
+/// are distinct doubles.
+#[derive(Default)]
+struct BitsHasher(u64);
+
+impl Hasher for BitsHasher {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 = (self.0.rotate_left(8) ^ b as u64).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+        }
+    }
+
+    fn write_u64(&mut self, x: u64) {
+        self.0 = (self.0 ^ x).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+    }
+}
 
 /// Values at one offset `u = asin h`, for all lobes at once.
 #[derive(Clone, Copy, Debug)]
@@ -289,8 +340,9 @@ pub struct FarSlice<'a> {
     lobes: LobeSet,
     cull: bool,
     tol: Option<f64>,
-    /// [`FarOptions::scattered_step`].
-    scattered_step: f64,
+    /// The largest change of `Phi^s_p` across a scattered segment in tolerance mode
+    /// ([`max_dps`]).
+    max_dps: f64,
     /// Normalisation: 1/2 for the far field, 1/(h2 - h1) for multi-scale.
     weight: f64,
     parts: Vec<Part>,
@@ -426,6 +478,8 @@ struct Refine<'d> {
     /// The azimuths `mu` (`phi`, `-phi` for the mirrored side) at which the part will be
     /// evaluated, when the slice serves one `phi` ([`FarSlice::far_at`]); empty: all.
     reach: Vec<f64>,
+    /// The build's node memo.
+    memo: &'d NodeMemo,
 }
 
 impl Refine<'_> {
@@ -555,7 +609,7 @@ impl<'a> FarSlice<'a> {
             lobes,
             cull: opts.cull,
             tol: opts.tol,
-            scattered_step: opts.scattered_step,
+            max_dps: max_dps(opts),
             weight,
             parts: Vec::new(),
             betas: [beta_p(0, bn), beta_p(1, bn), beta_p(2, bn)],
@@ -621,6 +675,7 @@ impl<'a> FarSlice<'a> {
         }
         // Lobe scales for the tolerance budget: sum over parts of mult * integral A dh
         // (adaptive Simpson in u from the initial segments, see [`FarSlice::mass`]).
+        let memo = NodeMemo::new();
         let mut node_cache: Vec<(Vec<Node>, Vec<Node>, Vec<Node>)> = Vec::new();
         let mut mass = [0.0f64; 5];
         for (_, _, mult, us, us_trt, us_s) in &plans {
@@ -629,11 +684,11 @@ impl<'a> FarSlice<'a> {
             let mk = |v: &Vec<f64>, scattered: bool| -> Vec<Node> {
                 let mut out = Vec::with_capacity(2 * v.len());
                 for w in v.windows(2) {
-                    out.push(fs.node_with(w[0], scattered));
-                    out.push(fs.node_with(0.5 * (w[0] + w[1]), scattered));
+                    out.push(fs.node_memo(&memo, w[0], scattered));
+                    out.push(fs.node_memo(&memo, 0.5 * (w[0] + w[1]), scattered));
                 }
                 if let Some(&last) = v.last() {
-                    out.push(fs.node_with(last, scattered));
+                    out.push(fs.node_memo(&memo, last, scattered));
                 }
                 out
             };
@@ -645,7 +700,7 @@ impl<'a> FarSlice<'a> {
                     (&c, lobes.intersect(LobeSet::SCATTERED)),
                 ];
                 for (nodes, set) in fam {
-                    let m = fs.mass(nodes, set);
+                    let m = fs.mass(&memo, nodes, set);
                     for l in set.iter() {
                         mass[l.index()] += mult * m[l.index()];
                     }
@@ -710,6 +765,7 @@ impl<'a> FarSlice<'a> {
                     capped: false,
                     err_sum: 0.0,
                     reach: reach.clone(),
+                    memo: &memo,
                 };
                 let run = |fs: &FarSlice<'a>, rf: &mut Refine, part: &mut Part| {
                     // The initial segmentation's size is a fact: a step that adds or
@@ -810,9 +866,23 @@ impl<'a> FarSlice<'a> {
         Some((0.5 * tol * peak.max(0.0) / bound).clamp(1.0 / 64.0, 0.5))
     }
 
-    /// Node values at `u`.
-    fn node(&self, u: f64) -> Node {
-        self.node_with(u, true)
+    /// Node values at `u`, from the build's memo when evaluated before.
+    fn node(&self, memo: &NodeMemo, u: f64) -> Node {
+        self.node_memo(memo, u, true)
+    }
+
+    /// [`Self::node_with`] through the build's memo.
+    fn node_memo(&self, memo: &NodeMemo, u: f64, scattered: bool) -> Node {
+        let key = u.to_bits() | ((scattered as u64) << 63);
+        let mut m = memo.0.borrow_mut();
+        if let Some(&i) = m.index.get(&key) {
+            return m.nodes[i as usize];
+        }
+        let n = self.node_with(u, scattered);
+        let i = m.nodes.len() as u32;
+        m.index.insert(key, i);
+        m.nodes.push(n);
+        n
     }
 
     /// [`Self::node`], leaving the scattered lobes' values at 0 unless `scattered` (the
@@ -922,7 +992,7 @@ impl<'a> FarSlice<'a> {
     /// the mass sits in a thin layer (Fresnel at `h -> 1` for `eta -> 1`, steep absorption
     /// at grazing `theta_d`); the tolerance budget built from it then becomes absurdly
     /// tight and the refinement runs away. This only sets the budget's scale: 1 % is ample.
-    fn mass(&self, nodes: &[Node], set: LobeSet) -> [f64; 5] {
+    fn mass(&self, memo: &NodeMemo, nodes: &[Node], set: LobeSet) -> [f64; 5] {
         let mut coarse = [0.0f64; 5];
         let simpson = |a: &Node, m: &Node, b: &Node, l: Lobe| {
             (b.u - a.u) / 6.0
@@ -941,8 +1011,8 @@ impl<'a> FarSlice<'a> {
         while let Some((a, m, b, depth)) = stack.pop() {
             let scattered = set.intersect(LobeSet::SCATTERED) != LobeSet::NONE;
             let (q1, q3) = (
-                self.node_with(0.5 * (a.u + m.u), scattered),
-                self.node_with(0.5 * (m.u + b.u), scattered),
+                self.node_memo(memo, 0.5 * (a.u + m.u), scattered),
+                self.node_memo(memo, 0.5 * (m.u + b.u), scattered),
             );
             let mut done = true;
             for l in set.iter() {
@@ -999,10 +1069,11 @@ impl<'a> FarSlice<'a> {
         let monotone = rf.tape.fact(same_sign && hi - lo > PHI_MIN_SPAN);
         let narrow = rf.tape.choose_bool(hi - lo <= GL_SPAN_SIGMAS * beta);
         let phi_fit = monotone && rf.tape.choose_bool(dmin >= RATIO_MIN * dmax);
+        let memo = rf.memo;
         let quarter = |s: &Self| {
             (
-                s.node_with(0.5 * (n0.u + nm.u), false),
-                s.node_with(0.5 * (nm.u + n1.u), false),
+                s.node_memo(memo, 0.5 * (n0.u + nm.u), false),
+                s.node_memo(memo, 0.5 * (nm.u + n1.u), false),
             )
         };
         if phi_fit {
@@ -1170,13 +1241,13 @@ impl<'a> FarSlice<'a> {
             }
             if let Some(depth) = rf.split(depth) {
                 let (a1, a3) = (
-                    self.node_with(0.5 * (n0.u + q1.u), false),
-                    self.node_with(0.5 * (q1.u + nm.u), false),
+                    self.node_memo(rf.memo, 0.5 * (n0.u + q1.u), false),
+                    self.node_memo(rf.memo, 0.5 * (q1.u + nm.u), false),
                 );
                 self.build_narrow(p, n0, q1, nm, a1, a3, depth, rf, out);
                 let (b1, b3) = (
-                    self.node_with(0.5 * (nm.u + q3.u), false),
-                    self.node_with(0.5 * (q3.u + n1.u), false),
+                    self.node_memo(rf.memo, 0.5 * (nm.u + q3.u), false),
+                    self.node_memo(rf.memo, 0.5 * (q3.u + n1.u), false),
                 );
                 self.build_narrow(p, nm, q3, n1, b1, b3, depth, rf, out);
                 return;
@@ -1316,15 +1387,6 @@ impl<'a> FarSlice<'a> {
             .collect()
     }
 
-    /// Largest change of `Phi^s_p` across a scattered segment in tolerance mode
-    /// ([`FarOptions::scattered_step`] at `tol = 1e-4`, scaled by the cube root of the
-    /// tolerance ratio, clamped to [1/4.6, 4], i.e. to `tol` in [1e-6, 6.4e-3]: the lower
-    /// clamp bounds the piece count at tolerances below those the tests and reports use).
-    fn max_dps(&self) -> f64 {
-        let ratio = self.tol.unwrap_or(1e-4) / 1e-4;
-        self.scattered_step * ratio.cbrt().clamp(0.01f64.cbrt(), 4.0)
-    }
-
     /// The slice's medulla table rows, if the fiber has a medulla.
     fn cn_rows(&self) -> Option<CnRows<'a>> {
         self.az.model.medulla().map(|m| m.cn_rows())
@@ -1353,8 +1415,8 @@ impl<'a> FarSlice<'a> {
         if len_u <= 0.0 {
             return;
         }
-        let q1 = self.node(0.5 * (n0.u + nm.u));
-        let q3 = self.node(0.5 * (nm.u + n1.u));
+        let q1 = self.node(rf.memo, 0.5 * (n0.u + nm.u));
+        let q3 = self.node(rf.memo, 0.5 * (nm.u + n1.u));
         let all = [n0, q1, nm, q3, n1];
         let d = all.map(|n| n.dphis[k]);
         let monotone = d.iter().all(|&v| v > 0.0) || d.iter().all(|&v| v < 0.0);
@@ -1485,7 +1547,7 @@ impl<'a> FarSlice<'a> {
             // depth-first and, once it ran out, leave the rest of the range coarse. The
             // pieces may still be bisected for their fit. Few pieces (the default step)
             // are left to bisection, which adapts to a non-uniform `Phi^s`.
-            let pieces = (dps / self.max_dps()).ceil().clamp(1.0, MAX_PSI_PIECES) as u32;
+            let pieces = (dps / self.max_dps).ceil().clamp(1.0, MAX_PSI_PIECES) as u32;
             let pieces = rf.tape.choose(pieces).max(1) as usize;
             if pieces > BISECT_PSI_PIECES {
                 let at = |j: usize| n0.u + len * j as f64 / pieces as f64;
@@ -1494,9 +1556,9 @@ impl<'a> FarSlice<'a> {
                     let b = if j + 1 == pieces {
                         n1
                     } else {
-                        self.node(at(j + 1))
+                        self.node(rf.memo, at(j + 1))
                     };
-                    let m = self.node(0.5 * (a.u + b.u));
+                    let m = self.node(rf.memo, 0.5 * (a.u + b.u));
                     self.build_scat(l, a, m, b, 1, rf, out);
                     a = b;
                 }
@@ -1507,8 +1569,8 @@ impl<'a> FarSlice<'a> {
         let lin = (l1 - l0) / len;
         if let Some(b) = rf.budget {
             {
-                let q1 = self.node(0.5 * (n0.u + nm.u));
-                let q3 = self.node(0.5 * (nm.u + n1.u));
+                let q1 = self.node(rf.memo, 0.5 * (n0.u + nm.u));
+                let q3 = self.node(rf.memo, 0.5 * (nm.u + n1.u));
                 let ys = [
                     n0.pre[i] * n0.frac,
                     nm.pre[i] * nm.frac,
@@ -1522,7 +1584,7 @@ impl<'a> FarSlice<'a> {
                     e = e.max((fit - q.pre[i] * q.frac * q.lam[i].exp()).abs());
                 }
                 let fit_poor = e > b && e * len > rf.small;
-                if rf.tape.choose_bool(fit_poor || dps > self.max_dps()) {
+                if rf.tape.choose_bool(fit_poor || dps > self.max_dps) {
                     if let Some(depth) = rf.split(depth) {
                         self.build_scat(l, n0, q1, nm, depth, rf, out);
                         self.build_scat(l, nm, q3, n1, depth, rf, out);
@@ -1630,7 +1692,8 @@ impl<'a> FarSlice<'a> {
     /// every `phi` testing every piece. On an uneven grid it equals evaluating the `phi` one
     /// by one bit for bit (same terms in the same order per `phi`); on an evenly spaced grid
     /// it sweeps node Gaussians by recurrence (quadrature pieces, and Phi pieces in their
-    /// node form) and reads the scattered tables along the grid, within 1e-12 of each
+    /// node form), or sums them in Fourier space for a wide lobe ([`FourierGrid`]), and
+    /// reads the scattered tables along the grid, within 1e-12 of each
     /// lobe's peak of the one-by-one values (tests `eval_many_equals_eval_exactly`,
     /// `eval_many_on_even_grids_matches_eval`).
     pub fn eval_many(&self, phis: &[f64]) -> Vec<LobeValues> {
@@ -1656,10 +1719,20 @@ impl<'a> FarSlice<'a> {
         let mut s = vec![0.0; wrapped.len()];
         // Node form of the current Phi piece (poly_gauss_nodes), reused across pieces.
         let mut phi_nodes: Vec<(f64, f64)> = Vec::new();
+        // Nodes of a lobe summed in Fourier space (`FourierGrid`), reused across lobes,
+        // and the grid's trigonometric table.
+        let mut spectral: Vec<(f64, f64)> = Vec::new();
+        let mut table = FourierTable::default();
         for part in &self.parts {
+            let sides = part.signs().count();
             for p in 0..3 {
                 let (beta, w) = self.image_window(p);
                 s.iter_mut().for_each(|x| *x = 0.0);
+                let fourier = grid
+                    .as_ref()
+                    .filter(|g| g.step <= SWEEP_MAX_STEP * beta)
+                    .and_then(|g| FourierGrid::new(g, sorted.len(), beta, w, sides));
+                spectral.clear();
                 for pc in &part.unsc[p] {
                     let (lo, hi) = pc.range();
                     // The node form of a Phi piece, built once for both sides.
@@ -1672,6 +1745,19 @@ impl<'a> FarSlice<'a> {
                         }
                         _ => false,
                     };
+                    if fourier.is_some() {
+                        match pc {
+                            Piece::Gl { nodes, .. } => {
+                                spectral.extend_from_slice(nodes);
+                                continue;
+                            }
+                            Piece::Phi { .. } if phi_swept => {
+                                spectral.extend_from_slice(&phi_nodes);
+                                continue;
+                            }
+                            _ => {}
+                        }
+                    }
                     for sign in part.signs() {
                         // Candidates: mu = sign phi within the window of some image k,
                         // widened by WINDOW_SLACK so rounding cannot drop a phi that
@@ -1746,6 +1832,10 @@ impl<'a> FarSlice<'a> {
                             images(shift, qa, qb, &mut s);
                         }
                     }
+                }
+                if let (Some(f), Some(g)) = (&fourier, grid) {
+                    table.reserve(g, sorted.len(), f.rho.len());
+                    f.add(&spectral, (part.direct, part.mirror), &table, &mut s);
                 }
                 for (&i, &si) in order.iter().zip(&s) {
                     if si != 0.0 {
@@ -1944,8 +2034,7 @@ impl<'a> FarSlice<'a> {
                 // psi at the first grid point: phi - phi_hi (direct), -phi - phi_hi (mirror).
                 let a = &mut acc[(sign < 0.0) as usize];
                 for pc in &sn.psi {
-                    let w = rows.weights(sign * g.first - pc.phi_hi, pc.len, &pc.g);
-                    rows.accumulate(a, pc.row, &w);
+                    rows.accumulate_piece(a, pc.row, sign * g.first - pc.phi_hi, pc.len, &pc.g);
                 }
                 for node in &sn.nodes {
                     // The query's offset (the mirror's is -x, as in add_scattered) and
@@ -2028,6 +2117,15 @@ impl<'a> FarSlice<'a> {
     }
 }
 
+/// Largest change of `Phi^s_p` across a scattered segment in tolerance mode
+/// ([`FarOptions::scattered_step`] at `tol = 1e-4`, scaled by the cube root of the
+/// tolerance ratio, clamped to [1/4.6, 4], i.e. to `tol` in [1e-6, 6.4e-3]: the lower
+/// clamp bounds the piece count at tolerances below those the tests and reports use).
+fn max_dps(opts: &FarOptions) -> f64 {
+    let ratio = opts.tol.unwrap_or(1e-4) / 1e-4;
+    opts.scattered_step * ratio.cbrt().clamp(0.01f64.cbrt(), 4.0)
+}
+
 /// A bound on a segment's fit error that its quarter-point checks cannot see: when the
 /// log-attenuation departs from its chord by more than [`LAM_DEV_MAX`] there (`dev`), the
 /// mass can hide between the check points (TT at kappa -> 1 and grazing theta_d:
@@ -2082,6 +2180,127 @@ fn clamp_dips(mut v: LobeValues) -> LobeValues {
 /// `e^(SWEEP_MAX_STEP * CULL_SIGMAS + SWEEP_MAX_STEP^2 / 2)` = `e^42` (no overflow), and a
 /// coarser grid puts at most a couple of `phi` in a node's window anyway.
 const SWEEP_MAX_STEP: f64 = 4.0;
+
+/// [`FourierGrid`] sums the series to the first `n` with `n beta >= FOURIER_REACH`: the
+/// terms left out are below `exp(-FOURIER_REACH^2 / 2)` = 1e-17 of the mean.
+const FOURIER_REACH: f64 = 8.85;
+/// Most terms of a [`FourierGrid`] (beyond, the node sweep is cheaper for any grid).
+const FOURIER_MAX_TERMS: usize = 256;
+/// Nodes per block of [`FourierGrid::add`] (independent rotations, one vector lane each).
+const FOURIER_LANES: usize = 4;
+
+/// The wrapped-Gaussian sum of a lobe's nodes on an evenly spaced grid, in Fourier space:
+/// `sum_k W_k sum_j G(Phi_k - phi + 2 pi j; beta)` is
+/// `1/(2 pi) sum_k W_k (1 + 2 sum_{n>=1} rho_n cos n(Phi_k - phi))` with
+/// `rho_n = exp(-n^2 beta^2 / 2)` (the Fourier series of the wrapped normal; Poisson
+/// summation), so the nodes enter only through `A_n = sum_k W_k cos n Phi_k` and
+/// `B_n = sum_k W_k sin n Phi_k`. For a wide lobe (fur: `beta_n` ~ 10-20 deg) the series
+/// needs a few dozen terms while a node's Gaussian window covers the whole grid: per node
+/// that is `n` complex rotations instead of two sides times the grid. It sums every image
+/// (the culled sweep leaves out those beyond `CULL_SIGMAS`, below `e^-36` of a node's
+/// peak), so the two agree far within 1e-12 of the lobe's peak.
+struct FourierGrid {
+    /// `rho_n`, `n = 0..terms`.
+    rho: Vec<f64>,
+}
+
+/// `cos n phi_q` and `sin n phi_q` on a grid (`[n][q]`), shared by the lobes of a slice.
+#[derive(Default)]
+struct FourierTable {
+    terms: usize,
+    cos: Vec<f64>,
+    sin: Vec<f64>,
+}
+
+impl FourierTable {
+    /// Make the table hold at least `terms` rows for the `points` of `g`.
+    fn reserve(&mut self, g: &UniformGrid, points: usize, terms: usize) {
+        if self.terms >= terms {
+            return;
+        }
+        self.cos = vec![0.0; terms * points];
+        self.sin = vec![0.0; terms * points];
+        for q in 0..points {
+            let (si, co) = (g.first + q as f64 * g.step).sin_cos();
+            let (mut re, mut im) = (1.0, 0.0);
+            for n in 0..terms {
+                self.cos[n * points + q] = re;
+                self.sin[n * points + q] = im;
+                (re, im) = (re * co - im * si, re * si + im * co);
+            }
+        }
+        self.terms = terms;
+    }
+}
+
+impl FourierGrid {
+    /// `Some` when the series costs less than sweeping each node over its window on
+    /// `points` grid points (`sides` 1 or 2; a complex rotation counted as two sweep steps).
+    fn new(g: &UniformGrid, points: usize, beta: f64, w: f64, sides: usize) -> Option<Self> {
+        let terms = (FOURIER_REACH / beta).ceil();
+        let window = ((2.0 * w / g.step).floor() + 1.0).min(points as f64);
+        if !(terms <= FOURIER_MAX_TERMS as f64 && 2.0 * terms < sides as f64 * window) {
+            return None;
+        }
+        let rho = (0..=terms as usize)
+            .map(|n| (-0.5 * (n as f64 * beta).powi(2)).exp())
+            .collect();
+        Some(FourierGrid { rho })
+    }
+
+    /// Add the sum over `nodes` `(Phi_k, W_k)` for the direct side (`G(Phi_k - phi)`) and
+    /// the mirrored one (`G(Phi_k + phi)`) at every grid point of `table` to `s` (sorted
+    /// order; `table` holds at least `self.rho.len()` rows).
+    fn add(
+        &self,
+        nodes: &[(f64, f64)],
+        (direct, mirror): (bool, bool),
+        table: &FourierTable,
+        s: &mut [f64],
+    ) {
+        if nodes.is_empty() || !(direct || mirror) {
+            return;
+        }
+        let terms = self.rho.len();
+        // A_n, B_n by rotation, z^n with z = exp(i Phi_k) (error ~n eps), in blocks of
+        // FOURIER_LANES nodes with one partial sum per lane.
+        const L: usize = FOURIER_LANES;
+        let (mut a, mut b) = (vec![[0.0; L]; terms], vec![[0.0; L]; terms]);
+        for block in nodes.chunks(L) {
+            let (mut re, mut im, mut co, mut si) = ([0.0; L], [0.0; L], [1.0; L], [0.0; L]);
+            for (j, &(ph, wt)) in block.iter().enumerate() {
+                (si[j], co[j]) = ph.sin_cos();
+                re[j] = wt;
+            }
+            for n in 0..terms {
+                for j in 0..L {
+                    a[n][j] += re[j];
+                    b[n][j] += im[j];
+                    (re[j], im[j]) = (re[j] * co[j] - im[j] * si[j], re[j] * si[j] + im[j] * co[j]);
+                }
+            }
+        }
+        // Direct + mirror: cos n(Phi - phi) + cos n(Phi + phi) = 2 cos n Phi cos n phi;
+        // the sine parts carry the difference of the sides.
+        let ca = (direct as u8 + mirror as u8) as f64;
+        let cb = direct as u8 as f64 - mirror as u8 as f64;
+        let points = s.len();
+        for n in 0..terms {
+            let f = if n == 0 { 1.0 } else { 2.0 * self.rho[n] } / TAU;
+            let an = ca * f * a[n].iter().sum::<f64>();
+            let bn = cb * f * b[n].iter().sum::<f64>();
+            let row = n * points..(n + 1) * points;
+            for (x, c) in s.iter_mut().zip(&table.cos[row.clone()]) {
+                *x += an * c;
+            }
+            if bn != 0.0 {
+                for (x, c) in s.iter_mut().zip(&table.sin[row]) {
+                    *x += bn * c;
+                }
+            }
+        }
+    }
+}
 
 /// Points per run of the Gaussian recurrence before it restarts from exponentials: each
 /// of its [`SWEEP_CHAINS`] chains takes `SWEEP_RUN / SWEEP_CHAINS` = 32 steps, whose drift
@@ -2162,12 +2381,14 @@ impl UniformGrid {
         let norm = 1.0 / (at.beta * TAU.sqrt());
         let d = at.sign * self.step;
         let damp = (-2.0 * self.step * self.step * c).exp();
+        let damp_s2 = damp.powi((SWEEP_CHAINS * SWEEP_CHAINS) as i32);
+        let inv_step = 1.0 / self.step;
         for &(ph, wt) in nodes {
             // mu_q within w of ph: sign * x_q in [ph - shift - w, ph - shift + w].
             let (lo, hi) = (ph - at.shift - at.w, ph - at.shift + at.w);
             let (xlo, xhi) = if at.sign > 0.0 { (lo, hi) } else { (-hi, -lo) };
-            let q0 = (((xlo - self.first) / self.step).ceil().max(at.qa as f64)) as usize;
-            let q1 = (((xhi - self.first) / self.step).floor() + 1.0).min(at.qb as f64);
+            let q0 = (((xlo - self.first) * inv_step).ceil().max(at.qa as f64)) as usize;
+            let q1 = (((xhi - self.first) * inv_step).floor() + 1.0).min(at.qb as f64);
             if q1 <= q0 as f64 {
                 continue;
             }
@@ -2198,7 +2419,6 @@ impl UniformGrid {
                 // r_{start + k} ... r_{start + k + S - 1}.
                 let mut ps: [f64; SWEEP_CHAINS] =
                     std::array::from_fn(|k| ratios[k..k + SWEEP_CHAINS].iter().product());
-                let damp_s2 = damp.powi((SWEEP_CHAINS * SWEEP_CHAINS) as i32);
                 let run = &mut s[start..end];
                 let mut chunks = run.chunks_exact_mut(SWEEP_CHAINS);
                 for chunk in &mut chunks {
@@ -2335,7 +2555,7 @@ mod tests {
             let gauss = |x: f64| (-0.5 * (x / beta).powi(2)).exp() / (beta * TAU.sqrt());
             for du in [0.005, 0.02, 0.05, 0.1, 0.2, 0.4, 0.8, 1.2] {
                 let (u0, u1) = (0.3, 0.3 + du);
-                let (n0, n1) = (fs.node(u0), fs.node(u1));
+                let (n0, n1) = (fs.node_with(u0, true), fs.node_with(u1, true));
                 let (lo, hi) = (n0.phi[p].min(n1.phi[p]), n0.phi[p].max(n1.phi[p]));
                 let (piece, err) = fs.gl_piece_with(p, n0, n1, lo, hi, false, true, &mut Tape::Off);
                 let Piece::Gl { nodes, .. } = &piece else {
@@ -2414,6 +2634,57 @@ mod tests {
                 assert_eq!(a.to_bits(), b.to_bits(), "beta {beta} sign {sign}");
             }
         }
+    }
+
+    /// The Fourier sum of node Gaussians equals the wrapped Gaussians summed directly, for
+    /// either side alone and both, at widths where it is chosen; it is not chosen for a
+    /// narrow lobe, whose window covers a few grid points.
+    #[test]
+    fn fourier_grid_equals_wrapped_gaussian_sums() {
+        let sorted: Vec<f64> = (0..91).map(|q| q as f64 * PI / 90.0).collect();
+        let g = UniformGrid::detect(&sorted).expect("even grid");
+        let nodes: Vec<(f64, f64)> = (0..23)
+            .map(|k| (-2.9 + 0.41 * k as f64, 0.2 + 0.05 * (k % 7) as f64))
+            .collect();
+        let mut table = FourierTable::default();
+        for beta in [0.2, 0.5, 1.3, 2.5] {
+            let f = FourierGrid::new(&g, sorted.len(), beta, CULL_SIGMAS * beta, 2)
+                .expect("a wide lobe takes the series");
+            table.reserve(&g, sorted.len(), f.rho.len());
+            for sides in [(true, false), (false, true), (true, true)] {
+                let mut s = vec![0.0; sorted.len()];
+                f.add(&nodes, sides, &table, &mut s);
+                let scale: f64 = nodes.iter().map(|n| n.1).sum::<f64>() / (beta * TAU.sqrt());
+                for (q, &phi) in sorted.iter().enumerate() {
+                    let direct: f64 = nodes
+                        .iter()
+                        .map(|&(ph, w)| {
+                            let d = if sides.0 {
+                                wrapped_gaussian(ph - phi, beta)
+                            } else {
+                                0.0
+                            };
+                            let m = if sides.1 {
+                                wrapped_gaussian(ph + phi, beta)
+                            } else {
+                                0.0
+                            };
+                            w * (d + m)
+                        })
+                        .sum();
+                    // Truncation is 1e-17 of the mean; rounding grows with the terms
+                    // (up to 45 here) times eps of the nodes' summed peak.
+                    assert!(
+                        (s[q] - direct).abs() <= 1e-13 * scale,
+                        "beta {beta} sides {sides:?} phi {phi}: {} vs {direct}",
+                        s[q]
+                    );
+                }
+            }
+        }
+        // Human hair's R lobe (beta_n 3.75 deg): 136 terms against a 33-point window.
+        let beta = 3.75f64.to_radians();
+        assert!(FourierGrid::new(&g, sorted.len(), beta, CULL_SIGMAS * beta, 2).is_none());
     }
 
     /// The misfit integral of a quartic is exact (the quartic through five points is
