@@ -159,8 +159,8 @@ const RESCALE_PHIS: usize = 24;
 /// Rebuilds [`FarSlice::peak_rescale`] may ask for, each at a smaller budget.
 const RESCALE_ROUNDS: usize = 3;
 
-/// The nodes one slice build has evaluated, by `u` and whether the scattered values were
-/// asked for (the sign bit of the key; `u >= 0`). The lobes of a family share their
+/// The nodes one slice build has evaluated, by the bits of `u` and whether the scattered
+/// values were asked for. The lobes of a family share their
 /// initial segments and bisect them alike, and the mass estimate evaluates the quarter
 /// points that the builders then check: without it two in five node evaluations of a
 /// slice were repeats (red fox, human). A node is a pure function of its key, so a memo
@@ -169,28 +169,30 @@ struct NodeMemo(RefCell<MemoEntries>);
 
 /// The nodes of a [`NodeMemo`] and their index by key.
 struct MemoEntries {
-    index: HashMap<u64, u32, BuildHasherDefault<BitsHasher>>,
+    index: HashMap<(u64, bool), u32, BuildHasherDefault<BitsHasher>>,
     nodes: Vec<Node>,
 }
 
 impl NodeMemo {
     fn new() -> Self {
-        // Room for a typical slice's few hundred nodes without regrowing.
+        // A typical slice's nodes (a few hundred) with at most one regrowth; a fixed
+        // large reserve cost more than it saved in the fitter's many small builds.
         NodeMemo(RefCell::new(MemoEntries {
-            index: HashMap::with_capacity_and_hasher(512, Default::default()),
-            nodes: Vec::with_capacity(512),
+            index: HashMap::with_capacity_and_hasher(256, Default::default()),
+            nodes: Vec::with_capacity(256),
         }))
     }
 }
 
-/// A hasher for `f64` bit patterns: one multiply (Fibonacci hashing), enough for keys that
-/// are distinct doubles.
+/// A hasher for `f64` bit patterns: a multiply per word (Fibonacci hashing), its high half
+/// folded into the low one that picks the bucket (midpoints of dyadic offsets end in zero
+/// bits), enough for keys that are distinct doubles.
 #[derive(Default)]
 struct BitsHasher(u64);
 
 impl Hasher for BitsHasher {
     fn finish(&self) -> u64 {
-        self.0
+        self.0 ^ (self.0 >> 32)
     }
 
     fn write(&mut self, bytes: &[u8]) {
@@ -773,7 +775,7 @@ impl<'a> FarSlice<'a> {
                     // leaves the recording's decisions for other segments.
                     rf.tape.fact_u32(nodes.len() as u32);
                     for seg in (0..nodes.len().saturating_sub(2)).step_by(2) {
-                        let (n0, nm, n1) = (nodes[seg], nodes[seg + 1], nodes[seg + 2]);
+                        let (n0, nm, n1) = (&nodes[seg], &nodes[seg + 1], &nodes[seg + 2]);
                         if l.is_scattered() && rf.budget.is_some() {
                             fs.build_psi(l, n0, nm, n1, 0, rf, &mut part.scat[l.p() - 1]);
                         } else if l.is_scattered() {
@@ -873,7 +875,7 @@ impl<'a> FarSlice<'a> {
 
     /// [`Self::node_with`] through the build's memo.
     fn node_memo(&self, memo: &NodeMemo, u: f64, scattered: bool) -> Node {
-        let key = u.to_bits() | ((scattered as u64) << 63);
+        let key = (u.to_bits(), scattered);
         let mut m = memo.0.borrow_mut();
         if let Some(&i) = m.index.get(&key) {
             return m.nodes[i as usize];
@@ -1044,14 +1046,14 @@ impl<'a> FarSlice<'a> {
     fn build_unsc(
         &self,
         p: usize,
-        n0: Node,
-        nm: Node,
-        n1: Node,
+        n0: &Node,
+        nm: &Node,
+        n1: &Node,
         depth: u32,
         rf: &mut Refine,
         out: &mut Vec<Piece>,
     ) {
-        if !self.reaches(p, &n0, &n1, rf) {
+        if !self.reaches(p, n0, n1, rf) {
             return;
         }
         let beta = self.betas[p];
@@ -1110,7 +1112,7 @@ impl<'a> FarSlice<'a> {
                 e = e.max((fit - Self::g_exact(&q, p)).abs());
                 dev = dev.max((l0 + l * x - q.lam[p]).abs());
             }
-            e = e.max(hidden_mass_bound(dev, [n0, nm, n1, q1, q3], |n| {
+            e = e.max(hidden_mass_bound(dev, [n0, nm, n1, &q1, &q3], |n| {
                 Self::g_exact(n, p)
             }));
             if rf.tape.choose_bool(e <= b) {
@@ -1119,10 +1121,10 @@ impl<'a> FarSlice<'a> {
                 // The Gaussian is resolved across the whole segment: refine in u for GL
                 // instead (the fit in Phi is limited by the rounding of Phi differences
                 // when Phi' -> 0, e.g. TT at eta -> 1, and would never converge).
-                self.build_narrow(p, n0, nm, n1, q1, q3, depth, rf, out);
+                self.build_narrow(p, n0, nm, n1, &q1, &q3, depth, rf, out);
             } else if let Some(depth) = rf.split(depth) {
-                self.build_unsc(p, n0, q1, nm, depth, rf, out);
-                self.build_unsc(p, nm, q3, n1, depth, rf, out);
+                self.build_unsc(p, n0, &q1, nm, depth, rf, out);
+                self.build_unsc(p, nm, &q3, n1, depth, rf, out);
             } else {
                 out.push(piece);
             }
@@ -1131,7 +1133,7 @@ impl<'a> FarSlice<'a> {
         if narrow {
             if rf.budget.is_some() {
                 let (q1, q3) = quarter(self);
-                self.build_narrow(p, n0, nm, n1, q1, q3, depth, rf, out);
+                self.build_narrow(p, n0, nm, n1, &q1, &q3, depth, rf, out);
             } else {
                 out.push(self.gl_piece(p, n0, n1, lo, hi, false, &mut rf.tape));
             }
@@ -1140,8 +1142,8 @@ impl<'a> FarSlice<'a> {
         match rf.split(depth) {
             Some(depth) => {
                 let (q1, q3) = quarter(self);
-                self.build_unsc(p, n0, q1, nm, depth, rf, out);
-                self.build_unsc(p, nm, q3, n1, depth, rf, out);
+                self.build_unsc(p, n0, &q1, nm, depth, rf, out);
+                self.build_unsc(p, nm, &q3, n1, depth, rf, out);
             }
             None => out.push(self.gl_piece(p, n0, n1, lo, hi, false, &mut rf.tape)),
         }
@@ -1191,16 +1193,16 @@ impl<'a> FarSlice<'a> {
     fn build_narrow(
         &self,
         p: usize,
-        n0: Node,
-        nm: Node,
-        n1: Node,
-        q1: Node,
-        q3: Node,
+        n0: &Node,
+        nm: &Node,
+        n1: &Node,
+        q1: &Node,
+        q3: &Node,
         depth: u32,
         rf: &mut Refine,
         out: &mut Vec<Piece>,
     ) {
-        if !self.reaches(p, &n0, &n1, rf) {
+        if !self.reaches(p, n0, n1, rf) {
             return;
         }
         let len = n1.u - n0.u;
@@ -1244,12 +1246,12 @@ impl<'a> FarSlice<'a> {
                     self.node_memo(rf.memo, 0.5 * (n0.u + q1.u), false),
                     self.node_memo(rf.memo, 0.5 * (q1.u + nm.u), false),
                 );
-                self.build_narrow(p, n0, q1, nm, a1, a3, depth, rf, out);
+                self.build_narrow(p, n0, q1, nm, &a1, &a3, depth, rf, out);
                 let (b1, b3) = (
                     self.node_memo(rf.memo, 0.5 * (nm.u + q3.u), false),
                     self.node_memo(rf.memo, 0.5 * (q3.u + n1.u), false),
                 );
-                self.build_narrow(p, nm, q3, n1, b1, b3, depth, rf, out);
+                self.build_narrow(p, nm, q3, n1, &b1, &b3, depth, rf, out);
                 return;
             }
         }
@@ -1267,8 +1269,8 @@ impl<'a> FarSlice<'a> {
     fn gl_piece(
         &self,
         p: usize,
-        n0: Node,
-        n1: Node,
+        n0: &Node,
+        n1: &Node,
         lo: f64,
         hi: f64,
         few_ok: bool,
@@ -1294,8 +1296,8 @@ impl<'a> FarSlice<'a> {
     fn gl_piece_with(
         &self,
         p: usize,
-        n0: Node,
-        n1: Node,
+        n0: &Node,
+        n1: &Node,
         lo: f64,
         hi: f64,
         few_ok: bool,
@@ -1400,9 +1402,9 @@ impl<'a> FarSlice<'a> {
     fn build_psi(
         &self,
         l: Lobe,
-        n0: Node,
-        nm: Node,
-        n1: Node,
+        n0: &Node,
+        nm: &Node,
+        n1: &Node,
         depth: u32,
         rf: &mut Refine,
         out: &mut ScatNodes,
@@ -1417,7 +1419,7 @@ impl<'a> FarSlice<'a> {
         }
         let q1 = self.node(rf.memo, 0.5 * (n0.u + nm.u));
         let q3 = self.node(rf.memo, 0.5 * (nm.u + n1.u));
-        let all = [n0, q1, nm, q3, n1];
+        let all = [n0, &q1, nm, &q3, n1];
         let d = all.map(|n| n.dphis[k]);
         let monotone = d.iter().all(|&v| v > 0.0) || d.iter().all(|&v| v < 0.0);
         let (dmin, dmax) = d.iter().fold((f64::INFINITY, 0.0f64), |(a, b), &v| {
@@ -1429,8 +1431,8 @@ impl<'a> FarSlice<'a> {
             if rf.tape.choose_bool(span <= rows.bin_width()) {
                 self.build_scat(l, n0, nm, n1, depth, rf, out);
             } else if let Some(depth) = rf.split(depth) {
-                self.build_psi(l, n0, q1, nm, depth, rf, out);
-                self.build_psi(l, nm, q3, n1, depth, rf, out);
+                self.build_psi(l, n0, &q1, nm, depth, rf, out);
+                self.build_psi(l, nm, &q3, n1, depth, rf, out);
             } else {
                 self.build_scat(l, n0, nm, n1, depth, rf, out);
             }
@@ -1443,7 +1445,7 @@ impl<'a> FarSlice<'a> {
             let t = rows.weight(row, n.x_med);
             (phi_hi - n.phis[k], [w, w * t])
         };
-        let [a, b, c] = [dens(&n0), dens(&nm), dens(&n1)];
+        let [a, b, c] = [dens(n0), dens(nm), dens(n1)];
         let folds = rf.tape.fact((b.0 - a.0) * (c.0 - b.0) <= 0.0);
         if rf.tape.choose_bool(span < PSI_MIN_SPAN) || folds {
             // Phi^s constant to rounding across the segment: no quadratic in Phi^s through
@@ -1477,8 +1479,8 @@ impl<'a> FarSlice<'a> {
             let err = row_part + e[1] * span * rows.gap(row);
             if rf.tape.choose_bool(err > bud * len_u && err > rf.small) {
                 if let Some(depth) = rf.split(depth) {
-                    self.build_psi(l, n0, q1, nm, depth, rf, out);
-                    self.build_psi(l, nm, q3, n1, depth, rf, out);
+                    self.build_psi(l, n0, &q1, nm, depth, rf, out);
+                    self.build_psi(l, nm, &q3, n1, depth, rf, out);
                     return;
                 }
             }
@@ -1525,9 +1527,9 @@ impl<'a> FarSlice<'a> {
     fn build_scat(
         &self,
         l: Lobe,
-        n0: Node,
-        nm: Node,
-        n1: Node,
+        n0: &Node,
+        nm: &Node,
+        n1: &Node,
         depth: u32,
         rf: &mut Refine,
         out: &mut ScatNodes,
@@ -1551,15 +1553,15 @@ impl<'a> FarSlice<'a> {
             let pieces = rf.tape.choose(pieces).max(1) as usize;
             if pieces > BISECT_PSI_PIECES {
                 let at = |j: usize| n0.u + len * j as f64 / pieces as f64;
-                let mut a = n0;
+                let mut a = *n0;
                 for j in 0..pieces {
                     let b = if j + 1 == pieces {
-                        n1
+                        *n1
                     } else {
                         self.node(rf.memo, at(j + 1))
                     };
                     let m = self.node(rf.memo, 0.5 * (a.u + b.u));
-                    self.build_scat(l, a, m, b, 1, rf, out);
+                    self.build_scat(l, &a, &m, &b, 1, rf, out);
                     a = b;
                 }
                 return;
@@ -1586,8 +1588,8 @@ impl<'a> FarSlice<'a> {
                 let fit_poor = e > b && e * len > rf.small;
                 if rf.tape.choose_bool(fit_poor || dps > self.max_dps) {
                     if let Some(depth) = rf.split(depth) {
-                        self.build_scat(l, n0, q1, nm, depth, rf, out);
-                        self.build_scat(l, nm, q3, n1, depth, rf, out);
+                        self.build_scat(l, n0, &q1, nm, depth, rf, out);
+                        self.build_scat(l, nm, &q3, n1, depth, rf, out);
                         return;
                     }
                 }
@@ -2132,7 +2134,7 @@ fn max_dps(opts: &FarOptions) -> f64 {
 /// `exp(-c sqrt(u_edge - u))` with c in the hundreds puts nearly all of it within 1e-5 of
 /// the medulla edge, while the quarter points see ~e^-100 in both fit and integrand), and
 /// the largest `value` over the five nodes bounds the error instead; else 0.
-fn hidden_mass_bound(dev: f64, nodes: [Node; 5], value: impl Fn(&Node) -> f64) -> f64 {
+fn hidden_mass_bound(dev: f64, nodes: [&Node; 5], value: impl Fn(&Node) -> f64) -> f64 {
     if dev > LAM_DEV_MAX {
         nodes.iter().fold(0.0f64, |a, n| a.max(value(n)))
     } else {
@@ -2557,7 +2559,8 @@ mod tests {
                 let (u0, u1) = (0.3, 0.3 + du);
                 let (n0, n1) = (fs.node_with(u0, true), fs.node_with(u1, true));
                 let (lo, hi) = (n0.phi[p].min(n1.phi[p]), n0.phi[p].max(n1.phi[p]));
-                let (piece, err) = fs.gl_piece_with(p, n0, n1, lo, hi, false, true, &mut Tape::Off);
+                let (piece, err) =
+                    fs.gl_piece_with(p, &n0, &n1, lo, hi, false, true, &mut Tape::Off);
                 let Piece::Gl { nodes, .. } = &piece else {
                     panic!("not a GL piece")
                 };
