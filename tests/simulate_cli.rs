@@ -40,10 +40,12 @@ fn simulate_writes_labelled_csv_and_metadata() {
         .arg(&out)
         .output()
         .unwrap();
+    let stderr = String::from_utf8_lossy(&status.stderr);
+    assert!(status.status.success(), "stderr: {stderr}");
+    // --out did not exist: the run says it made it, as every command does.
     assert!(
-        status.status.success(),
-        "stderr: {}",
-        String::from_utf8_lossy(&status.stderr)
+        stderr.contains(&format!("note: created folder {}", out.display())),
+        "stderr: {stderr}"
     );
     let csv = std::fs::read_to_string(out.join("profile.csv")).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
@@ -137,6 +139,13 @@ fn simulate_file_extension_picks_the_format() {
         let o = tiny_run(out, &["--file", name]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
+    // A folder that exists gets no note of its creation.
+    let again = tiny_run(&a, &["--file", "p.csv", "--force"]);
+    let stderr = String::from_utf8_lossy(&again.stderr);
+    assert!(
+        again.status.success() && !stderr.contains("created folder"),
+        "{stderr}"
+    );
     let opts = furfit::profile::LoadOptions::default();
     let csv = furfit::profile::load_full(&a.join("p.csv"), &opts).unwrap();
     let npz = furfit::profile::load_full(&b.join("p.npz"), &opts).unwrap();

@@ -325,7 +325,12 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
         };
         anyhow::bail!("{e} (it changed while simulating){kept}");
     }
+    // The folder is made by the write (the probe before the run creates nothing).
+    let created = !out.as_os_str().is_empty() && !out.exists();
     output::write_all(&out, &a.file, &prof, &md)?;
+    if created {
+        super::note_created_folder(&out);
+    }
     if valid == 0 {
         // Written (the metadata says why each sample is invalid), but no fit can use it.
         eprintln!(
