@@ -160,11 +160,11 @@ const RESCALE_PHIS: usize = 24;
 const RESCALE_ROUNDS: usize = 3;
 
 /// The nodes one slice build has evaluated, by the bits of `u` and whether the scattered
-/// values were asked for. The lobes of a family share their
-/// initial segments and bisect them alike, and the mass estimate evaluates the quarter
-/// points that the builders then check: without it two in five node evaluations of a
-/// slice were repeats (red fox, human). A node is a pure function of its key, so a memo
-/// hit returns the same bits as a fresh evaluation.
+/// values were asked for. The lobes of a family share their initial segments and bisect
+/// them alike, and the mass estimate evaluates the quarter points that the builders then
+/// check: without it two in five node evaluations of a grid synthesis slice were repeats
+/// (red fox, human). A node is a pure function of its key, so a memo hit returns the same
+/// bits as a fresh evaluation.
 struct NodeMemo(RefCell<MemoEntries>);
 
 /// The nodes of a [`NodeMemo`] and their index by key.
@@ -175,8 +175,7 @@ struct MemoEntries {
 
 impl NodeMemo {
     fn new() -> Self {
-        // A typical slice's nodes (a few hundred) with at most one regrowth; a fixed
-        // large reserve cost more than it saved in the fitter's many small builds.
+        // A grid synthesis slice's few hundred nodes with at most one regrowth.
         NodeMemo(RefCell::new(MemoEntries {
             index: HashMap::with_capacity_and_hasher(256, Default::default()),
             nodes: Vec::with_capacity(256),
@@ -1694,7 +1693,7 @@ impl<'a> FarSlice<'a> {
     /// every `phi` testing every piece. On an uneven grid it equals evaluating the `phi` one
     /// by one bit for bit (same terms in the same order per `phi`); on an evenly spaced grid
     /// it sweeps node Gaussians by recurrence (quadrature pieces, and Phi pieces in their
-    /// node form), or sums them in Fourier space for a wide lobe ([`FourierGrid`]), and
+    /// node form), or sums them in Fourier space for a wide lobe (`FourierGrid`), and
     /// reads the scattered tables along the grid, within 1e-12 of each
     /// lobe's peak of the one-by-one values (tests `eval_many_equals_eval_exactly`,
     /// `eval_many_on_even_grids_matches_eval`).
@@ -2194,8 +2193,9 @@ const FOURIER_LANES: usize = 4;
 /// The wrapped-Gaussian sum of a lobe's nodes on an evenly spaced grid, in Fourier space:
 /// `sum_k W_k sum_j G(Phi_k - phi + 2 pi j; beta)` is
 /// `1/(2 pi) sum_k W_k (1 + 2 sum_{n>=1} rho_n cos n(Phi_k - phi))` with
-/// `rho_n = exp(-n^2 beta^2 / 2)` (the Fourier series of the wrapped normal; Poisson
-/// summation), so the nodes enter only through `A_n = sum_k W_k cos n Phi_k` and
+/// `rho_n = exp(-n^2 beta^2 / 2)` (the Fourier series of the wrapped normal, Poisson
+/// summation; [`wrapped_gaussian`] sums the same series at one point for `beta > 1.5`,
+/// to the same 1e-17 term), so the nodes enter only through `A_n = sum_k W_k cos n Phi_k` and
 /// `B_n = sum_k W_k sin n Phi_k`. For a wide lobe (fur: `beta_n` ~ 10-20 deg) the series
 /// needs a few dozen terms while a node's Gaussian window covers the whole grid: per node
 /// that is `n` complex rotations instead of two sides times the grid. It sums every image
