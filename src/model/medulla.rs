@@ -1023,23 +1023,9 @@ impl CnRows<'_> {
         }
     }
 
-    /// Add the weights `w` of a piece on the row pair `(i, i + 1)` to `acc`.
-    pub fn accumulate(&self, acc: &mut RowWeights, i: usize, w: &PsiWeights) {
-        let n = self.n;
-        let mut k = w.first;
-        for (a, b) in w.w0.iter().zip(&w.w1) {
-            acc.w[i * n + k] += a;
-            acc.w[(i + 1) * n + k] += b;
-            k = if k + 1 == n { 0 } else { k + 1 };
-        }
-        acc.touched[i] = true;
-        acc.touched[i + 1] = true;
-    }
-
     /// Add the weights of [`Self::weights`]`(psi0, len, g)` on the row pair `(i, i + 1)`
-    /// to `acc` straight from the quadrature nodes: what [`Self::accumulate`] adds, up to
-    /// the order of the rounding, without the piece's own weight vectors (grid synthesis
-    /// accumulates a few hundred pieces per slice).
+    /// to `acc`, straight from the quadrature nodes, without the piece's own weight
+    /// vectors (grid synthesis accumulates a few hundred pieces per slice).
     pub fn accumulate_piece(
         &self,
         acc: &mut RowWeights,
@@ -1130,7 +1116,7 @@ impl CnRows<'_> {
     }
 }
 
-/// Piece weights summed per table row ([`CnRows::accumulate`]), for
+/// Piece weights summed per table row ([`CnRows::accumulate_piece`]), for
 /// [`CnRows::correlate`].
 #[derive(Clone, Debug)]
 pub struct RowWeights {
@@ -1726,21 +1712,18 @@ mod tests {
         }
     }
 
-    /// Pieces accumulated per table row and correlated along a grid equal the sum of their
-    /// own dots at every grid point (1e-12 of the scale: the same products, summed in
-    /// another order), for steps of either sign and overlapping pieces on neighbouring
-    /// row pairs; the same for the pieces added straight from their quadrature nodes
-    /// ([`CnRows::accumulate_piece`]).
+    /// Pieces accumulated per table row ([`CnRows::accumulate_piece`]) and correlated
+    /// along a grid equal the sum of their own dots at every grid point (1e-12 of the
+    /// scale: the same products, summed in another order), for steps of either sign and
+    /// overlapping pieces on neighbouring row pairs.
     #[test]
     fn row_weights_correlate_equals_summed_dots() {
         let s = MedullaTables::builtin().slice(0.9, 0.4);
         let rows = s.cn_rows();
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(47);
         let mut acc = rows.row_weights();
-        let mut fused = rows.row_weights();
         for step in [1i64, -1, 2, -3, 0, 180, -90, 7] {
             acc.clear();
-            fused.clear();
             let mut pieces = Vec::new();
             for _ in 0..30 {
                 let i = rng.random_range(0..rows.x_nodes().len() - 1);
@@ -1748,23 +1731,20 @@ mod tests {
                 let len: f64 = 10f64.powf(rng.random_range(-3.0..0.5));
                 let g = [0, 1].map(|_| std::array::from_fn(|_| rng.random_range(0.0..2.0)));
                 let w = rows.weights(psi0, len, &g);
-                rows.accumulate(&mut acc, i, &w);
-                rows.accumulate_piece(&mut fused, i, psi0, len, &g);
+                rows.accumulate_piece(&mut acc, i, psi0, len, &g);
                 pieces.push((i, w, len));
             }
             let mut out = vec![0.0; 91];
             rows.correlate(&acc, step, &mut out);
-            let mut out_fused = vec![0.0; 91];
-            rows.correlate(&fused, step, &mut out_fused);
             let scale: f64 = pieces.iter().map(|p| p.2).sum::<f64>() * rows.peak * 10.0;
-            for (q, (&o, &f)) in out.iter().zip(&out_fused).enumerate() {
+            for (q, &o) in out.iter().enumerate() {
                 let sum: f64 = pieces
                     .iter()
                     .map(|(i, w, _)| rows.dot(*i, w, step * q as i64))
                     .sum();
                 assert!(
-                    (o - sum).abs() <= 1e-12 * scale && (f - sum).abs() <= 1e-12 * scale,
-                    "step {step} q {q}: {o}, fused {f} vs {sum}"
+                    (o - sum).abs() <= 1e-12 * scale,
+                    "step {step} q {q}: {o} vs {sum}"
                 );
             }
         }

@@ -2005,7 +2005,7 @@ impl<'a> FarSlice<'a> {
     /// sorted grid whose step is `m` whole `psi` bins ([`Self::row_steps`]; `out` indexed
     /// through `order`, `s` scratch of the grid's length). Moving along the grid moves
     /// every table query by `m` bins, so each [`PsiPiece`] is one weighting of the row
-    /// nodes ([`CnRows::weights`]) and each quadrature node one bilinear weighting
+    /// nodes ([`CnRows::accumulate_piece`]) and each quadrature node one bilinear weighting
     /// ([`CnRows::accumulate_point`]); they are summed per row and read along the grid in
     /// one pass per direction ([`CnRows::correlate`]). The direct side reads
     /// `C^N(x, phi - Phi^s)`, the mirrored `C^N(-x, phi + Phi^s)`, and a query at a
