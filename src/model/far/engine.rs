@@ -18,9 +18,10 @@
 //!   the variable `Phi` itself, `integral A D dh = integral g(Phi) G(Phi - phi; beta_p) dPhi`
 //!   with `g = A cos u / |dPhi/du|`. The Gaussian is then exact for every `beta_n` (a fit
 //!   of `Phi_p` in `h` would need thousands of segments at `beta_n = 0.1 deg`), and
-//!   `g = Q1(Phi) exp(L(Phi))` — a quadratic prefactor times the exponential of the linear
-//!   log-attenuation — makes the integrand the Appendix's `Q1 exp(Q2)` form, solved in erf
-//!   form ([`closed_form::poly_gauss`](super::closed_form::poly_gauss)). The wrapped
+//!   `g = Q1(Phi) exp(L(Phi))` — a quadratic prefactor times the exponential of the
+//!   log-attenuation, linear as in the paper or (tolerance mode) quadratic — makes the
+//!   integrand the Appendix's `Q1 exp(Q2)` form, solved in erf form
+//!   ([`closed_form::poly_gauss`](super::closed_form::poly_gauss)). The wrapped
 //!   Gaussian's `2 pi` images are summed over those whose window reaches the segment.
 //!   Near the caustic (`dPhi/du -> 0`, where `g` is singular and the quadratic coefficient
 //!   of the paper's form vanishes) segments are bisected until either `Phi` is monotone
@@ -59,7 +60,9 @@
 //!   Fourier space ([`FourierGrid`]): every image at once, a few dozen rotations per node.
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
-use super::closed_form::{poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through};
+use super::closed_form::{
+    poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through, LAM_CURVE_MAX,
+};
 use super::FarOptions;
 use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian, Absorption};
 use crate::model::fresnel;
@@ -105,8 +108,9 @@ const RATIO_MIN: f64 = 0.5;
 /// A segment spanning at most this many `beta_p` in `Phi` may be integrated by GL.
 const GL_SPAN_SIGMAS: f64 = 2.0;
 const GL_NODES: usize = 16;
-/// Largest deviation (nats) of a narrow piece's log-attenuation from its chord at the
-/// quarter points before the fit check stops trusting those points (see
+/// Largest deviation (nats) of a piece's log-attenuation from its fit (the chord, or the
+/// quadratic of [`FarSlice::lam_fit`]) at the quarter points before the fit check stops
+/// trusting those points (see
 /// [`hidden_mass_bound`]): a factor e, far beyond the curvature of an ordinary
 /// absorption profile across a piece that passes the fit check.
 const LAM_DEV_MAX: f64 = 1.0;
@@ -231,13 +235,13 @@ struct Node {
 /// A fitted unscattered segment.
 #[derive(Clone, Debug)]
 enum Piece {
-    /// `g(Phi) = (c0 + c1 x + c2 x^2) exp(l0 + l x)`, `x = Phi - lo` in `[0, len]`.
+    /// `g(Phi) = (c0 + c1 x + c2 x^2) exp(l0 + l1 x + l2 x^2)`, `x = Phi - lo` in
+    /// `[0, len]`, `lam = [l0, l1, l2]` (`l2 = 0` in paper mode).
     Phi {
         lo: f64,
         len: f64,
         c: [f64; 3],
-        l0: f64,
-        l: f64,
+        lam: [f64; 3],
     },
     /// Gauss-Legendre nodes `(Phi_k, w_k A_k cos u_k)` covering `Phi` in `[lo, hi]`.
     Gl {
@@ -949,6 +953,29 @@ impl<'a> FarSlice<'a> {
         azimuthal::a_p_exponent(p, geo, ab).max(LAM_MIN)
     }
 
+    /// The log-attenuation `ln(T_c T_m)` of unscattered lobe `p` over a `Phi` piece whose
+    /// nodes (in increasing `Phi`) sit at `xs` (`xs[0] = 0`), as `[l0, l1, l2]` in
+    /// `x = Phi - lo`: the line through the end nodes in paper mode (the Appendix's
+    /// linear log-attenuation), the quadratic through all three in tolerance mode. Its
+    /// curvature is capped at [`LAM_CURVE_MAX`] of the Gaussian's (the closed form needs a
+    /// concave exponent) and the capped quadratic still passes through the end nodes, so
+    /// the fit is continuous in the parameters; the quarter-point check then judges it.
+    /// Where the attenuation curves (the medulla's chord, steep absorption) the line
+    /// missed by 10-100x the budget on pieces the quadratic fits (TT, cat preset), which
+    /// sent those pieces to 16-point Gauss-Legendre rules.
+    fn lam_fit(&self, p: usize, xs: [f64; 3], nodes: [&Node; 3]) -> [f64; 3] {
+        let (l0, l2, len) = (nodes[0].lam[p], nodes[2].lam[p], xs[2]);
+        let curve = match self.tol {
+            Some(_) => {
+                let fit = quadratic_through(xs, nodes.map(|n| n.lam[p]))[2];
+                let beta = self.betas[p];
+                fit.min(LAM_CURVE_MAX * 0.5 / (beta * beta))
+            }
+            None => 0.0,
+        };
+        [l0, (l2 - l0) / len - curve * len, curve]
+    }
+
     /// A Gauss-Legendre node of unscattered lobe `p` at `u`: `(Phi_p, pre, lam)` as
     /// [`Self::node_with`] gives them, bit for bit. R (`Phi_0 = -2 gamma_i`, `A_0 = F`)
     /// needs no refraction, so it skips the `asin` of `gamma_t`; the other lobes skip the
@@ -1094,10 +1121,9 @@ impl<'a> FarSlice<'a> {
                 nodes[1].pre[p] / nodes[1].dphi[p].abs(),
                 nodes[2].pre[p] / nodes[2].dphi[p].abs(),
             ];
-            let (l0, l2) = (nodes[0].lam[p], nodes[2].lam[p]);
-            let l = (l2 - l0) / len;
+            let lam = self.lam_fit(p, xs, [nodes[0], nodes[1], nodes[2]]);
             let c = quadratic_through(xs, gs);
-            let piece = Piece::Phi { lo, len, c, l0, l };
+            let piece = Piece::Phi { lo, len, c, lam };
             let Some(b) = rf.budget else {
                 out.push(piece);
                 return;
@@ -1107,9 +1133,9 @@ impl<'a> FarSlice<'a> {
             let mut dev = 0.0f64;
             for q in [q1, q3] {
                 let x = q.phi[p] - lo;
-                let fit = poly(&c, x) * (l0 + l * x).exp();
+                let fit = poly(&c, x) * poly(&lam, x).exp();
                 e = e.max((fit - Self::g_exact(&q, p)).abs());
-                dev = dev.max((l0 + l * x - q.lam[p]).abs());
+                dev = dev.max((poly(&lam, x) - q.lam[p]).abs());
             }
             e = e.max(hidden_mass_bound(dev, [n0, nm, n1, &q1, &q3], |n| {
                 Self::g_exact(n, p)
@@ -1738,11 +1764,11 @@ impl<'a> FarSlice<'a> {
                     let (lo, hi) = pc.range();
                     // The node form of a Phi piece, built once for both sides.
                     let phi_swept = match (pc, grid) {
-                        (Piece::Phi { lo, len, c, l0, l }, Some(g))
+                        (Piece::Phi { lo, len, c, lam }, Some(g))
                             if g.step <= SWEEP_MAX_STEP * beta =>
                         {
                             phi_nodes.clear();
-                            poly_gauss_nodes(c, *l0, *l, *lo, *len, beta, &mut phi_nodes)
+                            poly_gauss_nodes(c, lam, *lo, *len, beta, &mut phi_nodes)
                         }
                         _ => false,
                     };
@@ -1907,10 +1933,10 @@ impl<'a> FarSlice<'a> {
             return;
         }
         match pc {
-            Piece::Phi { lo, len, c, l0, l } => {
+            Piece::Phi { lo, len, c, lam } => {
                 for k in kmin..=kmax {
                     let m = mu + TAU * k as f64 - lo;
-                    *s += poly_gauss(c, *l0, *l, m, beta, *len);
+                    *s += poly_gauss(c, lam, m, beta, *len);
                 }
             }
             Piece::Gl { nodes, .. } => {
@@ -2128,7 +2154,7 @@ fn max_dps(opts: &FarOptions) -> f64 {
 }
 
 /// A bound on a segment's fit error that its quarter-point checks cannot see: when the
-/// log-attenuation departs from its chord by more than [`LAM_DEV_MAX`] there (`dev`), the
+/// log-attenuation departs from its fit by more than [`LAM_DEV_MAX`] there (`dev`), the
 /// mass can hide between the check points (TT at kappa -> 1 and grazing theta_d:
 /// `exp(-c sqrt(u_edge - u))` with c in the hundreds puts nearly all of it within 1e-5 of
 /// the medulla edge, while the quarter points see ~e^-100 in both fit and integrand), and
@@ -2546,6 +2572,51 @@ mod tests {
     /// pieces up to du = 0.1 are smooth (errors at rounding level); wider ones straddle
     /// the medulla edge (u = 0.453), whose kink in the attenuation the rules cannot
     /// integrate exactly, and there the estimate must still hold.
+    /// `lam_fit`: paper mode keeps the Appendix's chord; tolerance mode's quadratic passes
+    /// through all three nodes, and where its curvature is capped, still through the end
+    /// nodes. Interpolation is exact up to rounding of the node values' size (1e-12
+    /// absolute on exponents of order 1-10).
+    #[test]
+    fn lam_fit_is_the_chord_or_the_capped_quadratic() {
+        let m = FurModel::new(&FurParams::preset("cat").expect("preset"));
+        let az = m.azimuthal(0.2);
+        let tol = FarSlice::far(&az, LobeSet::ALL, &FarOptions::default());
+        let paper = FarSlice::far(&az, LobeSet::ALL, &FarOptions::paper());
+        let p = 1;
+        let nodes = [0.1, 0.3, 0.5].map(|u| tol.node_with(u, false));
+        let mut ns = [&nodes[0], &nodes[1], &nodes[2]];
+        if nodes[0].dphi[p] < 0.0 {
+            ns.reverse();
+        }
+        let lo = ns[0].phi[p];
+        let xs = ns.map(|n| n.phi[p] - lo);
+        let at = |lam: &[f64; 3], k: usize| poly(lam, xs[k]) - ns[k].lam[p];
+        let chord = paper.lam_fit(p, xs, ns);
+        assert_eq!(chord[2], 0.0);
+        let quad = tol.lam_fit(p, xs, ns);
+        // The medulla's chord bends cat's TT attenuation: the line misses the middle node.
+        assert!(at(&chord, 1).abs() > 1e-4, "{}", at(&chord, 1));
+        for k in 0..3 {
+            assert!(at(&chord, k).abs() <= 1e-12 || k == 1);
+            assert!(at(&quad, k).abs() <= 1e-12, "node {k}: {}", at(&quad, k));
+        }
+        // A Gaussian so wide that the cap binds: the end nodes still fit exactly.
+        // (Here the attenuation is convex, curvature 3.8 per rad^2.)
+        assert!(quad[2] > 1.0, "{quad:?}");
+        let mut wide = FarSlice::far(&az, LobeSet::ALL, &FarOptions::default());
+        let cap = 0.5 * quad[2];
+        wide.betas[p] = (LAM_CURVE_MAX * 0.5 / cap).sqrt();
+        let capped = wide.lam_fit(p, xs, ns);
+        assert!((capped[2] - cap).abs() <= 1e-12 * cap, "{capped:?}");
+        for k in [0, 2] {
+            assert!(
+                at(&capped, k).abs() <= 1e-12,
+                "node {k}: {}",
+                at(&capped, k)
+            );
+        }
+    }
+
     #[test]
     fn gl_estimate_bounds_the_rule_error() {
         let m = FurModel::new(&FurParams::preset("human").expect("preset"));
