@@ -961,7 +961,7 @@ impl<'a> FarSlice<'a> {
     /// concave exponent) and the capped quadratic still passes through the end nodes, so
     /// the fit is continuous in the parameters; the quarter-point check then judges it.
     /// Where the attenuation curves (the medulla's chord, steep absorption) the line
-    /// missed by 10-100x the budget on pieces the quadratic fits (TT, cat preset), which
+    /// missed by 10-2000x the budget on pieces the quadratic fits (TT, cat preset), which
     /// sent those pieces to 16-point Gauss-Legendre rules.
     fn lam_fit(&self, p: usize, xs: [f64; 3], nodes: [&Node; 3]) -> [f64; 3] {
         let (l0, l2, len) = (nodes[0].lam[p], nodes[2].lam[p], xs[2]);
