@@ -30,7 +30,7 @@ pub(super) fn poly(c: &[f64; 3], x: f64) -> f64 {
 
 /// `integral_0^X (c0 + c1 x + c2 x^2) exp(l0 + l1 x + l2 x^2) G(x - m; beta) dx` with `G`
 /// the normalised Gaussian of standard deviation `beta` and `lam = [l0, l1, l2]`. The
-/// exponent must stay concave: `l2 <` [`LAM_CURVE_MAX`] `/ (2 beta^2)` (the caller's
+/// exponent must stay concave: `l2 <=` [`lam_curve_cap`]`(beta)` (the caller's
 /// choice; see there).
 pub fn poly_gauss(c: &[f64; 3], lam: &[f64; 3], m: f64, beta: f64, x_len: f64) -> f64 {
     if x_len <= 0.0 {
@@ -119,6 +119,12 @@ pub fn poly_gauss(c: &[f64; 3], lam: &[f64; 3], m: f64, beta: f64, x_len: f64) -
 /// exponent then keeps at least half the Gaussian's curvature, so its completed square,
 /// cut and Gauss-Legendre spread stay those of a Gaussian at most `sqrt 2` wider.
 pub const LAM_CURVE_MAX: f64 = 0.5;
+
+/// The largest `l2` [`poly_gauss`] takes under a Gaussian of width `beta`:
+/// [`LAM_CURVE_MAX`] of its curvature `1 / (2 beta^2)`.
+pub fn lam_curve_cap(beta: f64) -> f64 {
+    LAM_CURVE_MAX * 0.5 / (beta * beta)
+}
 
 /// Gauss-Legendre nodes of one sub-interval of [`poly_gauss_nodes`].
 const NODE_RULE: usize = 8;
@@ -245,7 +251,7 @@ mod tests {
         } else if rng.random_bool(0.5) {
             -bend * rng.random_range(0.0..1.0)
         } else {
-            bend.min(0.999 * LAM_CURVE_MAX * 0.5 / (beta * beta)) * rng.random_range(0.0..1.0)
+            bend.min(0.999 * lam_curve_cap(beta)) * rng.random_range(0.0..1.0)
         };
         [l0, l1, l2]
     }
@@ -411,7 +417,7 @@ mod tests {
     #[test]
     fn poly_gauss_takes_a_curved_log_attenuation() {
         let c = [0.7, -0.4, 0.9];
-        let edge = |beta: f64| 0.999 * LAM_CURVE_MAX * 0.5 / (beta * beta);
+        let edge = |beta: f64| 0.999 * lam_curve_cap(beta);
         let cases = [
             (-1.0, -3.0, -500.0, 0.5, 0.05, 1.0),
             (-1.0, 2.0, edge(0.05), 0.5, 0.05, 1.0),

@@ -61,7 +61,7 @@
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use super::closed_form::{
-    poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through, LAM_CURVE_MAX,
+    lam_curve_cap, poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through,
 };
 use super::FarOptions;
 use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian, Absorption};
@@ -957,7 +957,7 @@ impl<'a> FarSlice<'a> {
     /// nodes (in increasing `Phi`) sit at `xs` (`xs[0] = 0`), as `[l0, l1, l2]` in
     /// `x = Phi - lo`: the line through the end nodes in paper mode (the Appendix's
     /// linear log-attenuation), the quadratic through all three in tolerance mode. Its
-    /// curvature is capped at [`LAM_CURVE_MAX`] of the Gaussian's (the closed form needs a
+    /// curvature is capped at [`lam_curve_cap`] (the closed form needs a
     /// concave exponent) and the capped quadratic still passes through the end nodes, so
     /// the fit is continuous in the parameters; the quarter-point check then judges it.
     /// Where the attenuation curves (the medulla's chord, steep absorption) the line
@@ -968,8 +968,7 @@ impl<'a> FarSlice<'a> {
         let curve = match self.tol {
             Some(_) => {
                 let fit = quadratic_through(xs, nodes.map(|n| n.lam[p]))[2];
-                let beta = self.betas[p];
-                fit.min(LAM_CURVE_MAX * 0.5 / (beta * beta))
+                fit.min(lam_curve_cap(self.betas[p]))
             }
             None => 0.0,
         };
@@ -2605,7 +2604,7 @@ mod tests {
         assert!(quad[2] > 1.0, "{quad:?}");
         let mut wide = FarSlice::far(&az, LobeSet::ALL, &FarOptions::default());
         let cap = 0.5 * quad[2];
-        wide.betas[p] = (LAM_CURVE_MAX * 0.5 / cap).sqrt();
+        wide.betas[p] = (super::super::closed_form::LAM_CURVE_MAX * 0.5 / cap).sqrt();
         let capped = wide.lam_fit(p, xs, ns);
         assert!((capped[2] - cap).abs() <= 1e-12 * cap, "{capped:?}");
         for k in [0, 2] {
