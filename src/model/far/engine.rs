@@ -1132,9 +1132,10 @@ impl<'a> FarSlice<'a> {
             let mut dev = 0.0f64;
             for q in [q1, q3] {
                 let x = q.phi[p] - lo;
-                let fit = poly(&c, x) * poly(&lam, x).exp();
+                let lx = poly(&lam, x);
+                let fit = poly(&c, x) * lx.exp();
                 e = e.max((fit - Self::g_exact(&q, p)).abs());
-                dev = dev.max((poly(&lam, x) - q.lam[p]).abs());
+                dev = dev.max((lx - q.lam[p]).abs());
             }
             e = e.max(hidden_mass_bound(dev, [n0, nm, n1, &q1, &q3], |n| {
                 Self::g_exact(n, p)
@@ -2563,14 +2564,6 @@ mod tests {
     use crate::model::FurModel;
     use crate::params::FurParams;
 
-    /// [`FarSlice::gl_piece_with`]'s estimate (the 16- and 8-point rules' difference at the
-    /// probes) must bound the 16-point rule's actual error at the probes, measured against
-    /// adaptive Gauss-Kronrod to 1e-12, on pieces up to the [`GL_SPAN_SIGMAS`] span that
-    /// narrow pieces have (2.5 beta, a margin for the end nodes), and must not claim 1e-4
-    /// on a piece far too wide for the rules. Human TT and TRT at theta_d = 0.3 from u = 0.3:
-    /// pieces up to du = 0.1 are smooth (errors at rounding level); wider ones straddle
-    /// the medulla edge (u = 0.453), whose kink in the attenuation the rules cannot
-    /// integrate exactly, and there the estimate must still hold.
     /// `lam_fit`: paper mode keeps the Appendix's chord; tolerance mode's quadratic passes
     /// through all three nodes, and where its curvature is capped, still through the end
     /// nodes. Interpolation is exact up to rounding of the node values' size (1e-12
@@ -2616,6 +2609,14 @@ mod tests {
         }
     }
 
+    /// [`FarSlice::gl_piece_with`]'s estimate (the 16- and 8-point rules' difference at the
+    /// probes) must bound the 16-point rule's actual error at the probes, measured against
+    /// adaptive Gauss-Kronrod to 1e-12, on pieces up to the [`GL_SPAN_SIGMAS`] span that
+    /// narrow pieces have (2.5 beta, a margin for the end nodes), and must not claim 1e-4
+    /// on a piece far too wide for the rules. Human TT and TRT at theta_d = 0.3 from u = 0.3:
+    /// pieces up to du = 0.1 are smooth (errors at rounding level); wider ones straddle
+    /// the medulla edge (u = 0.453), whose kink in the attenuation the rules cannot
+    /// integrate exactly, and there the estimate must still hold.
     #[test]
     fn gl_estimate_bounds_the_rule_error() {
         let m = FurModel::new(&FurParams::preset("human").expect("preset"));
