@@ -528,9 +528,11 @@ fn eval_many_equals_eval_exactly() {
 }
 
 /// On an evenly spaced `phi` grid `eval_many` sweeps the quadrature-node pieces with a
-/// Gaussian recurrence instead of one exponential per `phi`: it must still match per-`phi`
-/// evaluation, to 1e-12 of each lobe's peak (the recurrence drifts by ~n eps and drops
-/// node terms below e^-36 of their peak), and with tabulated `C^N` profiles it reads them
+/// Gaussian recurrence instead of one exponential per `phi`, and short `Phi` pieces through
+/// their node form: it must still match per-`phi` evaluation, to 1e-11 of each lobe's peak
+/// (measured worst 1-2e-12: the node form's 8-point rule on 2-beta sub-intervals; the
+/// recurrence drifts by ~n eps and drops node terms below e^-36 of their peak), and with
+/// tabulated `C^N` profiles it reads them
 /// along the grid; on the random slices of `eval_many_equals_eval_exactly` and grids fine
 /// and coarse, full and half circle.
 #[test]
@@ -553,7 +555,7 @@ fn eval_many_on_even_grids_matches_eval() {
         {
             let many = slice.eval_many(phis);
             let one: Vec<LobeValues> = phis.iter().map(|&p| slice.eval(p)).collect();
-            assert_within_of_peak(&one, &many, 1e-12, |k| format!("{what} phi {}", phis[k]));
+            assert_within_of_peak(&one, &many, 1e-11, |k| format!("{what} phi {}", phis[k]));
         }
     });
 }
