@@ -61,7 +61,8 @@
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use super::closed_form::{
-    lam_curve_cap, poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through,
+    lagrange_exp_weights, lam_curve_cap, poly, poly_exp, poly_gauss, poly_gauss_nodes,
+    quadratic_through,
 };
 use super::FarOptions;
 use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian, Absorption};
@@ -75,6 +76,7 @@ use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use std::hash::{BuildHasherDefault, Hasher};
 use std::sync::Arc;
+use wide::f64x4;
 
 /// Floor of a node's log-attenuation: `exp` of it is 0 in f64 as `exp(-inf)` is, but a
 /// finite value keeps the linear fits of `ln A` (differences of node values) from
@@ -1594,6 +1596,16 @@ impl<'a> FarSlice<'a> {
         }
         let (l0, l1) = (n0.lam[i], n1.lam[i]);
         let lin = (l1 - l0) / len;
+        let xs = [0.0, 0.5 * len, len];
+        // The log-attenuation: the Appendix's line through the ends, or in tolerance mode
+        // the quadratic through all three nodes where it spans at most SCAT_LAM_SPREAD.
+        let curved = self
+            .tol
+            .and_then(|_| scat_lam_quadratic(xs, [l0, nm.lam[i], l1]));
+        let lam_at = |x: f64| match &curved {
+            Some(lq) => poly(lq, x),
+            None => l0 + lin * x,
+        };
         if let Some(b) = rf.budget {
             {
                 let q1 = self.node(rf.memo, 0.5 * (n0.u + nm.u));
@@ -1603,11 +1615,11 @@ impl<'a> FarSlice<'a> {
                     nm.pre[i] * nm.frac,
                     n1.pre[i] * n1.frac,
                 ];
-                let c = quadratic_through([0.0, 0.5 * len, len], ys);
+                let c = quadratic_through(xs, ys);
                 let mut e = 0.0f64;
                 for q in [q1, q3] {
                     let x = q.u - n0.u;
-                    let fit = poly(&c, x) * (l0 + lin * x).exp();
+                    let fit = poly(&c, x) * lam_at(x).exp();
                     e = e.max((fit - q.pre[i] * q.frac * q.lam[i].exp()).abs());
                 }
                 let fit_poor = e > b && e * len > rf.small;
@@ -1626,11 +1638,21 @@ impl<'a> FarSlice<'a> {
             n1.pre[i] * n1.prob,
         ];
         let mut w = [0.0; 3];
-        for j in 0..3 {
-            let mut e = [0.0; 3];
-            e[j] = 1.0;
-            let c = quadratic_through([0.0, 0.5 * len, len], e);
-            w[j] = pre_p[j] * poly_exp(&c, l0, lin, len);
+        match &curved {
+            Some(lq) => {
+                let basis = lagrange_exp_weights(lq, len);
+                for j in 0..3 {
+                    w[j] = pre_p[j] * basis[j];
+                }
+            }
+            None => {
+                for j in 0..3 {
+                    let mut e = [0.0; 3];
+                    e[j] = 1.0;
+                    let c = quadratic_through(xs, e);
+                    w[j] = pre_p[j] * poly_exp(&c, l0, lin, len);
+                }
+            }
         }
         out.push_segment([
             (n0.x_med, n0.phis[k], w[0]),
@@ -2148,6 +2170,32 @@ impl<'a> FarSlice<'a> {
 /// ([`FarOptions::scattered_step`] at `tol = 1e-4`, scaled by the cube root of the
 /// tolerance ratio, clamped to [1/4.6, 4], i.e. to `tol` in [1e-6, 6.4e-3]: the lower
 /// clamp bounds the piece count at tolerances below those the tests and reports use).
+/// Largest range of a scattered segment's quadratic log-attenuation (nats) that
+/// [`FarSlice::build_scat`] takes; beyond it the line (whose closed form, `poly_exp`,
+/// takes any slope) is used and the fit check bisects as before. Over 3 nats
+/// [`lagrange_exp_weights`] is exact to 1e-14.
+const SCAT_LAM_SPREAD: f64 = 3.0;
+
+/// The quadratic through a scattered segment's three log-attenuations at `xs`
+/// (`xs[0] = 0`), or `None` when it is a line or spans more than [`SCAT_LAM_SPREAD`] on
+/// `[0, xs[2]]`. The line through the ends missed the quarter points of TRTs by more than
+/// the budget at 24 of 50 checks per slice, the quadratic at 6.5 (cat preset).
+fn scat_lam_quadratic(xs: [f64; 3], lam: [f64; 3]) -> Option<[f64; 3]> {
+    let q = quadratic_through(xs, lam);
+    if q[2] == 0.0 || !q.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    let len = xs[2];
+    let vertex = -q[1] / (2.0 * q[2]);
+    let mut vals = [
+        poly(&q, 0.0),
+        poly(&q, len),
+        poly(&q, vertex.clamp(0.0, len)),
+    ];
+    vals.sort_by(f64::total_cmp);
+    (vals[2] - vals[0] <= SCAT_LAM_SPREAD).then_some(q)
+}
+
 fn max_dps(opts: &FarOptions) -> f64 {
     let ratio = opts.tol.unwrap_or(1e-4) / 1e-4;
     opts.scattered_step * ratio.cbrt().clamp(0.01f64.cbrt(), 4.0)
@@ -2337,6 +2385,9 @@ impl FourierGrid {
 const SWEEP_RUN: usize = 128;
 /// Interleaved recurrence chains of a sweep run (see [`UniformGrid::gaussian_sweep`]).
 const SWEEP_CHAINS: usize = 4;
+/// Sweep runs whose starting exponentials [`UniformGrid::gaussian_sweep`] takes together
+/// (a multiple of the 4 lanes of `f64x4`).
+const SWEEP_BATCH: usize = 32;
 
 /// Sorted `phi` that are evenly spaced: `first + q * step` within [`UNIFORM_SLACK`].
 struct UniformGrid {
@@ -2411,6 +2462,12 @@ impl UniformGrid {
         let damp = (-2.0 * self.step * self.step * c).exp();
         let damp_s2 = damp.powi((SWEEP_CHAINS * SWEEP_CHAINS) as i32);
         let inv_step = 1.0 / self.step;
+        // The runs (start, end, weight) and the exponents of their first value and ratio,
+        // batched so that the exponentials are taken four at a time: a narrow lobe's
+        // window holds ~10 points, so these two per run were most of a sweep.
+        let mut runs = [(0usize, 0usize, 0.0f64); SWEEP_BATCH];
+        let mut args = [[0.0f64; SWEEP_BATCH]; 2];
+        let mut n = 0;
         for &(ph, wt) in nodes {
             // mu_q within w of ph: sign * x_q in [ph - shift - w, ph - shift + w].
             let (lo, hi) = (ph - at.shift - at.w, ph - at.shift + at.w);
@@ -2424,42 +2481,80 @@ impl UniformGrid {
             // Restarted from the exact grid position every SWEEP_RUN points: `damp`'s
             // rounding compounds quadratically along a chain (n^2 eps / 2).
             for start in (q0..q1).step_by(SWEEP_RUN) {
-                let end = (start + SWEEP_RUN).min(q1);
                 let mu = at.sign * (self.first + start as f64 * self.step) + at.shift;
                 let y = ph - mu;
-                let mut g = wt * norm * (-y * y * c).exp();
-                let mut r = ((2.0 * y * d - self.step * self.step) * c).exp();
-                // SWEEP_CHAINS interleaved chains, chain k on points start + k + j S
-                // (S = SWEEP_CHAINS): its multiplier is the product of S consecutive
-                // ratios, and moves by damp^(S^2) per step. Independent chains keep the
-                // multiplier latency off the critical path.
-                let mut gs = [0.0; SWEEP_CHAINS];
-                let mut ratios = [0.0; 2 * SWEEP_CHAINS - 1];
-                for (k, rk) in ratios.iter_mut().enumerate() {
-                    if k < SWEEP_CHAINS {
-                        gs[k] = g;
-                        g *= r;
-                    }
-                    *rk = r;
-                    r *= damp;
-                }
-                // ratios[k] = r_{start + k}; chain k's multiplier is
-                // r_{start + k} ... r_{start + k + S - 1}.
-                let mut ps: [f64; SWEEP_CHAINS] =
-                    std::array::from_fn(|k| ratios[k..k + SWEEP_CHAINS].iter().product());
-                let run = &mut s[start..end];
-                let mut chunks = run.chunks_exact_mut(SWEEP_CHAINS);
-                for chunk in &mut chunks {
-                    for k in 0..SWEEP_CHAINS {
-                        chunk[k] += gs[k];
-                        gs[k] *= ps[k];
-                        ps[k] *= damp_s2;
-                    }
-                }
-                for (x, gk) in chunks.into_remainder().iter_mut().zip(gs) {
-                    *x += gk;
+                // A ratio's exponent is at most c w^2 = 36 in magnitude where a run has
+                // a second point (both within w of the node); f64x4::exp's 0 above 708
+                // (not inf) can only reach a ratio that is never used.
+                runs[n] = (start, (start + SWEEP_RUN).min(q1), wt);
+                args[0][n] = -y * y * c;
+                args[1][n] = (2.0 * y * d - self.step * self.step) * c;
+                n += 1;
+                if n == SWEEP_BATCH {
+                    sweep_runs(&runs, &args, norm, [damp, damp_s2], s);
+                    n = 0;
                 }
             }
+        }
+        sweep_runs(&runs[..n], &args, norm, [damp, damp_s2], s);
+    }
+}
+
+/// The recurrences of [`UniformGrid::gaussian_sweep`]'s batched `runs`: run `i` adds
+/// `wt G_q` to `s[q]` for `q` in `start..end`, from `G_start = wt norm exp(args[0][i])`
+/// with first ratio `exp(args[1][i])`, each ratio moving by `damp[0]` (`damp[1]` =
+/// `damp[0]^(S^2)` along a chain). A function, not a closure, so that it is inlined into
+/// the AVX2 build (a closure was compiled for the baseline target).
+#[inline(always)]
+fn sweep_runs(
+    runs: &[(usize, usize, f64)],
+    args: &[[f64; SWEEP_BATCH]; 2],
+    norm: f64,
+    [damp, damp_s2]: [f64; 2],
+    s: &mut [f64],
+) {
+    let n = runs.len();
+    let mut e = [[0.0f64; SWEEP_BATCH]; 2];
+    for (ek, ak) in e.iter_mut().zip(args) {
+        for (o, a) in ek[..n.next_multiple_of(4)]
+            .chunks_exact_mut(4)
+            .zip(ak.chunks_exact(4))
+        {
+            o.copy_from_slice(&f64x4::from([a[0], a[1], a[2], a[3]]).exp().to_array());
+        }
+    }
+    for (i, &(start, end, wt)) in runs.iter().enumerate() {
+        let mut g = wt * norm * e[0][i];
+        let mut r = e[1][i];
+        // SWEEP_CHAINS interleaved chains, chain k on points start + k + j S
+        // (S = SWEEP_CHAINS): its multiplier is the product of S consecutive ratios, and
+        // moves by damp^(S^2) per step. Independent chains keep the multiplier latency off
+        // the critical path.
+        let mut gs = [0.0; SWEEP_CHAINS];
+        let mut ratios = [0.0; 2 * SWEEP_CHAINS - 1];
+        for (k, rk) in ratios.iter_mut().enumerate() {
+            if k < SWEEP_CHAINS {
+                gs[k] = g;
+                g *= r;
+            }
+            *rk = r;
+            r *= damp;
+        }
+        // ratios[k] = r_{start + k}; chain k's multiplier is r_{start + k} ...
+        // r_{start + k + S - 1}.
+        let mut ps: [f64; SWEEP_CHAINS] =
+            std::array::from_fn(|k| ratios[k..k + SWEEP_CHAINS].iter().product());
+        let run = &mut s[start..end];
+        let mut chunks = run.chunks_exact_mut(SWEEP_CHAINS);
+        for chunk in &mut chunks {
+            for k in 0..SWEEP_CHAINS {
+                chunk[k] += gs[k];
+                gs[k] *= ps[k];
+                ps[k] *= damp_s2;
+            }
+        }
+        for (x, gk) in chunks.into_remainder().iter_mut().zip(gs) {
+            *x += gk;
         }
     }
 }
@@ -2683,6 +2778,23 @@ mod tests {
     /// The AVX2 build of the sweep must give the portable build's values bit for bit (the
     /// dispatch picks one by CPU; results may not depend on the machine), on long runs
     /// (restarts), short windows, both signs and a shifted image.
+    /// The scattered builder's curved log-attenuation: none for a line (the Appendix's
+    /// closed form stands), none past the 3-nat span its weights' rule is exact over
+    /// (counting a bulge between the nodes), else the quadratic through the three nodes.
+    #[test]
+    fn scat_lam_quadratic_takes_only_bounded_curves() {
+        let xs = [0.0, 0.5, 1.0];
+        assert_eq!(scat_lam_quadratic(xs, [-1.0, -2.0, -3.0]), None);
+        assert_eq!(scat_lam_quadratic(xs, [0.0, -3.5, -4.0]), None);
+        // The nodes span 2.9 nats, the quadratic 3.03 (its vertex at x = 0.63).
+        assert_eq!(scat_lam_quadratic(xs, [0.0, -2.9, -2.0]), None);
+        assert!(scat_lam_quadratic(xs, [0.0, -2.8, -2.0]).is_some());
+        let q = scat_lam_quadratic(xs, [-1.0, -2.5, -3.0]).expect("2-nat curve");
+        for (x, y) in xs.iter().zip([-1.0, -2.5, -3.0]) {
+            assert!((poly(&q, *x) - y).abs() <= 1e-15);
+        }
+    }
+
     #[test]
     fn gaussian_sweep_avx2_equals_portable_build() {
         let sorted: Vec<f64> = (0..361).map(|q| -PI + q as f64 * TAU / 360.0).collect();
