@@ -231,28 +231,6 @@ pub fn poly_exp(c: &[f64; 3], l0: f64, l: f64, x_len: f64) -> f64 {
     anti(x_hi) - anti(x_lo)
 }
 
-/// `integral_0^X L_j(x) exp(l0 + l1 x + l2 x^2) dx` for the Lagrange basis `L_j` of the
-/// nodes `0, X/2, X` (a scattered segment's three node weights with a curved
-/// log-attenuation), by one 12-point Gauss-Legendre rule, for an exponent that spans at
-/// most 3 units on `[0, X]` (the caller's bound): there it is exact to below 1e-14 of
-/// `X max exp`, where 8 points missed by 1.3e-7 at strong curvature (test
-/// `lagrange_exp_weights_match_quadrature`).
-pub fn lagrange_exp_weights(lam: &[f64; 3], x_len: f64) -> [f64; 3] {
-    let gl = GaussLegendre::cached(12);
-    let h = 0.5 * x_len;
-    let mut w = [0.0; 3];
-    for (t, wt) in gl.nodes.iter().zip(&gl.weights) {
-        let x = h * (1.0 + t);
-        let ex = h * wt * poly(lam, x).exp();
-        let (a, b, c) = (x, x - h, x - x_len);
-        let basis = [b * c, -2.0 * a * c, a * b];
-        for (wj, bj) in w.iter_mut().zip(basis) {
-            *wj += ex * bj / (2.0 * h * h);
-        }
-    }
-    w
-}
-
 /// Coefficients of the quadratic through `(x_j, y_j)`, j = 0..3, in powers of `x`
 /// (Newton divided differences; the `x_j` must be distinct).
 pub fn quadratic_through(x: [f64; 3], y: [f64; 3]) -> [f64; 3] {
@@ -270,59 +248,6 @@ pub fn quadratic_through(x: [f64; 3], y: [f64; 3]) -> [f64; 3] {
 mod tests {
     use super::*;
     use crate::model::quadrature::adaptive_gk;
-
-    /// The three weights against adaptive quadrature of each basis function times the
-    /// exponential, for exponents spanning up to the 3 nats the scattered builder allows
-    /// (either curvature): 1e-12 of the segment's `X max exp` (measured below 1e-14, the
-    /// reference's own tolerance), and summing to the integral of the exponential.
-    #[test]
-    fn lagrange_exp_weights_match_quadrature() {
-        use rand::{Rng, SeedableRng};
-        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(5);
-        for _ in 0..300 {
-            let x_len: f64 = 10f64.powf(rng.random_range(-4.0..0.5));
-            let spread = rng.random_range(0.0..3.0);
-            // l1 x + l2 x^2 with a random share of curvature, scaled to `spread` nats.
-            let (a, b) = (rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0));
-            let (l1, l2) = (a * spread / x_len, b * spread / (x_len * x_len));
-            let lam = [rng.random_range(-20.0..0.0), l1, l2];
-            let w = lagrange_exp_weights(&lam, x_len);
-            let emax = (0..=64)
-                .map(|k| poly(&lam, x_len * k as f64 / 64.0).exp())
-                .fold(0.0f64, f64::max);
-            let scale = x_len * emax;
-            let h = 0.5 * x_len;
-            let basis = [
-                |x: f64, h: f64| (x - h) * (x - 2.0 * h) / (2.0 * h * h),
-                |x: f64, h: f64| -x * (x - 2.0 * h) / (h * h),
-                |x: f64, h: f64| x * (x - h) / (2.0 * h * h),
-            ];
-            for (j, l) in basis.iter().enumerate() {
-                let r = adaptive_gk(
-                    |x| l(x, h) * poly(&lam, x).exp(),
-                    &[0.0, x_len],
-                    1e-14,
-                    1e-300,
-                    10_000,
-                )
-                .value;
-                assert!(
-                    (w[j] - r).abs() <= 1e-10 * scale,
-                    "{lam:?} X {x_len} j {j}: {} vs {r}",
-                    w[j]
-                );
-            }
-            let total = adaptive_gk(
-                |x| poly(&lam, x).exp(),
-                &[0.0, x_len],
-                1e-14,
-                1e-300,
-                10_000,
-            )
-            .value;
-            assert!((w.iter().sum::<f64>() - total).abs() <= 1e-12 * scale);
-        }
-    }
 
     #[test]
     fn e_neg_trunc_is_exp_of_minus_trunc() {

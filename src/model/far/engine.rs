@@ -61,8 +61,7 @@
 #![allow(clippy::needless_range_loop)] // fixed-size per-lobe arrays read clearer indexed
 
 use super::closed_form::{
-    lagrange_exp_weights, lam_curve_cap, poly, poly_exp, poly_gauss, poly_gauss_nodes,
-    quadratic_through,
+    lam_curve_cap, poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through,
 };
 use super::FarOptions;
 use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian, Absorption};
@@ -1596,16 +1595,6 @@ impl<'a> FarSlice<'a> {
         }
         let (l0, l1) = (n0.lam[i], n1.lam[i]);
         let lin = (l1 - l0) / len;
-        let xs = [0.0, 0.5 * len, len];
-        // The log-attenuation: the Appendix's line through the ends, or in tolerance mode
-        // the quadratic through all three nodes where it spans at most SCAT_LAM_SPREAD.
-        let curved = self
-            .tol
-            .and_then(|_| scat_lam_quadratic(xs, [l0, nm.lam[i], l1]));
-        let lam_at = |x: f64| match &curved {
-            Some(lq) => poly(lq, x),
-            None => l0 + lin * x,
-        };
         if let Some(b) = rf.budget {
             {
                 let q1 = self.node(rf.memo, 0.5 * (n0.u + nm.u));
@@ -1615,11 +1604,11 @@ impl<'a> FarSlice<'a> {
                     nm.pre[i] * nm.frac,
                     n1.pre[i] * n1.frac,
                 ];
-                let c = quadratic_through(xs, ys);
+                let c = quadratic_through([0.0, 0.5 * len, len], ys);
                 let mut e = 0.0f64;
                 for q in [q1, q3] {
                     let x = q.u - n0.u;
-                    let fit = poly(&c, x) * lam_at(x).exp();
+                    let fit = poly(&c, x) * (l0 + lin * x).exp();
                     e = e.max((fit - q.pre[i] * q.frac * q.lam[i].exp()).abs());
                 }
                 let fit_poor = e > b && e * len > rf.small;
@@ -1638,21 +1627,11 @@ impl<'a> FarSlice<'a> {
             n1.pre[i] * n1.prob,
         ];
         let mut w = [0.0; 3];
-        match &curved {
-            Some(lq) => {
-                let basis = lagrange_exp_weights(lq, len);
-                for j in 0..3 {
-                    w[j] = pre_p[j] * basis[j];
-                }
-            }
-            None => {
-                for j in 0..3 {
-                    let mut e = [0.0; 3];
-                    e[j] = 1.0;
-                    let c = quadratic_through(xs, e);
-                    w[j] = pre_p[j] * poly_exp(&c, l0, lin, len);
-                }
-            }
+        for j in 0..3 {
+            let mut e = [0.0; 3];
+            e[j] = 1.0;
+            let c = quadratic_through([0.0, 0.5 * len, len], e);
+            w[j] = pre_p[j] * poly_exp(&c, l0, lin, len);
         }
         out.push_segment([
             (n0.x_med, n0.phis[k], w[0]),
@@ -2170,32 +2149,6 @@ impl<'a> FarSlice<'a> {
 /// ([`FarOptions::scattered_step`] at `tol = 1e-4`, scaled by the cube root of the
 /// tolerance ratio, clamped to [1/4.6, 4], i.e. to `tol` in [1e-6, 6.4e-3]: the lower
 /// clamp bounds the piece count at tolerances below those the tests and reports use).
-/// Largest range of a scattered segment's quadratic log-attenuation (nats) that
-/// [`FarSlice::build_scat`] takes; beyond it the line (whose closed form, `poly_exp`,
-/// takes any slope) is used and the fit check bisects as before. Over 3 nats
-/// [`lagrange_exp_weights`] is exact to 1e-14.
-const SCAT_LAM_SPREAD: f64 = 3.0;
-
-/// The quadratic through a scattered segment's three log-attenuations at `xs`
-/// (`xs[0] = 0`), or `None` when it is a line or spans more than [`SCAT_LAM_SPREAD`] on
-/// `[0, xs[2]]`. The line through the ends missed the quarter points of TRTs by more than
-/// the budget at 24 of 50 checks per slice, the quadratic at 6.5 (cat preset).
-fn scat_lam_quadratic(xs: [f64; 3], lam: [f64; 3]) -> Option<[f64; 3]> {
-    let q = quadratic_through(xs, lam);
-    if q[2] == 0.0 || !q.iter().all(|v| v.is_finite()) {
-        return None;
-    }
-    let len = xs[2];
-    let vertex = -q[1] / (2.0 * q[2]);
-    let mut vals = [
-        poly(&q, 0.0),
-        poly(&q, len),
-        poly(&q, vertex.clamp(0.0, len)),
-    ];
-    vals.sort_by(f64::total_cmp);
-    (vals[2] - vals[0] <= SCAT_LAM_SPREAD).then_some(q)
-}
-
 fn max_dps(opts: &FarOptions) -> f64 {
     let ratio = opts.tol.unwrap_or(1e-4) / 1e-4;
     opts.scattered_step * ratio.cbrt().clamp(0.01f64.cbrt(), 4.0)
@@ -2778,23 +2731,6 @@ mod tests {
     /// The AVX2 build of the sweep must give the portable build's values bit for bit (the
     /// dispatch picks one by CPU; results may not depend on the machine), on long runs
     /// (restarts), short windows, both signs and a shifted image.
-    /// The scattered builder's curved log-attenuation: none for a line (the Appendix's
-    /// closed form stands), none past the 3-nat span its weights' rule is exact over
-    /// (counting a bulge between the nodes), else the quadratic through the three nodes.
-    #[test]
-    fn scat_lam_quadratic_takes_only_bounded_curves() {
-        let xs = [0.0, 0.5, 1.0];
-        assert_eq!(scat_lam_quadratic(xs, [-1.0, -2.0, -3.0]), None);
-        assert_eq!(scat_lam_quadratic(xs, [0.0, -3.5, -4.0]), None);
-        // The nodes span 2.9 nats, the quadratic 3.03 (its vertex at x = 0.63).
-        assert_eq!(scat_lam_quadratic(xs, [0.0, -2.9, -2.0]), None);
-        assert!(scat_lam_quadratic(xs, [0.0, -2.8, -2.0]).is_some());
-        let q = scat_lam_quadratic(xs, [-1.0, -2.5, -3.0]).expect("2-nat curve");
-        for (x, y) in xs.iter().zip([-1.0, -2.5, -3.0]) {
-            assert!((poly(&q, *x) - y).abs() <= 1e-15);
-        }
-    }
-
     #[test]
     fn gaussian_sweep_avx2_equals_portable_build() {
         let sorted: Vec<f64> = (0..361).map(|q| -PI + q as f64 * TAU / 360.0).collect();

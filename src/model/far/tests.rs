@@ -588,6 +588,33 @@ fn tol_mode_meets_1e_4_on_stiff_cases_and_presets() {
     }
 }
 
+/// Tighter tolerances hold too, on the bench-model presets and angles: every lobe within
+/// `tol` of its peak at 1e-5 and 1e-6 (worst measured 1.8e-7 at 1e-6). A scattered-segment
+/// change that met 1e-4 with room but missed 1e-6 by 1.5x (TRTs, dog at theta_d 60) was
+/// caught only by `bench-model`, not by the 1e-4 tests.
+#[test]
+fn tol_mode_meets_tighter_tolerances_on_presets() {
+    for tol in [1e-5, 1e-6] {
+        let opts = FarOptions {
+            tol: Some(tol),
+            ..FarOptions::default()
+        };
+        for name in ["red-fox", "human", "dog", "mouse"] {
+            let m = FurModel::new(&FurParams::preset(name).unwrap());
+            for td in [0.0f64, 30.0, 60.0] {
+                let e = max_rel_err(&m, td.to_radians(), &opts, 48);
+                for l in Lobe::ALL {
+                    assert!(
+                        e[l.index()] <= tol,
+                        "{name} tol {tol:e} theta_d {td}: {l:?} error {:.2e} of peak",
+                        e[l.index()]
+                    );
+                }
+            }
+        }
+    }
+}
+
 /// Wide unscattered lobes (red fox, beta_n 17.6 deg) are resolved by the 4-point rule of
 /// the Gauss-Legendre cascade ([`FarSlice::gl_piece_with`]): most pieces of TT and TRT
 /// keep 4 nodes (8 or 16 before the cascade; 44 nodes over 8 pieces measured for TT at
