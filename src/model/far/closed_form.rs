@@ -98,9 +98,10 @@ pub fn poly_gauss(c: &[f64; 3], lam: &[f64; 3], m: f64, beta: f64, x_len: f64) -
             // Peak inside: C = Qmax, so exp(C) = ex, and e^C (erf(y1) - erf(y0)) is
             // 2 e^C less the two tails e^C erfc(|y|) = e_end erfcx(|y|) (exp(C - y^2) is
             // the exponential at that end). Two erfcx at ~11 ns, not two erf at ~45 ns
-            // (puruspe); no cancellation, as y1 - y0 >= 0.5 puts the result above 2 - 2
-            // erfc(0.25). A tail from |y| >= 6 is below e^C erfc(6) = 2e-17 e^C, under half
-            // an ulp of the result: a piece longer than its cut has y = +-sqrt(TRUNC) = +-6.3.
+            // (puruspe); no cancellation, as y1 - y0 >= 0.5 keeps erf(y1) - erf(y0) at or
+            // above erf(0.5) = 0.52. A tail from |y| >= 6 is below e^C erfc(6) = 2e-17 e^C,
+            // under half an ulp of the result: a piece longer than its cut has
+            // y = +-sqrt(TRUNC) = +-6.3 at both ends.
             let tail = |y: f64, e: f64| if y >= 6.0 { 0.0 } else { e * erfcx(y) };
             k * (2.0 * ex - tail(y1, e1) - tail(-y0, e0))
         };

@@ -1721,7 +1721,7 @@ impl<'a> FarSlice<'a> {
     /// by one bit for bit (same terms in the same order per `phi`); on an evenly spaced grid
     /// it sweeps node Gaussians by recurrence (quadrature pieces, and Phi pieces in their
     /// node form), or sums them in Fourier space for a wide lobe (`FourierGrid`), and
-    /// reads the scattered tables along the grid, within 1e-12 of each
+    /// reads the scattered tables along the grid, within 1e-11 of each
     /// lobe's peak of the one-by-one values (tests `eval_many_equals_eval_exactly`,
     /// `eval_many_on_even_grids_matches_eval`).
     pub fn eval_many(&self, phis: &[f64]) -> Vec<LobeValues> {
@@ -2437,8 +2437,9 @@ impl UniformGrid {
                 let mu = at.sign * (self.first + start as f64 * self.step) + at.shift;
                 let y = ph - mu;
                 // A ratio's exponent is at most c w^2 = 36 in magnitude where a run has
-                // a second point (both within w of the node); f64x4::exp's 0 above 708
-                // (not inf) can only reach a ratio that is never used.
+                // a second point (both within w = 8.5 beta of the node: sweeps run with
+                // culling on); f64x4::exp's 0 above 708 (not inf) can only reach a ratio
+                // that is never used.
                 runs[n] = (start, (start + SWEEP_RUN).min(q1), wt);
                 args[0][n] = -y * y * c;
                 args[1][n] = (2.0 * y * d - self.step * self.step) * c;
