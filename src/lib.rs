@@ -7,6 +7,10 @@
 //! [`fit`] -> [`report`]; [`simulate`] is the independent virtual goniometer that makes
 //! `measurements/`; [`render`] previews fitted fur. The binary's [`cli`] only parses
 //! arguments and prints.
+//!
+//! The crate is an application's library: its API docs are read with
+//! `cargo doc --document-private-items`, so public items may link to private ones.
+#![allow(rustdoc::private_intra_doc_links)]
 
 pub mod cli;
 pub mod error;

@@ -1,5 +1,7 @@
 //! Command-line interface: one file per subcommand, each a thin layer that parses
 //! arguments, calls the library and prints. Errors go to stderr with a non-zero exit.
+// Doc comments on clap arguments are `--help` text, not Markdown: `<species>` stays.
+#![allow(rustdoc::invalid_html_tags)]
 
 use crate::model::far::{FarOptions, SCATTERED_STEP_STRICT};
 use crate::FurParams;
@@ -339,7 +341,7 @@ pub(crate) fn note_radian_grids(grids: &[(&str, &[f64])]) {
 }
 
 /// This run's command line as files record it (`# command:`), ready to paste into a
-/// shell: argv[0] as plain `furfit` (reproducible anywhere), every argument quoted as
+/// shell: `argv[0]` as plain `furfit` (reproducible anywhere), every argument quoted as
 /// needed ([`shell_quote`]).
 pub(crate) fn command_line() -> String {
     std::iter::once("furfit".to_string())

@@ -25,7 +25,7 @@
 //! **Multi-channel profiles** are fitted one channel at a time (all ten parameters and the
 //! exposure per channel): the seed fits one profile per species and its Table 4 has one
 //! column per species, and a per-channel fit keeps the ten-key `params` object of DATA.md
-//! meaningful for every channel. See [`fit_profile`].
+//! meaningful for every channel. See [`job::fit_loaded`] and [`channel_data`].
 
 pub mod forward;
 pub mod job;

@@ -940,7 +940,7 @@ impl CnRows<'_> {
 
     /// [`Self::integrate`] as weights on the row nodes, for a `psi0` that moves by whole
     /// bins (an evenly spaced `phi` grid whose step is a multiple of the bin width): the
-    /// integral at a start `k` bins further is [`PsiWeights::dot`] at `shift = k`.
+    /// integral at a start `k` bins further is [`CnRows::dot`] at `shift = k`.
     pub fn weights(&self, psi0: f64, len: f64, g: &[[f64; 3]; 2]) -> PsiWeights {
         let mut w = PsiWeights {
             first: 0,

@@ -387,7 +387,7 @@ fn draw<DB: DrawingBackend>(
     Ok(())
 }
 
-/// The files [`write`] writes for `fit` into `out` ([`outputs_of`] its label).
+/// The files [`write()`] writes for `fit` into `out` ([`outputs_of`] its label).
 pub fn outputs(fit: &FitFile, out: &Path) -> [std::path::PathBuf; 2] {
     outputs_of(&fit.label(), out)
 }

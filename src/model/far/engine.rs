@@ -1,7 +1,7 @@
 //! The piecewise-analytic far-field / multi-scale evaluator (seed Eqs. 23-26, Appendix).
 //!
 //! Everything that does not depend on `phi` is done once per `theta_d` in
-//! [`FarSlice::new`]: the segmentation, the node values and the fits. [`FarSlice::eval`]
+//! [`FarSlice::far`]: the segmentation, the node values and the fits. [`FarSlice::eval`]
 //! then costs a handful of closed-form integrals per lobe and `phi`.
 //!
 //! # Method
@@ -2036,7 +2036,7 @@ impl<'a> FarSlice<'a> {
     /// ([`CnRows::accumulate_point`]); they are summed per row and read along the grid in
     /// one pass per direction ([`CnRows::correlate`]). The direct side reads
     /// `C^N(x, phi - Phi^s)`, the mirrored `C^N(-x, phi + Phi^s)`, and a query at a
-    /// negative offset reads the row of `|x|` at `-psi` ([`MedullaSlice::cn`]), which
+    /// negative offset reads the row of `|x|` at `-psi` ([`crate::model::medulla::MedullaSlice::cn`]), which
     /// reverses its direction along the grid.
     fn add_rows_sweep(
         &self,
