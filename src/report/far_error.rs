@@ -532,22 +532,23 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
     let mut tol_rates: Vec<Vec<(f64, &str)>> = vec![Vec::new(); SYNTH_TOLS.len()];
     for name in crate::params::preset_names() {
         let model = FurModel::new(&FurParams::preset(name).expect("shipped preset"));
+        // (label, options, index into SYNTH_TOLS for the tolerance ladder).
         let mut modes = vec![
-            ("paper 8/5".to_string(), FarOptions::paper()),
-            ("tol 1e-4".to_string(), FarOptions::default()),
+            ("paper 8/5".to_string(), FarOptions::paper(), None),
+            ("tol 1e-4".to_string(), FarOptions::default(), Some(0)),
         ];
         if matches!(name, "red-fox" | "human") {
-            modes.push(("tol 1e-4 strict".to_string(), FarOptions::strict()));
+            modes.push(("tol 1e-4 strict".to_string(), FarOptions::strict(), None));
         }
         // Looser tolerances: how much of the cost the tolerance itself sets.
-        for &t in &SYNTH_TOLS[1..] {
+        for (k, &t) in SYNTH_TOLS.iter().enumerate().skip(1) {
             let opts = FarOptions {
                 tol: Some(t),
                 ..FarOptions::default()
             };
-            modes.push((format!("tol {t:.0e}"), opts));
+            modes.push((format!("tol {t:.0e}"), opts, Some(k)));
         }
-        for (mode, opts) in modes {
+        for (mode, opts, ladder) in modes {
             let run = || {
                 let t = Instant::now();
                 let v = plan.predict(&model, LobeSet::ALL, crate::synth::ModelKind::Far, &opts);
@@ -558,9 +559,6 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
             let mut t: Vec<f64> = (0..SYNTH_RUNS).map(|_| run()).collect();
             t.sort_by(f64::total_cmp);
             let (best, median) = (t[0], t[SYNTH_RUNS / 2]);
-            let ladder = SYNTH_TOLS
-                .iter()
-                .position(|&x| mode == format!("tol {x:.0e}"));
             if let Some(k) = ladder {
                 tol_rates[k].push((pts.len() as f64 / best, name));
             }
@@ -642,6 +640,12 @@ fn slice_breakdown(model: &FurModel, plan: &crate::synth::GridPlan, opts: &FarOp
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The ladder's first tolerance is the default mode the goal is stated for.
+    #[test]
+    fn synth_ladder_starts_at_the_default_tolerance() {
+        assert_eq!(FarOptions::default().tol, Some(SYNTH_TOLS[0]));
+    }
 
     /// Errors are relative to each lobe's own peak over phi; the per-lobe maxima are the
     /// lobes' largest such errors and the overall max is the largest of them. Values are

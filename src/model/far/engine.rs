@@ -2036,8 +2036,9 @@ impl<'a> FarSlice<'a> {
     /// ([`CnRows::accumulate_point`]); they are summed per row and read along the grid in
     /// one pass per direction ([`CnRows::correlate`]). The direct side reads
     /// `C^N(x, phi - Phi^s)`, the mirrored `C^N(-x, phi + Phi^s)`, and a query at a
-    /// negative offset reads the row of `|x|` at `-psi` ([`crate::model::medulla::MedullaSlice::cn`]), which
-    /// reverses its direction along the grid.
+    /// negative offset reads the row of `|x|` at `-psi`
+    /// ([`crate::model::medulla::MedullaSlice::cn`]), which reverses its direction along
+    /// the grid.
     fn add_rows_sweep(
         &self,
         part: &Part,
