@@ -8,10 +8,10 @@
 //!   the erf difference is written with `erfcx` and the exponent's actual endpoint values
 //!   (one-sided: a difference of two such terms; peak inside: the peak's mass less two
 //!   tails), so nothing overflows; the interval is first cut to where the integrand is
-//!   within `e^-40` of its maximum. When the erf
-//!   form is ill-conditioned (peak far outside the interval, or the quadratic coefficient
-//!   vanishing relative to the interval) a composite Gauss-Legendre rule of the *same*
-//!   integrand is used, so the result is the exact integral of the fitted model either way.
+//!   within `e^-40` of its maximum. When the erf form is ill-conditioned (peak far outside
+//!   the interval, or the quadratic coefficient vanishing relative to the interval) a
+//!   composite Gauss-Legendre rule of the *same* integrand is used, so the result is the
+//!   exact integral of the fitted model either way.
 //! * [`poly_exp`]: `integral_0^X (c0 + c1 x + c2 x^2) exp(l0 + l x) dx` (Appendix
 //!   "Integrating C exp(L)"), closed form for `|l| X >= 1`, Gauss-Legendre below (where the
 //!   closed form divides by small powers of `l`).
