@@ -535,7 +535,11 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
         // (label, options, index into SYNTH_TOLS for the tolerance ladder).
         let mut modes = vec![
             ("paper 8/5".to_string(), FarOptions::paper(), None),
-            ("tol 1e-4".to_string(), FarOptions::default(), Some(0)),
+            (
+                format!("tol {:.0e}", SYNTH_TOLS[0]),
+                FarOptions::default(),
+                Some(0),
+            ),
         ];
         if matches!(name, "red-fox" | "human") {
             modes.push(("tol 1e-4 strict".to_string(), FarOptions::strict(), None));
