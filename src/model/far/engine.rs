@@ -210,6 +210,20 @@ impl Hasher for BitsHasher {
     }
 }
 
+/// The nodes of one Gauss-Legendre rule of at most [`GL_NODES`] points
+/// ([`FarSlice::gl_nodes`]), read as a slice.
+struct GlNodes {
+    nodes: [(f64, f64); GL_NODES],
+    len: usize,
+}
+
+impl std::ops::Deref for GlNodes {
+    type Target = [(f64, f64)];
+    fn deref(&self) -> &[(f64, f64)] {
+        &self.nodes[..self.len]
+    }
+}
+
 /// Values at one offset `u = asin h`, for all lobes at once.
 #[derive(Clone, Copy, Debug)]
 struct Node {
@@ -1336,16 +1350,19 @@ impl<'a> FarSlice<'a> {
                 .iter()
                 .fold((lo, hi), |(a, b), &(ph, _)| (a.min(ph), b.max(ph)))
         };
-        let piece = |nodes: Vec<(f64, f64)>| {
-            let (plo, phi_hi) = range(&nodes);
+        let piece = |nodes: &[(f64, f64)]| {
+            let (plo, phi_hi) = range(nodes);
             Piece::Gl {
                 lo: plo,
                 hi: phi_hi,
-                nodes,
+                nodes: nodes.to_vec(),
             }
         };
         let Some(tol) = self.tol.filter(|_| estimate || few_ok) else {
-            return (piece(self.gl_nodes(p, n0.u, n1.u, GL_NODES)), f64::INFINITY);
+            return (
+                piece(&self.gl_nodes(p, n0.u, n1.u, GL_NODES)),
+                f64::INFINITY,
+            );
         };
         let few = self.gl_nodes(p, n0.u, n1.u, GL_NODES_FEW);
         let (flo, fhi) = range(&few);
@@ -1385,34 +1402,37 @@ impl<'a> FarSlice<'a> {
             let least = self.gl_nodes(p, n0.u, n1.u, GL_NODES_LEAST);
             let (diff, peak) = compare(&sums(&least), &few_sums);
             if tape.choose_bool(diff <= GL_FEW_REL * tol * peak) {
-                return (piece(least), diff * norm);
+                return (piece(&least), diff * norm);
             }
         }
         let full = self.gl_nodes(p, n0.u, n1.u, GL_NODES);
         let (diff, peak) = compare(&few_sums, &sums(&full));
         let nodes = if few_fits && tape.choose_bool(diff <= GL_FEW_REL * tol * peak) {
-            few
+            &few
         } else {
-            full
+            &full
         };
         (piece(nodes), diff * norm)
     }
 
-    /// `count`-point Gauss-Legendre nodes `(Phi_p, weight * A cos u)` of lobe `p` on
-    /// `[u0, u1]`.
-    fn gl_nodes(&self, p: usize, u0: f64, u1: f64, count: usize) -> Vec<(f64, f64)> {
+    /// `count`-point (at most [`GL_NODES`]) Gauss-Legendre nodes `(Phi_p, weight * A cos u)`
+    /// of lobe `p` on `[u0, u1]`, on the stack: a piece tries up to three rules and keeps
+    /// one, so only the kept rule's nodes are copied to the heap.
+    fn gl_nodes(&self, p: usize, u0: f64, u1: f64, count: usize) -> GlNodes {
+        debug_assert!(count <= GL_NODES);
         let gl = GaussLegendre::cached(count);
         let (c, r) = (0.5 * (u0 + u1), 0.5 * (u1 - u0));
-        gl.nodes
-            .iter()
-            .zip(&gl.weights)
-            .map(|(x, w)| {
-                let (phi, pre, lam) = self.gl_node(p, c + r * x);
-                // R's exponent is 0: skip the exponential (a factor 1, exact).
-                let a = w * r * pre;
-                (phi, if p == 0 { a } else { a * lam.exp() })
-            })
-            .collect()
+        let mut out = GlNodes {
+            nodes: [(0.0, 0.0); GL_NODES],
+            len: count,
+        };
+        for ((o, x), w) in out.nodes.iter_mut().zip(&gl.nodes).zip(&gl.weights) {
+            let (phi, pre, lam) = self.gl_node(p, c + r * x);
+            // R's exponent is 0: skip the exponential (a factor 1, exact).
+            let a = w * r * pre;
+            *o = (phi, if p == 0 { a } else { a * lam.exp() });
+        }
+        out
     }
 
     /// The slice's medulla table rows, if the fiber has a medulla.
