@@ -1,0 +1,47 @@
+//! Every profile loader on arbitrary bytes: an `Err` is fine, a panic is a bug (nothing
+//! panics on user input). The first byte picks the loader and its options, so one corpus
+//! serves all four formats. Whatever loads is also summarised (as `inspect` does) and
+//! written as CSV and `.npz`, and the CSV must read back with the same samples: a profile
+//! furfit accepts is one it can write.
+#![no_main]
+
+use furfit::profile::{csv, npz, summary::Summary, yan, LoadOptions};
+use libfuzzer_sys::fuzz_target;
+use std::path::Path;
+
+fuzz_target!(|data: &[u8]| {
+    let Some((&sel, bytes)) = data.split_first() else {
+        return;
+    };
+    let grids = sel & 0x80 != 0;
+    let opts = LoadOptions {
+        flip_phi: sel & 0x10 != 0,
+        flip_theta_r: sel & 0x20 != 0,
+        phi_offset: if sel & 0x40 != 0 { 90.0 } else { 0.0 },
+        theta_i: grids.then(|| vec![0.0, 30.0]),
+        theta_r: grids.then(|| vec![-30.0, 0.0, 30.0]),
+        phi: grids.then(|| vec![-90.0, 0.0, 90.0, 180.0]),
+        ..LoadOptions::default()
+    };
+    let path = Path::new("fuzz.input");
+    let loaded = match sel & 0x3 {
+        0 => csv::parse_with(bytes, path, &opts),
+        1 => yan::parse(bytes, path, &opts),
+        2 => npz::parse_npz_with(bytes, path, &opts),
+        _ => npz::parse_npy(bytes, path, &opts),
+    };
+    let Ok((profile, _notes)) = loaded else {
+        return;
+    };
+    let _ = Summary::of(&profile);
+    let _ = npz::to_bytes(&profile);
+    if let Ok(text) = csv::to_string(&profile) {
+        let back = csv::parse(text.as_bytes(), Path::new("fuzz.csv"));
+        let (again, _) = back.unwrap_or_else(|e| panic!("written CSV does not read back: {e}"));
+        assert_eq!(
+            again.samples.len(),
+            profile.samples.len(),
+            "samples lost in a round trip"
+        );
+    }
+});
