@@ -1,11 +1,11 @@
-//! Every profile loader on arbitrary bytes: an `Err` is fine, a panic is a bug (nothing
-//! panics on user input). The first byte picks the loader and its options, so one corpus
-//! serves all four formats. Whatever loads is also summarised (as `inspect` does) and
+//! Every profile loader on arbitrary bytes, through `profile::parse_bytes` as a file is
+//! read: an `Err` is fine, a panic is a bug (nothing panics on user input). The first
+//! byte picks the format and the loader options, so one corpus serves all four formats. Whatever loads is also summarised (as `inspect` does) and
 //! written as CSV and `.npz`, and the CSV must read back with the same samples: a profile
 //! furfit accepts is one it can write.
 #![no_main]
 
-use furfit::profile::{csv, npz, summary::Summary, yan, LoadOptions};
+use furfit::profile::{csv, npz, parse_bytes, summary::Summary, Format, LoadOptions};
 use libfuzzer_sys::fuzz_target;
 use std::path::Path;
 
@@ -24,13 +24,8 @@ fuzz_target!(|data: &[u8]| {
         ..LoadOptions::default()
     };
     let path = Path::new("fuzz.input");
-    let loaded = match sel & 0x3 {
-        0 => csv::parse_with(bytes, path, &opts),
-        1 => yan::parse(bytes, path, &opts),
-        2 => npz::parse_npz_with(bytes, path, &opts),
-        _ => npz::parse_npy(bytes, path, &opts),
-    };
-    let Ok((profile, _notes)) = loaded else {
+    let format = [Format::Csv, Format::Yan, Format::Npz, Format::Npy][(sel & 0x3) as usize];
+    let Ok((profile, _notes)) = parse_bytes(format, bytes, path, &opts) else {
         return;
     };
     let _ = Summary::of(&profile);

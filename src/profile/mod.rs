@@ -663,6 +663,27 @@ pub fn load_full(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
     Ok(l)
 }
 
+/// A profile file's bytes read as `format` (`path` names it in errors): the text checks of
+/// CSV and Yan-2015 files (not binary, not UTF-16), then that format's loader. What
+/// [`load_full`] does once the file is read; also the entry of the loader fuzz target.
+pub fn parse_bytes(
+    format: Format,
+    bytes: &[u8],
+    path: &Path,
+    opts: &LoadOptions,
+) -> Result<(Profile, Vec<String>)> {
+    if matches!(format, Format::Csv | Format::Yan) {
+        check_not_binary(bytes, path)?;
+        check_not_utf16(bytes, path)?;
+    }
+    match format {
+        Format::Csv => csv::parse_with(bytes, path, opts),
+        Format::Npz => npz::parse_npz_with(bytes, path, opts),
+        Format::Npy => npz::parse_npy(bytes, path, opts),
+        Format::Yan => yan::parse(bytes, path, opts),
+    }
+}
+
 /// [`load_full`] without its folder's `metadata.json` label ([`load_dir`] applies that
 /// once to the merged profile).
 fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
@@ -682,16 +703,7 @@ fn load_file(path: &Path, opts: &LoadOptions) -> Result<Loaded> {
         ));
     }
     let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    if matches!(format, Format::Csv | Format::Yan) {
-        check_not_binary(&bytes, path)?;
-        check_not_utf16(&bytes, path)?;
-    }
-    let (mut profile, notes) = match format {
-        Format::Csv => csv::parse_with(&bytes, path, opts)?,
-        Format::Npz => npz::parse_npz_with(&bytes, path, opts)?,
-        Format::Npy => npz::parse_npy(&bytes, path, opts)?,
-        Format::Yan => yan::parse(&bytes, path, opts)?,
-    };
+    let (mut profile, notes) = parse_bytes(format, &bytes, path, opts)?;
     profile.source = Some(path.to_path_buf());
     let mut notes = notes;
     notes.extend(radians_warning(&profile));
