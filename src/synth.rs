@@ -9,14 +9,13 @@
 //! less than one full evaluation per sample. Results do not depend on the thread count.
 
 use crate::model::azimuthal::wrap_angle;
-use crate::model::far::{Decisions, FarOptions, FarSlice};
+use crate::model::far::{BitsMap, Decisions, FarOptions, FarSlice};
 use crate::model::geometry::theta_d;
 use crate::model::medulla::front_back_lerp;
 use crate::model::{AzimuthalSlice, FurModel, Lobe, LobeSet, LobeValues};
 use crate::params::FurParams;
 use crate::profile::{Profile, Sample};
 use rayon::prelude::*;
-use std::collections::HashMap;
 use std::path::Path;
 
 /// The far field of one `theta_d` at many `phi`, as grid prediction computes it: one
@@ -109,8 +108,8 @@ impl GridPlan {
             .map(|&(ti, tr, _)| theta_d(ti, tr).abs())
             .collect();
         let (reps, td_group) = merge_rounding_twins(&tds);
-        let mut phi_index: Vec<HashMap<u64, usize>> = vec![HashMap::new(); reps.len()];
-        let mut pair_index: HashMap<(u64, u64), usize> = HashMap::new();
+        let mut phi_index: Vec<BitsMap<u64, usize>> = vec![BitsMap::default(); reps.len()];
+        let mut pair_index: BitsMap<(u64, u64), usize> = BitsMap::default();
         let mut plan = GridPlan {
             points: points.to_vec(),
             groups: reps.into_iter().map(|td| (td, Vec::new())).collect(),
@@ -312,12 +311,13 @@ pub const THETA_D_MERGE: f64 = 1e-14;
 /// The distinct values of `v` with those within [`THETA_D_MERGE`] of a smaller one merged
 /// (in ascending order; each cluster is represented by its smallest value and spans at
 /// most `THETA_D_MERGE`), and the cluster index of each value's bit pattern.
-fn merge_rounding_twins(v: &[f64]) -> (Vec<f64>, HashMap<u64, usize>) {
+fn merge_rounding_twins(v: &[f64]) -> (Vec<f64>, BitsMap<u64, usize>) {
     let mut sorted = v.to_vec();
-    sorted.sort_by(f64::total_cmp);
+    // Equal under total_cmp means equal bits, so an unstable sort gives the same order.
+    sorted.sort_unstable_by(f64::total_cmp);
     sorted.dedup_by(|a, b| a.to_bits() == b.to_bits());
     let mut reps: Vec<f64> = Vec::new();
-    let mut index = HashMap::with_capacity(sorted.len());
+    let mut index = BitsMap::with_capacity_and_hasher(sorted.len(), Default::default());
     for x in sorted {
         match reps.last() {
             Some(&r) if x - r <= THETA_D_MERGE => {}

@@ -174,7 +174,7 @@ struct NodeMemo(RefCell<MemoEntries>);
 
 /// The nodes of a [`NodeMemo`] and their index by key.
 struct MemoEntries {
-    index: HashMap<(u64, bool), u32, BuildHasherDefault<BitsHasher>>,
+    index: BitsMap<(u64, bool), u32>,
     nodes: Vec<Node>,
 }
 
@@ -182,7 +182,7 @@ impl NodeMemo {
     fn new() -> Self {
         // A grid synthesis slice's few hundred nodes with at most one regrowth.
         NodeMemo(RefCell::new(MemoEntries {
-            index: HashMap::with_capacity_and_hasher(256, Default::default()),
+            index: BitsMap::with_capacity_and_hasher(256, Default::default()),
             nodes: Vec::with_capacity(256),
         }))
     }
@@ -190,9 +190,13 @@ impl NodeMemo {
 
 /// A hasher for `f64` bit patterns: a multiply per word (Fibonacci hashing), its high half
 /// folded into the low one that picks the bucket (midpoints of dyadic offsets end in zero
-/// bits), enough for keys that are distinct doubles.
+/// bits), enough for keys that are distinct doubles. The default SipHash costs several
+/// times more per key and guards against adversarial keys, which angles are not.
 #[derive(Default)]
-struct BitsHasher(u64);
+pub struct BitsHasher(u64);
+
+/// A map keyed by `f64` bit patterns (and small tags) with [`BitsHasher`].
+pub type BitsMap<K, V> = HashMap<K, V, BuildHasherDefault<BitsHasher>>;
 
 impl Hasher for BitsHasher {
     fn finish(&self) -> u64 {
