@@ -1,6 +1,7 @@
 //! furfit: fit, check and preview the 5-lobe fur fiber BCSDF of Yan et al. 2017
 //! ("An Efficient and Practical Near and Far Field Fur Reflectance Model", the seed paper
-//! `000_85b68d9b3972f7ab.txt`) with the conventions of `shared/spec/MODEL.md`.
+//! `000_85b68d9b3972f7ab.txt`) with the conventions of the project's `MODEL.md`
+//! (`../shared/spec/`).
 //!
 //! The pipeline, module by module (see `ARCHITECTURE.md`):
 //! [`params`] -> [`profile`] (load) -> [`model`] (near / far / multi-scale BCSDF) ->

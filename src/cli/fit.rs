@@ -68,8 +68,9 @@ pub struct Args {
     pub max_iters: u64,
     /// Profile-likelihood intervals (68 %, Delta RSS = s^2) of these free parameters after
     /// the fit: a comma list of names or `all`. Each re-solves the other parameters at
-    /// typically under ten values per side (at most 22 per parameter), so it costs several
-    /// fits; recorded as uncertainty.profile.
+    /// typically under ten values per side (more when its linearised SE is far below the
+    /// step cap, as the steps then double out to the same reach), so it costs several fits;
+    /// recorded as uncertainty.profile.
     #[arg(long, value_name = "NAMES")]
     pub profile: Option<String>,
     /// Leave out samples below this fraction of the channel's largest value, in [0, 1)

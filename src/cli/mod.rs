@@ -402,7 +402,7 @@ pub enum Command {
     RenderConvergence(render_convergence::Args),
     /// Synthesize a profile from parameters on an angle grid (far field or quadrature).
     Synth(Box<synth::Args>),
-    /// Adversarial stability sweep of the far field (about 100 s on two cores); writes reports/stability.{md,csv}.
+    /// Adversarial stability sweep of the far field (2-3 min on two cores); writes reports/stability.{md,csv}.
     Stability(stability::Args),
     /// Far-field error vs evaluation time against Gauss-Legendre quadrature.
     BenchModel(bench_model::Args),

@@ -7,7 +7,7 @@ pub struct Args {
     /// Output directory for se_calibration.{md,csv}.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
-    /// Noisy replicates per noise model (each a full fit of 3720 samples, ~2 s).
+    /// Noisy replicates per noise model (each a full fit of 3720 samples, ~6 s on two cores).
     #[arg(long, default_value_t = 40)]
     pub reps: usize,
     /// Replace existing output files that furfit did not write (or that changed since).

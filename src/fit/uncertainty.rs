@@ -153,7 +153,7 @@ pub fn bound_effects(
 /// interior edge, per unit of value (the map's derivative has vanished at the bound, so
 /// `jac`'s own column says nothing). Such a parameter's conditional SE is falsely tight:
 /// the data fix only a combination with the held ones (two absorptions at correlation -1;
-/// springbok's `sigma_c_a` 1859 with `kappa` 0.9998 and `sigma_m_a` at 0).
+/// springbok's fit: `sigma_c_a` in the thousands with `kappa` at 0.9999 and `sigma_m_a` at 0).
 pub fn flag_coupled(unc: &mut Uncertainty, jac: &DMatrix<f64>, held: &[(ParamId, DVector<f64>)]) {
     let cols: Vec<&DVector<f64>> = held
         .iter()

@@ -1,7 +1,9 @@
 //! Azimuthal scattering in the near field: attenuation `A_p` (seed Eqs. 13-14, 20),
 //! exit azimuths `Phi_p` / `Phi^s_p` (Eqs. 15, 21), distributions `D_p` (Eq. 7, a wrapped
 //! Gaussian of variance `(p + 1) beta_n^2`, Eq. 16) and `D^s_p` (Eq. 10, the medulla table
-//! `C^N`), and their products `N_p(h, phi)` (Eqs. 6, 9). Table 3 of the seed lists them all.
+//! `C^N`). Their products, the near field `N_p(h, phi)` (Eqs. 6, 9), are
+//! [`AzimuthalSlice::near`](crate::model::AzimuthalSlice::near). Table 3 of the seed lists
+//! them all.
 //!
 //! Frame (MODEL.md): `phi = 0` is backward scattering, `|phi| = pi` forward. The p-th
 //! internal segment of a path has direction `Phi^s_p` measured as a deviation from the

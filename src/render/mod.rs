@@ -4,7 +4,9 @@
 //! * [`scene`]: the procedural lock, camera, lights;
 //! * [`bvh`]: BVH over fiber segments, ray vs camera-facing ribbon, offset `h`;
 //! * [`bsdf`]: the renderer's BCSDF (units, frame, importance sampling, exact pdfs);
-//! * [`integrator`]: path tracing with NEE + MIS, Russian roulette, pixel footprint;
+//! * [`integrator`]: path tracing with NEE to the key light (a delta light: no MIS to
+//!   weigh), the environment by BCSDF sampling or with `--env-nee` by NEE + MIS, Russian
+//!   roulette, pixel footprint;
 //! * [`output`]: tone mapping, PNG/EXR/AOV writing, contact sheets;
 //! * [`study`]: convergence and culling studies.
 //!

@@ -1,7 +1,8 @@
 //! The virtual goniometer: explicit Monte Carlo ray tracing of photons through a 3-D
 //! double-cylinder fur fiber, binned like a goniometer. It makes the synthetic
 //! `measurements/` and is deliberately independent of the analytic model in
-//! [`crate::model`] (it shares only [`FurParams`]).
+//! [`crate::model`] (it shares only [`FurParams`] and the Fresnel functions of
+//! [`crate::model::fresnel`]).
 //!
 //! # Physics (each choice stated here)
 //! - **Fiber.** An infinite cylinder along `u = +z` (root -> tip) with unit radius and a

@@ -2,10 +2,10 @@
 //! the pile-of-plates cuticle reflectance of MODEL.md, mirror reflection, Snell refraction
 //! and Henyey-Greenstein sampling.
 //!
-//! These are deliberately local to `simulate` (the analytic model in `crate::model` has its
-//! own Fresnel in the Bravais 2-D form); here every interface is handled with the *exact
-//! 3-D* incidence angle between the ray and the (micro-)normal, which is the physics the
-//! analytic model approximates.
+//! The Fresnel functions are the model's ([`crate::model::fresnel`], re-exported here);
+//! the rest is local to `simulate`. Where the analytic model evaluates them at the Bravais
+//! 2-D angles, here every interface is handled with the *exact 3-D* incidence angle between
+//! the ray and the (micro-)normal, which is the physics the analytic model approximates.
 
 /// A 3-D vector (x, y in the fiber's cross-section plane, z along the fiber axis `u`).
 pub type V3 = [f64; 3];
