@@ -727,26 +727,57 @@ fn remove_stale_siblings(path: &Path) {
 /// furfit's, so the next run replaces it without --force.
 pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = write_temp(path, |w| w.write_all(bytes))?;
-    let new = serde_json::Value::from(sha256_hex(bytes));
-    // Until the rename the ledger accepts the content in place as well as the new one, so
-    // a kill at any point leaves the file listed with what it holds.
-    let entry = match std::fs::read(path) {
-        Ok(old) => serde_json::json!([sha256_hex(&old), new]),
-        Err(_) => new.clone(),
-    };
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
-    let dir = parent_dir(path);
-    if let Some(name) = &name {
-        if let Err(e) = update_ledger(&dir, vec![(name.clone(), entry)]) {
-            discard_temp(&tmp);
-            return Err(e);
-        }
+    let new = sha256_hex(bytes);
+    if let Err(e) = record_entries(vec![(path, pending_entry(path, &new))]) {
+        discard_temp(&tmp);
+        return Err(e);
     }
     commit(&tmp, path)?;
     remove_stale_siblings(path);
-    match name {
-        Some(name) => update_ledger(&dir, vec![(name, new)]),
-        None => Ok(()),
+    record_entries(vec![(path, new.into())])
+}
+
+/// [`write_atomic_all`] a group of outputs of a ledger-keeping command and record them in
+/// their folders' [`LEDGER`]s, as [`write_output`] does for one file: an interrupt lets
+/// the group land whole, and at every moment each file is listed with what it holds (an
+/// interrupt between the renames and a separate recording left the new files unlisted,
+/// so the same command then refused to replace its own outputs; audit, 2026-12-02).
+pub fn write_outputs(files: &[(PathBuf, Vec<u8>)]) -> Result<()> {
+    let news = land_outputs(files)?;
+    record_entries(
+        files
+            .iter()
+            .zip(news)
+            .map(|((p, _), new)| (p.as_path(), new.into()))
+            .collect(),
+    )
+}
+
+/// The part of [`write_outputs`] up to the renames: the files listed with both contents,
+/// then written as a group. Returns the new contents' digests.
+fn land_outputs(files: &[(PathBuf, Vec<u8>)]) -> Result<Vec<String>> {
+    let news: Vec<String> = files.iter().map(|(_, b)| sha256_hex(b)).collect();
+    record_entries(
+        files
+            .iter()
+            .zip(&news)
+            .map(|((p, _), new)| (p.as_path(), pending_entry(p, new)))
+            .collect(),
+    )?;
+    write_atomic_all(files)?;
+    for (p, _) in files {
+        remove_stale_siblings(p);
+    }
+    Ok(news)
+}
+
+/// The ledger entry of `path` while its new content (digest `new`) is on the way: until
+/// the rename the ledger accepts the content in place as well as the new one, so a kill
+/// at any point leaves the file listed with what it holds.
+fn pending_entry(path: &Path, new: &str) -> serde_json::Value {
+    match std::fs::read(path) {
+        Ok(old) => serde_json::json!([sha256_hex(&old), new]),
+        Err(_) => new.into(),
     }
 }
 
@@ -754,20 +785,28 @@ pub fn write_output(path: &Path, bytes: &[u8]) -> Result<()> {
 /// [`LEDGER`]s (each written atomically), and remove what an interrupted earlier run left
 /// of them ([`remove_stale_siblings`]).
 pub fn record_outputs(paths: &[PathBuf]) -> Result<()> {
+    let mut entries = Vec::with_capacity(paths.len());
     for p in paths {
         remove_stale_siblings(p);
+        let bytes = std::fs::read(p).map_err(|e| Error::io(p, e))?;
+        entries.push((p.as_path(), sha256_hex(&bytes).into()));
     }
+    record_entries(entries)
+}
+
+/// Set each `(path, digest or digests)` in its directory's [`LEDGER`], one update per
+/// directory.
+fn record_entries(entries: Vec<(&Path, serde_json::Value)>) -> Result<()> {
     let mut by_dir: std::collections::BTreeMap<PathBuf, Vec<(String, serde_json::Value)>> =
         Default::default();
-    for p in paths {
+    for (p, digest) in entries {
         let Some(name) = p.file_name().map(|n| n.to_string_lossy().into_owned()) else {
             continue;
         };
-        let bytes = std::fs::read(p).map_err(|e| Error::io(p, e))?;
         by_dir
             .entry(parent_dir(p))
             .or_default()
-            .push((name, serde_json::Value::from(sha256_hex(&bytes))));
+            .push((name, digest));
     }
     for (dir, entries) in by_dir {
         update_ledger(&dir, entries)?;
@@ -915,6 +954,29 @@ mod tests {
         record_outputs(std::slice::from_ref(&ours)).unwrap();
         check_replaceable(std::slice::from_ref(&ours), false).unwrap();
         assert_eq!(std::fs::read(&theirs).unwrap(), b"my photo");
+    }
+
+    /// A group of outputs is listed with what each file holds at every step: a run stopped
+    /// right after the renames (before the final ledger update) leaves files the same
+    /// command may replace without --force, and so does a finished one.
+    #[test]
+    fn group_outputs_stay_listed_through_an_interrupt() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("r.csv"), dir.path().join("r.md"));
+        let both = [a.clone(), b.clone()];
+        write_outputs(&[(a.clone(), b"v1".to_vec()), (b.clone(), b"m1".to_vec())]).unwrap();
+        check_replaceable(&both, false).unwrap();
+        // Stopped after the renames: the new contents are listed (beside the old ones).
+        land_outputs(&[(a.clone(), b"v2".to_vec()), (b.clone(), b"m2".to_vec())]).unwrap();
+        assert_eq!(std::fs::read(&a).unwrap(), b"v2");
+        check_replaceable(&both, false).unwrap();
+        // A later run lists only what the files hold.
+        write_outputs(&[(a.clone(), b"v3".to_vec()), (b.clone(), b"m3".to_vec())]).unwrap();
+        let ledger = read_ledger(dir.path()).unwrap();
+        assert_eq!(ledger["r.csv"], serde_json::Value::from(sha256_hex(b"v3")));
+        std::fs::write(&b, b"edited").unwrap();
+        let e = check_replaceable(&both, false).unwrap_err().to_string();
+        assert!(e.contains("r.md") && e.contains("changed since"), "{e}");
     }
 
     /// A key given twice in one object is an error naming the line (serde_json alone keeps

@@ -560,11 +560,26 @@ pub struct FitChannel {
     pub exposure: f64,
 }
 
-/// The channels of a fit file's JSON (`v` as [`FurParams::load_json`] returns it): empty
-/// for a parameter file or a single-channel fit. `spec` names the file in errors.
+/// The channels of a fit file's JSON (`v` as [`FurParams::load_json`] returns it): each
+/// of a multi-channel fit's `channels`, the one channel of a fit of one named channel (its
+/// top level, `data.channel`), and none for a parameter file or a fit of unnamed data.
+/// `spec` names the file in errors.
 pub fn fit_channels(v: &Value, spec: &str) -> Result<Vec<FitChannel>> {
     let Some(chs) = v.get("channels").and_then(|c| c.as_array()) else {
-        return Ok(Vec::new());
+        // A fit of one named channel keeps its name on the way out (`synth` labels the
+        // profile, `--channel` accepts it; audit, 2026-12-02).
+        return match v["data"]["channel"].as_str().filter(|n| !n.is_empty()) {
+            Some(name) => {
+                let (params, exposure) = FurParams::from_json_value(v)
+                    .map_err(|e| Error::Invalid(format!("{spec}: {e}")))?;
+                Ok(vec![FitChannel {
+                    name: name.to_string(),
+                    params,
+                    exposure,
+                }])
+            }
+            None => Ok(Vec::new()),
+        };
     };
     chs.iter()
         .enumerate()
@@ -584,16 +599,16 @@ pub fn fit_channels(v: &Value, spec: &str) -> Result<Vec<FitChannel>> {
         .collect()
 }
 
-/// The channel `name` of a multi-channel fit's `channels` (`spec` names the file), or an
+/// The channel `name` of a fit's channels ([`fit_channels`]; `spec` names the file), or an
 /// error listing the channels there are; `--channel` of `synth` and `simulate`.
 pub fn select_channel<'a>(
     channels: &'a [FitChannel],
     name: &str,
     spec: &str,
 ) -> Result<&'a FitChannel> {
-    if channels.len() < 2 {
+    if channels.is_empty() {
         return Err(Error::Invalid(format!(
-            "--channel {name}: {spec} is not a fit with several channels"
+            "--channel {name}: {spec} is not a fit of named channels"
         )));
     }
     channels.iter().find(|c| c.name == name).ok_or_else(|| {

@@ -505,7 +505,35 @@ fn synth_writes_every_channel_of_a_multi_channel_fit() {
         .arg(dir.path().join("cat.csv"));
     let o = c.output().unwrap();
     assert!(!o.status.success());
-    assert!(String::from_utf8_lossy(&o.stderr).contains("not a fit with several channels"));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a fit of named channels"));
+
+    // A fit of one named channel: `--channel` takes its name, and the output keeps it
+    // with or without `--channel` (it was refused and dropped; audit, 2026-12-02).
+    let mut one: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&fit).unwrap()).unwrap();
+    one.as_object_mut().unwrap().remove("channels");
+    let one_path = dir.path().join("r_only.json");
+    std::fs::write(&one_path, one.to_string()).unwrap();
+    for (extra, out) in [(&["--channel", "r"][..], "r1.csv"), (&[][..], "r2.csv")] {
+        let mut c = synth_tiny_grid(one_path.as_os_str());
+        c.args(extra).arg("--out").arg(dir.path().join(out));
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let text = std::fs::read_to_string(dir.path().join(out)).unwrap();
+        assert!(text.contains("# channel_of_fit: r"), "{text}");
+        let r: Vec<f64> = csv_values(&dir.path().join(out))
+            .iter()
+            .map(|v| v.1)
+            .collect();
+        assert_eq!(r, all_r, "{out}");
+    }
+    let mut c = synth_tiny_grid(one_path.as_os_str());
+    c.args(["--channel", "g", "--out"])
+        .arg(dir.path().join("g1.csv"));
+    let o = c.output().unwrap();
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("has channels r"), "{err}");
 }
 
 /// The recorded `# command:` pastes back into a shell: arguments with spaces are quoted,

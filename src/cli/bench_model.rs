@@ -28,6 +28,5 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     crate::io::check_replaceable(&paths, a.force)?;
     std::fs::create_dir_all(&a.out).map_err(|e| crate::Error::io(&a.out, e))?;
     crate::report::far_error::run(&a.out, &mut |line| outln!("{line}"))?;
-    crate::io::record_outputs(&paths)?;
     Ok(())
 }

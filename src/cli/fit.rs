@@ -21,13 +21,13 @@ pub struct Args {
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Folder for fit files with --all or when --out is not given.
-    #[arg(long, default_value = "fits")]
+    #[arg(long, default_value = "fits", conflicts_with = "out")]
     pub fits: PathBuf,
     /// Seed of the subsample and the Halton scrambling (same seed, same fit).
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0)]
     pub seed: u64,
     /// Worker threads (default or 0: all cores), at most 1024.
-    #[arg(long, value_parser = super::threads_parser())]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::threads_parser())]
     pub threads: Option<usize>,
     /// Fit every species folder under --measurements (one species after another, each
     /// using all --threads, so the total thread count stays --threads). Unreadable data,
@@ -42,7 +42,7 @@ pub struct Args {
     #[arg(long)]
     pub force: bool,
     /// With --all: the folder of species folders to fit.
-    #[arg(long, default_value = "measurements")]
+    #[arg(long, default_value = "measurements", requires = "all")]
     pub measurements: PathBuf,
     #[command(flatten)]
     pub far: super::FarArgs,
@@ -54,17 +54,17 @@ pub struct Args {
     pub fix: Vec<String>,
     /// Halton starts in the global stage (scored with the ten presets and --init), at
     /// most 1000000.
-    #[arg(long, default_value_t = 128)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 128)]
     pub starts: usize,
     /// Best-scored starts that run Levenberg-Marquardt, 1..=1024 (--init runs in addition).
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 4)]
     pub lm_starts: usize,
     /// Samples in the subsample of the global stage, 10..=10000000 (more than the data
     /// holds: all of it).
-    #[arg(long, default_value_t = 1500)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1500)]
     pub subsample: usize,
     /// Iteration cap per LM run (at least 1).
-    #[arg(long, default_value_t = 100)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 100)]
     pub max_iters: u64,
     /// Profile-likelihood intervals (68 %, Delta RSS = s^2) of these free parameters after
     /// the fit: a comma list of names or `all`. Each re-solves the other parameters at
@@ -76,7 +76,7 @@ pub struct Args {
     /// Leave out samples below this fraction of the channel's largest value, in [0, 1)
     /// (0 keeps all). No goniometer resolves eight decades, while the tails of noise-free
     /// model profiles (down to 1e-44) would outweigh the lobes in log space.
-    #[arg(long, default_value_t = crate::fit::DEFAULT_FLOOR, value_parser = super::unit_fraction)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = crate::fit::DEFAULT_FLOOR, value_parser = super::unit_fraction)]
     pub floor: f64,
     /// Weight residuals by sigma/value (every valid sample needs a sigma > 0, and none may
     /// lie more than 1000 times below the channel's median sigma/value)

@@ -167,18 +167,18 @@ pub fn threads_parser() -> clap::builder::RangedU64ValueParser<usize> {
 pub struct FarArgs {
     /// Initial segments `N,M` (unscattered, scattered); a single `N` means `N,N`; default
     /// 8,5 (seed Sec. 5.1). With `--tol none` they are the fixed segmentation.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub segments: Option<String>,
     /// Refinement tolerance of the far field, relative to each lobe's peak (default 1e-4,
     /// at least 1e-8); `none` for the fixed segmentation of `--segments` (the paper's 8,5
     /// by default).
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub tol: Option<String>,
     /// Tolerance mode: largest change of the scattered direction per node-quadrature
     /// segment, in radians, or `strict` (0.001). Only the one-bin TRTs segments at a
     /// caustic of the scattered direction use node quadrature (elsewhere the medulla
     /// table is integrated exactly), so the default 0.15 leaves them whole.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub scattered_step: Option<String>,
 }
 

@@ -29,7 +29,7 @@ pub struct Args {
     #[arg(long, default_value = "multiscale")]
     pub mode: String,
     /// Samples per pixel, 1..=1048576.
-    #[arg(long, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
     pub spp: usize,
     /// Image size WxH (or WXH), each side 1..=8192 and at most 4096 x 4096 pixels in all.
     #[arg(long, default_value = "512x512")]
@@ -38,13 +38,13 @@ pub struct Args {
     #[arg(long, default_value = "all")]
     pub lobes: String,
     /// Seed of the path tracer's random numbers (same seed, same image).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     pub seed: u64,
     /// Replace existing output files that furfit did not write (or that changed since).
     #[arg(long)]
     pub force: bool,
     /// Worker threads (0 = all cores), at most 1024.
-    #[arg(long, default_value_t = 0, value_parser = super::threads_parser())]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_parser = super::threads_parser())]
     pub threads: usize,
     /// Camera distance from the lock's centre, in world units (the lock is about 1.1
     /// units long): finite and > 0.
@@ -82,10 +82,10 @@ pub struct Args {
     pub exposure: f64,
     /// Number of fibers in the test lock, 1..=100000 (building the scene takes about 45 KB
     /// of memory per fiber: 4.5 GB at the cap).
-    #[arg(long, default_value_t = 1500, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_FIBERS as u64))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1500, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_FIBERS as u64))]
     pub fibers: usize,
     /// Longest path in fiber vertices, 1..=1024.
-    #[arg(long, default_value_t = 16, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_DEPTH as u64))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 16, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_DEPTH as u64))]
     pub max_depth: usize,
     /// Multiplier of the pixel coverage in --mode multiscale, finite and >= 0 (0 = near
     /// field, large = far field); default 1.
@@ -515,9 +515,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 Ok((p, bytes))
             })
             .collect::<crate::Result<Vec<_>>>()?;
-        crate::io::write_atomic_all(&files)?;
+        crate::io::write_outputs(&files)?;
         let written: Vec<PathBuf> = files.into_iter().map(|(p, _)| p).collect();
-        crate::io::record_outputs(&written)?;
         for n in stale_aov_notes(out, &written) {
             eprintln!("note: {n}");
         }
@@ -548,7 +547,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             ("Comment", format!("parameters {}", sheet_params.join("; "))),
         ];
         output::write_contact_sheet(&tiles, a.exposure, &text, &a.out)?;
-        crate::io::record_outputs(std::slice::from_ref(&a.out))?;
         outln!("wrote contact sheet {}", a.out.display());
     }
     Ok(())

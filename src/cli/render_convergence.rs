@@ -28,17 +28,17 @@ pub struct Args {
     pub frame: String,
     /// Largest spp of the curves (powers of two from 1; below --ref-spp), or with
     /// --culling-study the spp of its renders; at most 1048576.
-    #[arg(long, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
     pub max_spp: usize,
     /// spp of each mode's reference image: more than --max-spp (a reference no better
     /// than the curve measures nothing), at most 1048576.
-    #[arg(long, default_value_t = 512, value_parser = RangedU64ValueParser::<usize>::new().range(2..=MAX_SPP as u64))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 512, value_parser = RangedU64ValueParser::<usize>::new().range(2..=MAX_SPP as u64))]
     pub ref_spp: usize,
     /// Modes to compare, each once: near, far, multiscale.
     #[arg(long, default_value = "near,far,multiscale")]
     pub modes: String,
     /// Seed of the first repeat's renders (each repeat and reference takes the next).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     pub seed: u64,
     /// Replace existing output files that furfit did not write (or that changed since).
     #[arg(long)]
@@ -46,10 +46,10 @@ pub struct Args {
     /// Independent renders (seeds) per spp: the speedup is reported pooled over them and
     /// per repeat, since one 48x48 patch gives a ratio that swings by tens of percent;
     /// 1..=1000.
-    #[arg(long, default_value_t = 4, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_REPEATS as u64))]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 4, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_REPEATS as u64))]
     pub repeats: usize,
     /// Worker threads (0 = all cores), at most 1024.
-    #[arg(long, default_value_t = 0, value_parser = super::threads_parser())]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 0, value_parser = super::threads_parser())]
     pub threads: usize,
     /// Render with next-event estimation of the environment (MIS with BCSDF sampling).
     #[arg(long)]
@@ -182,8 +182,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             100.0 * saved_table
         );
         let p = &paths[0];
-        crate::io::write_atomic(p, md.as_bytes())?;
-        crate::io::record_outputs(std::slice::from_ref(p))?;
+        crate::io::write_output(p, md.as_bytes())?;
         outln!("wrote {}", p.display());
         return Ok(());
     }
@@ -204,11 +203,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             }
         }
         let p = &paths[0];
-        crate::io::write_atomic(
+        crate::io::write_output(
             p,
             noise_budget_markdown(&rows, &command, 4, threads).as_bytes(),
         )?;
-        crate::io::record_outputs(std::slice::from_ref(p))?;
         outln!("wrote {}", p.display());
         return Ok(());
     }
@@ -232,8 +230,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (svg.clone(), plot_convergence_bytes(&c, &svg, true)?),
         (md.clone(), c.to_markdown(&command, 4, threads).into_bytes()),
     ];
-    crate::io::write_atomic_all(&files)?;
-    crate::io::record_outputs(&paths)?;
+    crate::io::write_outputs(&files)?;
     outln!("wrote {} (+ .png, .svg, .md)", csv.display());
     for fast in [Mode::Multiscale, Mode::Far] {
         if let Some(s) = c.speedup(Mode::Near, fast, 4) {

@@ -8,7 +8,7 @@ pub struct Args {
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
     /// Noisy replicates per noise model (each a full fit of 3720 samples, ~6 s on two cores).
-    #[arg(long, default_value_t = 40)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 40)]
     pub reps: usize,
     /// Replace existing output files that furfit did not write (or that changed since).
     #[arg(long)]
@@ -22,7 +22,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let paths = ["se_calibration.md", "se_calibration.csv"].map(|n| a.out.join(n));
     crate::io::check_replaceable(&paths, a.force)?;
     let written = crate::report::se_calibration::run(&a.out, a.reps, &mut |l| eprintln!("{l}"))?;
-    crate::io::record_outputs(&paths)?;
     for p in written {
         outln!("wrote {}", p.display());
     }

@@ -25,7 +25,12 @@ pub struct Args {
     #[arg(long, default_value = "-180:180:2", allow_hyphen_values = true)]
     pub phi: String,
     /// Paths traced per incidence angle.
-    #[arg(long, default_value_t = 4_000_000, conflicts_with = "rel_noise")]
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        default_value_t = 4_000_000,
+        conflicts_with = "rel_noise"
+    )]
     pub paths: u64,
     /// Instead of --paths: choose the path count (from a pilot run) so that the median
     /// relative standard error of bins above --noise-above x peak is this fraction.
@@ -37,14 +42,14 @@ pub struct Args {
     pub noise_above: f64,
     /// Upper bound on the paths per incidence angle of --rel-noise, its pilot run
     /// included; default 200000000.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub max_paths: Option<u64>,
     /// Random seed (paths and measurement effects).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     pub seed: u64,
     /// Worker threads (default or 0: all cores), at most 1024. The output does not depend
     /// on it.
-    #[arg(long, value_parser = super::threads_parser())]
+    #[arg(long, allow_negative_numbers = true, value_parser = super::threads_parser())]
     pub threads: Option<usize>,
     /// Detector floor: values below this fraction of the peak are invalid (0 = off).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
@@ -87,8 +92,13 @@ pub struct Args {
     /// Species label for the metadata (default: the preset name, if --params is one).
     #[arg(long)]
     pub species: Option<String>,
-    /// Print throughput figures (paths/s) instead of simulating a profile.
-    #[arg(long)]
+    /// Print throughput figures (paths/s) of three fixed cases instead of simulating a
+    /// profile (only --threads applies: the profile options are refused, not ignored).
+    #[arg(long, conflicts_with_all = [
+        "params", "theta_i", "theta_r", "phi", "paths", "rel_noise", "noise_above",
+        "max_paths", "seed", "floor", "wedge", "drop", "shot_photons", "mult_noise",
+        "ellipse", "medulla_eta", "out", "file", "force", "channel", "species",
+    ])]
     pub bench: bool,
 }
 
@@ -145,7 +155,7 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
             );
             (params, Some(primary))
         }
-        None => (params, None),
+        None => (params, fitted.first().map(|f| f.name.clone())),
     };
     let species = a
         .species
@@ -219,6 +229,15 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
             "pilot: {} paths/angle give median rel. error {:.4} above {:.0e} x peak -> {} paths/angle",
             pilot.paths, rel, a.noise_above, s.paths
         );
+        if n > max_paths {
+            // Noise falls as 1/sqrt(paths): what the cap leaves of the target.
+            eprintln!(
+                "warning: --rel-noise {} needs about {n} paths/angle; --max-paths {max_paths} \
+                 stops it short, at about {:.2e} (the run says what it reached)",
+                crate::error::Num(x),
+                x * (n as f64 / max_paths as f64).sqrt()
+            );
+        }
         pilot_info = serde_json::json!({
             "pilot_paths": pilot.paths, "pilot_median_rel_noise": rel,
             "target_rel_noise": x, "noise_above": a.noise_above,

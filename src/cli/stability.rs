@@ -19,7 +19,6 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let paths = ["stability.md", "stability.csv"].map(|n| a.out.join(n));
     crate::io::check_replaceable(&paths, a.force)?;
     let summary = crate::report::stability::run(&a.out, &mut |line| outln!("{line}"))?;
-    crate::io::record_outputs(&paths)?;
     if summary.n_nonfinite > 0 {
         anyhow::bail!(
             "{} NaN/Inf values in {} evaluations",

@@ -101,8 +101,11 @@ pub fn run(a: Args) -> anyhow::Result<()> {
                 .map(|c| (c.name.clone(), c.params, c.exposure))
                 .collect()
         }
-        // `all` of a single set of parameters is that set.
-        None | Some("all") => vec![(String::new(), params, file_k)],
+        // `all` of a single set of parameters is that set (named if its fit's channel was).
+        None | Some("all") => match fitted.as_slice() {
+            [f] => vec![(f.name.clone(), f.params, f.exposure)],
+            _ => vec![(String::new(), params, file_k)],
+        },
         Some(c) => {
             let f = crate::params::select_channel(&fitted, c, &a.params)?;
             vec![(f.name.clone(), f.params, f.exposure)]

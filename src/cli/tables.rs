@@ -26,14 +26,14 @@ pub enum TablesCommand {
 #[derive(clap::Args, Debug)]
 pub struct BuildArgs {
     /// RNG seed (the shipped file uses 2017).
-    #[arg(long, default_value_t = 2017)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 2017)]
     pub seed: u64,
     /// Nominal photon paths per table cell (optically thick cells stop earlier, see
     /// `McBudget::from_paths`).
-    #[arg(long, default_value_t = 16_000)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 16_000)]
     pub paths: usize,
     /// Use exactly this CP rank for every tensor instead of trying 16, 32, 48.
-    #[arg(long)]
+    #[arg(long, allow_negative_numbers = true)]
     pub rank: Option<usize>,
     /// Relative L2 error at which the rank search stops, in (0, 1).
     #[arg(long, default_value_t = 0.03, allow_negative_numbers = true, value_parser = super::number)]
@@ -52,17 +52,17 @@ pub struct InfoArgs {
     #[arg(long)]
     pub file: Option<PathBuf>,
     /// Number of random hold-out points per table (0: skip the Monte Carlo check).
-    #[arg(long, default_value_t = 12)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 12)]
     pub holdout: usize,
     /// Photon paths per hold-out point.
-    #[arg(long, default_value_t = 200_000)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 200_000)]
     pub paths: usize,
     /// Put the hold-out points on the nearest table nodes (no interpolation: the error is
     /// CP compression plus the build's MC noise), to separate interpolation error.
     #[arg(long)]
     pub on_grid: bool,
     /// Seed of the hold-out Monte Carlo (must differ from the build seed).
-    #[arg(long, default_value_t = 777)]
+    #[arg(long, allow_negative_numbers = true, default_value_t = 777)]
     pub seed: u64,
 }
 
@@ -73,8 +73,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-/// Check before the (long) build that writing `out` loses nothing: a `.bin` file path, and
-/// an existing file there must be a tables file itself (its magic bytes).
+/// Check before the (long) build that writing `out` loses nothing and can succeed: a `.bin`
+/// file path in a folder that takes files, and an existing file there must be a tables
+/// file itself (its magic bytes).
 fn check_out(out: &Path) -> anyhow::Result<()> {
     if !out
         .extension()
@@ -85,7 +86,9 @@ fn check_out(out: &Path) -> anyhow::Result<()> {
             out.display()
         );
     }
-    crate::io::check_out_file(out)?;
+    // Writable, as the other long jobs check first (a refused write came after the whole
+    // build; audit, 2026-12-02).
+    crate::io::probe_file_writable(out)?;
     if out.symlink_metadata().is_ok() {
         let mut head = [0u8; 8];
         let tables = std::fs::File::open(out)
@@ -197,6 +200,10 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
             (t, size, "built-in tables".to_string())
         }
     };
+    // Refused before anything is printed.
+    if a.holdout > 0 && a.seed == tables.seed {
+        anyhow::bail!("--seed must differ from the build seed {}", tables.seed);
+    }
     outln!(
         "{name}: {size} bytes, build seed {}, {} nominal paths/cell",
         tables.seed,
@@ -223,9 +230,6 @@ fn info(a: InfoArgs) -> anyhow::Result<()> {
     }
     if a.holdout == 0 {
         return Ok(());
-    }
-    if a.seed == tables.seed {
-        anyhow::bail!("--seed must differ from the build seed {}", tables.seed);
     }
     let t0 = Instant::now();
     let pts = medulla_mc::holdout(&tables, a.holdout, a.seed, a.paths, a.on_grid);

@@ -124,12 +124,16 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
         }
         if let Some(c) = t.strip_prefix(b"#") {
             if header_line.is_none() {
+                let utf8 = std::str::from_utf8(c).is_ok();
                 let c = String::from_utf8_lossy(c);
                 match c.split_once(':') {
                     Some((key, val)) if !key.trim().is_empty() => {
                         let key = key.trim();
                         super::check_synthetic_label(key, val)
                             .map_err(|m| perr(k + 1, "metadata".into(), m))?;
+                        if !utf8 {
+                            label_notes.push(super::non_utf8_metadata_note(k + 1, key));
+                        }
                         metadata.push((key.to_string(), val.trim().to_string()));
                     }
                     _ => label_notes.extend(super::unlabelled_synthetic_note(k + 1, &c)),
@@ -496,6 +500,33 @@ mod tests {
             assert_eq!(back.to_bits(), v.to_bits(), "{v} -> {s}");
         }
         assert!(fmt_f64(f64::NAN).parse::<f64>().unwrap().is_nan());
+    }
+
+    /// Metadata that is not UTF-8 loads (a comment is not data) but says so; the same byte
+    /// in a data row is an error naming its line and column.
+    #[test]
+    fn non_utf8_metadata_is_noted_and_non_utf8_data_refused() {
+        let (pr, notes) = parse(
+            b"# source: M\xfcller lab\n# \xff\ntheta_i,theta_r,phi,value\n0,0,0,1\n",
+            Path::new("t.csv"),
+        )
+        .unwrap();
+        assert_eq!(pr.meta("source"), Some("M\u{fffd}ller lab"));
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].starts_with("line 1: metadata 'source' is not valid UTF-8"),
+            "{notes:?}"
+        );
+        let e = parse(
+            b"theta_i,theta_r,phi,value\n0,0,0\xfc,1\n",
+            Path::new("t.csv"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("t.csv:2") && e.contains("not valid UTF-8"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -379,6 +379,17 @@ pub(crate) fn check_synthetic_label(key: &str, value: &str) -> std::result::Resu
 /// The loader note for a `#` comment on `line` that is not a `key: value` entry but
 /// mentions "synthetic" (e.g. `# synthetic=true`): it labels nothing, and the reader
 /// should know why the data then read as measured.
+/// The note for a metadata entry `key` on `line` whose text was not valid UTF-8 (a Latin-1
+/// lab name, say): it is kept with U+FFFD in place of the bad bytes, which the user should
+/// know before that text lands in a fit file (audit, 2026-12-02). Data lines that are not
+/// UTF-8 are errors; a comment is not data, so it does not stop the load.
+pub(crate) fn non_utf8_metadata_note(line: usize, key: &str) -> String {
+    format!(
+        "line {line}: metadata '{key}' is not valid UTF-8 (Latin-1?); its bad bytes are kept \
+         as U+FFFD (save the file as UTF-8 to keep the text)"
+    )
+}
+
 pub(crate) fn unlabelled_synthetic_note(line: usize, comment: &str) -> Option<String> {
     comment.to_ascii_lowercase().contains("synthetic").then(|| {
         format!(

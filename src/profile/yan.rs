@@ -116,6 +116,9 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                 } else if !key.is_empty() {
                     super::check_synthetic_label(key, val)
                         .map_err(|m| perr(line, "metadata".into(), m))?;
+                    if std::str::from_utf8(raw).is_err() {
+                        label_notes.push(super::non_utf8_metadata_note(line, key));
+                    }
                     metadata.push((key.to_string(), val.to_string()));
                 } else {
                     label_notes.extend(super::unlabelled_synthetic_note(line, c));
@@ -455,7 +458,7 @@ mod tests {
     #[test]
     fn non_utf8_comment_is_accepted_but_not_data() {
         let o = LoadOptions::default();
-        let (pr, _) = parse(
+        let (pr, notes) = parse(
             b"# theta_i: 30\n# op: M\xfcller\n  # \xff\n0 10 1\n",
             Path::new("y.txt"),
             &o,
@@ -463,6 +466,12 @@ mod tests {
         .unwrap();
         assert_eq!(pr.samples.len(), 1);
         assert_eq!(pr.meta("op"), Some("M\u{fffd}ller"));
+        // The altered metadata is noted; the bare comment on line 3 holds none.
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].starts_with("line 2: metadata 'op' is not valid UTF-8"),
+            "{notes:?}"
+        );
         let e = parse(b"# theta_i: 30\n0 10 1\xff\n", Path::new("y.txt"), &o)
             .unwrap_err()
             .to_string();

@@ -308,7 +308,8 @@ pub fn write_contact_sheet(
         }
         x0 += tw;
     }
-    write_atomic(path, &encode(buf, w, h, text, path)?)
+    // Listed in the folder's ledger as it lands (`furfit render --all` keeps one).
+    crate::io::write_output(path, &encode(buf, w, h, text, path)?)
 }
 
 #[cfg(test)]

@@ -419,7 +419,8 @@ pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row
             r.max_err_lobe.map(|e| format!("{e:.4e}")).join(",")
         );
     }
-    crate::io::write_atomic(&out.join("far_field_error_vs_time.csv"), csv.as_bytes())?;
+    // The report's four files land together, each listed in the ledger as it lands.
+    let mut files = vec![(out.join("far_field_error_vs_time.csv"), csv.into_bytes())];
     let series_of = |method: &str, amortised: bool, name: &str| Series {
         name: name.into(),
         points: rows
@@ -458,7 +459,7 @@ pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row
             "Gauss-Legendre of near field, N = 8..128",
         ),
     ];
-    loglog_chart(
+    files.extend(loglog_chart(
         Some(&out.join("far_field_error_vs_time.png")),
         Some(&out.join("far_field_error_vs_time.svg")),
         &ChartSpec {
@@ -469,7 +470,7 @@ pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row
             height: 640,
         },
         &series,
-    )?;
+    )?);
     let md = format!(
         "# Far-field error vs evaluation time\n\n\
          Written by `furfit bench-model` ({}) in {:.0} s on {} thread(s); the timings depend on \
@@ -489,7 +490,8 @@ pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row
             .join(", "),
         lines.join("\n")
     );
-    crate::io::write_atomic(&out.join("far_field_error_vs_time.md"), md.as_bytes())?;
+    files.push((out.join("far_field_error_vs_time.md"), md.into_bytes()));
+    crate::io::write_outputs(&files)?;
     log(&format!(
         "wrote {}/far_field_error_vs_time.{{csv,png,svg,md}}",
         out.display()

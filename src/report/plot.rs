@@ -4,7 +4,7 @@
 use crate::error::{Error, Result};
 use plotters::prelude::*;
 use plotters::style::FontStyle;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::sync::Once;
 
 /// The font shipped with the crate (`assets/fonts/DejaVuSans.ttf`).
@@ -140,14 +140,16 @@ fn draw<DB: DrawingBackend>(
     Ok(())
 }
 
-/// Write a log-log line chart to `png` and `svg` (atomically; either may be `None`).
+/// A log-log line chart as the bytes of `png` and `svg` (either may be `None`), for the
+/// caller to write with the rest of its report.
 pub fn loglog_chart(
     png: Option<&Path>,
     svg: Option<&Path>,
     spec: &ChartSpec,
     series: &[Series],
-) -> Result<()> {
+) -> Result<Vec<(PathBuf, Vec<u8>)>> {
     register_fonts();
+    let mut files = Vec::new();
     if let Some(path) = svg {
         let mut text = String::new();
         {
@@ -155,15 +157,15 @@ pub fn loglog_chart(
                 SVGBackend::with_string(&mut text, (spec.width, spec.height)).into_drawing_area();
             draw(root, spec, series).map_err(|e| Error::file(path, format!("plot: {e}")))?;
         }
-        crate::io::write_atomic(path, text.as_bytes())?;
+        files.push((path.to_path_buf(), text.into_bytes()));
     }
     if let Some(path) = png {
         let bytes = png_bytes((spec.width, spec.height), path, |root| {
             draw(root, spec, series).map_err(|e| Error::file(path, format!("plot: {e}")))
         })?;
-        crate::io::write_atomic(path, &bytes)?;
+        files.push((path.to_path_buf(), bytes));
     }
-    Ok(())
+    Ok(files)
 }
 
 /// The PNG bytes of a plot of `size` drawn by `draw` into memory (no temporary file to
@@ -234,7 +236,8 @@ mod tests {
             width: 320,
             height: 240,
         };
-        loglog_chart(Some(&png), Some(&svg), &spec, &s).unwrap();
+        crate::io::write_atomic_all(&loglog_chart(Some(&png), Some(&svg), &spec, &s).unwrap())
+            .unwrap();
         let bytes = std::fs::read(&png).unwrap();
         assert_eq!(&bytes[1..4], b"PNG");
         let text = std::fs::read_to_string(&svg).unwrap();

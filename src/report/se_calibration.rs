@@ -456,7 +456,7 @@ pub fn run(out: &Path, reps: usize, log: &mut dyn FnMut(&str)) -> Result<Vec<Pat
         (out.join("se_calibration.md"), md.into_bytes()),
         (out.join("se_calibration.csv"), csv(&st.rows).into_bytes()),
     ];
-    crate::io::write_atomic_all(&files)?;
+    crate::io::write_outputs(&files)?;
     Ok(files.into_iter().map(|(p, _)| p).collect())
 }
 

@@ -642,8 +642,10 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
         }
     );
     std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
-    crate::io::write_atomic(&out.join("stability.csv"), csv.as_bytes())?;
-    crate::io::write_atomic(&out.join("stability.md"), md.as_bytes())?;
+    crate::io::write_outputs(&[
+        (out.join("stability.csv"), csv.into_bytes()),
+        (out.join("stability.md"), md.into_bytes()),
+    ])?;
     log(&format!(
         "total: {} evaluations, {} NaN/Inf, {} negative ({} before clamp), {} of {} slices capped, in {:.1} s; wrote {}",
         sum.n_evaluations,
