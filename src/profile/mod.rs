@@ -376,9 +376,6 @@ pub(crate) fn check_synthetic_label(key: &str, value: &str) -> std::result::Resu
     Ok(())
 }
 
-/// The loader note for a `#` comment on `line` that is not a `key: value` entry but
-/// mentions "synthetic" (e.g. `# synthetic=true`): it labels nothing, and the reader
-/// should know why the data then read as measured.
 /// The note for a metadata entry `key` on `line` whose text was not valid UTF-8 (a Latin-1
 /// lab name, say): it is kept with U+FFFD in place of the bad bytes, which the user should
 /// know before that text lands in a fit file (audit, 2026-12-02). Data lines that are not
@@ -390,6 +387,9 @@ pub(crate) fn non_utf8_metadata_note(line: usize, key: &str) -> String {
     )
 }
 
+/// The loader note for a `#` comment on `line` that is not a `key: value` entry but
+/// mentions "synthetic" (e.g. `# synthetic=true`): it labels nothing, and the reader
+/// should know why the data then read as measured.
 pub(crate) fn unlabelled_synthetic_note(line: usize, comment: &str) -> Option<String> {
     comment.to_ascii_lowercase().contains("synthetic").then(|| {
         format!(

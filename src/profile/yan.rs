@@ -116,7 +116,8 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                 } else if !key.is_empty() {
                     super::check_synthetic_label(key, val)
                         .map_err(|m| perr(line, "metadata".into(), m))?;
-                    if std::str::from_utf8(raw).is_err() {
+                    // Owned only when the lossy decoding above replaced bad bytes.
+                    if matches!(text, std::borrow::Cow::Owned(_)) {
                         label_notes.push(super::non_utf8_metadata_note(line, key));
                     }
                     metadata.push((key.to_string(), val.to_string()));
