@@ -233,6 +233,75 @@ mod tests {
         }
     }
 
+    /// The attenuations, widths and the scattered fraction written out from the seed's
+    /// equations with literal numbers. The far field, its reference integrator and the
+    /// renderer all call these functions, so their agreement with each other cannot catch
+    /// a wrong exponent or factor here; a mutation audit (2026-12-03) found that a chord
+    /// count of `p` instead of `2p` (Eq. 14), `2p` instead of `2p - 1` (Eq. 20), Table 3's
+    /// misprinted `F` for TTs, `(p + 1) beta_n` for `sqrt(p + 1) beta_n` (Eq. 16) and a
+    /// scattered probability over one half-chord all passed every library test. Tolerance
+    /// 1e-14 relative: each side is a few roundings of the same quantities.
+    #[test]
+    fn attenuations_and_widths_follow_the_seed_equations() {
+        let close = |a: f64, b: f64, what: &str| {
+            assert!((a - b).abs() <= 1e-14 * b.abs(), "{what}: {a} vs {b}");
+        };
+        let (h, eta_prime, kappa) = (0.3, 1.6, 0.5);
+        let g = PathGeometry::new(h, eta_prime, kappa);
+        // sin gamma_t = h / eta' = 0.1875; medulla half-chord sqrt(kappa^2 - 0.1875^2).
+        let (st, sm) = (0.1875f64, (0.25f64 - 0.1875 * 0.1875).sqrt());
+        let sc = (1.0 - st * st).sqrt() - sm;
+        let cos_d = 20f64.to_radians().cos();
+        let ab = Absorption {
+            sigma_c_a: 0.7,
+            sigma_m_t: 1.3,
+            sigma_m_a: 0.4,
+            kappa,
+            inv_cos_d: 1.0 / cos_d,
+        };
+        let f = 0.08;
+        // Eq. 13-14: A_p = (1 - F)^2 F^(p - 1) exp(-2 p (s_c sigma_c_a + s_m sigma_m_t) / cos).
+        let path = sc * 0.7 + sm * 1.3;
+        close(a_p(0, f, &g, &ab), f, "A_R");
+        close(
+            a_p(1, f, &g, &ab),
+            0.92 * 0.92 * (-2.0 * path / cos_d).exp(),
+            "A_TT",
+        );
+        close(
+            a_p(2, f, &g, &ab),
+            0.92 * 0.92 * 0.08 * (-4.0 * path / cos_d).exp(),
+            "A_TRT",
+        );
+        // Eq. 20: A^s_p = (1 - F) F^(p - 1) T_a T_b; T_a over 2p - 1 cortex half-chords and
+        // 2 (p - 1) medulla ones, T_b = exp(-(kappa sigma_m_a + (1 - kappa) sigma_c_a) / cos).
+        let tb = (-(0.5 * 0.4 + 0.5 * 0.7) / cos_d).exp();
+        close(
+            a_s_p(1, f, &g, &ab),
+            0.92 * (-(sc * 0.7) / cos_d).exp() * tb,
+            "A_TTs",
+        );
+        close(
+            a_s_p(2, f, &g, &ab),
+            0.92 * 0.08 * (-(3.0 * sc * 0.7 + 2.0 * sm * 1.3) / cos_d).exp() * tb,
+            "A_TRTs",
+        );
+        // Eq. 16: beta_p = sqrt(p + 1) beta_n.
+        for (p, k) in [(0, 1.0f64), (1, 2.0), (2, 3.0)] {
+            close(beta_p(p, 0.1), k.sqrt() * 0.1, "beta_p");
+        }
+        // The medulla entry offset is sin gamma_t / kappa, and a ray entering there crosses
+        // a chord of 2 sqrt(1 - x^2) medulla radii: P_s = 1 - exp(-2 tau sqrt(1 - x^2)).
+        let x = medulla_offset(&g, kappa);
+        close(x, 0.375, "x");
+        let tau = 1.7;
+        close(
+            crate::model::medulla::scatter_probability(tau, x),
+            1.0 - (-2.0 * tau * (1.0 - 0.375f64 * 0.375).sqrt()).exp(),
+            "P_s",
+        );
+    }
+
     #[test]
     fn reflection_lobe_center_is_mirror_direction() {
         // h = 0: R goes straight back (0), TT straight through (pi).
