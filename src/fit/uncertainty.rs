@@ -629,6 +629,59 @@ mod tests {
     /// A column within the span of the held effects (R = 0.995) is flagged, one at
     /// R = 0.98 and one orthogonal are not, and a held parameter itself is left alone.
     #[test]
+    fn residual_variance_counts_the_exposure_as_an_unknown() {
+        // 5 residuals, 2 free parameters and the exposure: 5 - 2 - 1 = 2 degrees of freedom.
+        let r = DVector::from_vec(vec![1.0, -2.0, 0.5, 0.0, 1.5]);
+        assert_eq!(residual_variance(&r, 2), 7.5 / 2.0);
+        // Fewer residuals than unknowns: divide by 1, not by zero.
+        assert_eq!(residual_variance(&r, 6), 7.5);
+    }
+
+    #[test]
+    fn pseudo_inverse_cut_does_not_depend_on_units() {
+        // Orthogonal columns 1e12 apart in scale are both determined: the cut is made on
+        // the columns' cosine matrix, where both have unit diagonal. The inverse of a
+        // diagonal matrix is exact up to one rounding per entry (1e-15 rel).
+        let h = DMatrix::from_diagonal(&DVector::from_vec(vec![1e12, 1e-12, 3.0]));
+        let (pinv, null) = pseudo_inverse(&h);
+        assert_eq!(null, vec![0.0; 3]);
+        for (j, want) in [1e-12, 1e12, 1.0 / 3.0].into_iter().enumerate() {
+            assert!(
+                (pinv[(j, j)] - want).abs() <= 1e-15 * want,
+                "{j}: {}",
+                pinv[(j, j)]
+            );
+        }
+        // Two collinear columns (any scales) share one null direction, and the third
+        // column, orthogonal to both, keeps its exact inverse and no null load.
+        let a = [2e6, -4e6, 0.0];
+        let c = DMatrix::from_fn(3, 3, |i, j| {
+            if i == 2 || j == 2 {
+                if i == j {
+                    5e-9
+                } else {
+                    0.0
+                }
+            } else {
+                a[i] * a[j] * 1e-6
+            }
+        });
+        let (pinv, null) = pseudo_inverse(&c);
+        // The unit null vector of the scaled pair is (1, 1)/sqrt(2): load 1/2 on each
+        // (SVD rounding ~1e-15 on unit vectors).
+        assert!(
+            (null[0] - 0.5).abs() < 1e-12 && (null[1] - 0.5).abs() < 1e-12,
+            "{null:?}"
+        );
+        assert_eq!(null[2], 0.0);
+        assert!(
+            (pinv[(2, 2)] - 2e8).abs() <= 1e-12 * 2e8,
+            "{}",
+            pinv[(2, 2)]
+        );
+    }
+
+    #[test]
     fn flag_coupled_uses_the_span_of_the_held_effects() {
         let n = 50;
         let a = DVector::from_fn(n, |i, _| ((i as f64) * 0.3).sin());
@@ -803,6 +856,54 @@ mod tests {
                 "column {j}: independent {ri:?}"
             );
             assert!((0.85..1.15).contains(&rr[j]), "column {j}: robust {rr:?}");
+        }
+    }
+
+    /// Both kinds of standard error are reported in file units through the same map
+    /// derivative: with independent noise they agree for parameters on an exp, a sigmoid
+    /// and a tanh map alike (each `u` away from 0, where the maps' slopes differ most).
+    #[test]
+    fn robust_and_plain_errors_agree_in_file_units_under_independent_noise() {
+        use rand::SeedableRng;
+        let mut layout = ParamLayout::all_free();
+        let free = [ParamId::SigmaCA, ParamId::Eta, ParamId::Alpha];
+        for id in ParamId::ALL {
+            if !free.contains(&id) {
+                layout.fixed[id.index()] = Some(0.5);
+            }
+        }
+        let pts: Vec<(f64, f64, f64)> = [0.0, 30.0]
+            .into_iter()
+            .flat_map(|ti| {
+                (0..31).flat_map(move |tr| {
+                    (0..41).map(move |ph| (ti, tr as f64 * 2.0, ph as f64 * 9.0 - 180.0))
+                })
+            })
+            .collect();
+        let n = pts.len();
+        let jac = DMatrix::from_fn(n, 3, |i, j| {
+            let (ti, tr, ph) = pts[i];
+            match j {
+                0 => (ph / 40.0).cos(),
+                1 => tr / 60.0 - 0.5,
+                _ => (ph / 70.0).sin() * (1.0 + ti / 30.0) + 0.3 * tr / 60.0,
+            }
+        });
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
+        let r = DVector::from_fn(n, |_, _| crate::simulate::trace::gauss(&mut rng));
+        let u = DVector::from_vec(vec![0.7, -1.2, 0.4]);
+        let mut unc = estimate(&layout, &u, &jac, &r);
+        unc.robust = robust(&layout, &u, &jac, &r, &pts, &unc);
+        let rob = unc.robust.as_ref().expect("62 rows of 41 samples");
+        for id in free {
+            let (plain, robust) = (unc.se[id.index()].unwrap(), rob.se[id.index()].unwrap());
+            // One replicate over 62 rows: the robust estimate scatters ~10 % about the
+            // plain one (the replicated test above pins the means); a unit slip would be
+            // off by the map slope or by SE(u) itself, factors of 3 or more here.
+            assert!(
+                (0.7..1.4).contains(&(robust / plain)),
+                "{id:?}: robust {robust} plain {plain}"
+            );
         }
     }
 

@@ -31,7 +31,6 @@ use crate::params::FurParams;
 use azimuthal::Absorption;
 use geometry::PathGeometry;
 use medulla::{MedullaSlice, MedullaTables};
-use std::f64::consts::PI;
 
 /// The five lobes, in the order used by [`LobeValues`].
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -399,17 +398,6 @@ impl AzimuthalSlice<'_> {
             a.set(l, v);
         }
         a
-    }
-
-    /// Centre of lobe `l` at this path: `Phi_p(h)` for unscattered lobes (Eq. 15), the
-    /// undeflected exit azimuth `Phi^s_p(h) + pi` of the p-th segment for scattered ones
-    /// (Eq. 21; see [`azimuthal`]'s frame note).
-    pub fn center(&self, l: Lobe, geo: &PathGeometry) -> f64 {
-        if l.is_scattered() {
-            azimuthal::phi_s_p(l.p(), geo) + PI
-        } else {
-            azimuthal::phi_p(l.p(), geo)
-        }
     }
 
     /// Azimuthal distribution of lobe `l` at this path: `D_p` (Eq. 7) or `D^s_p = C^N`

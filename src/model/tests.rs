@@ -2,7 +2,7 @@
 
 use super::*;
 use crate::params::{FurParams, ParamId};
-use std::f64::consts::TAU;
+use std::f64::consts::{PI, TAU};
 
 /// Gauss-Legendre nodes/weights on [-1, 1] (the project's quadrature module).
 fn gauss_legendre(n: usize) -> Vec<(f64, f64)> {

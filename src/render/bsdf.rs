@@ -766,7 +766,8 @@ impl FiberBsdf {
             let geo = slice.geometry(h);
             let sigma = azimuthal::beta_p(lobe.p(), self.models[0].params.beta_n);
             let z = SQRT_2 * puruspe::inverf((2.0 * u[3] - 1.0).clamp(-1.0 + 1e-16, 1.0 - 1e-16));
-            let phi = wrap_angle(slice.center(lobe, &geo) + sigma * z);
+            // D_p is a Gaussian of width beta_p about Phi_p(h) (Eqs. 7, 15).
+            let phi = wrap_angle(azimuthal::phi_p(lobe.p(), &geo) + sigma * z);
             (theta, phi, Some((td, geo)))
         };
         // The pdf and the near-field value share the path (traced once) and its D_l.
