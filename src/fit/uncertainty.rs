@@ -728,14 +728,9 @@ mod tests {
         );
     }
 
-    /// Replicated least squares on a goniometer-like grid (2 x 31 rows of 41 `phi`) with
-    /// noise `row + along + 0.5 white`: `along` AR(1) in `phi` at `rho_phi`, `row` a row
-    /// effect AR(1) in `theta_r` at `rho_row` (scale `row_sd`). Per column of a design
-    /// with one column varying along `phi`, one constant within a row and one mixed: the
-    /// mean independent-residual and sweep-robust standard errors over the spread of the
-    /// estimates, and the mean lag-1 autocorrelation along `phi`.
-    fn se_over_spread(rho_phi: f64, rho_row: f64, row_sd: f64) -> ([f64; 3], [f64; 3], f64) {
-        use rand::SeedableRng;
+    /// A goniometer-like grid (2 x 31 rows of 41 `phi`) and a design on it with one column
+    /// varying along `phi`, one constant within a row and one mixed.
+    fn sweep_design() -> (Vec<(f64, f64, f64)>, DMatrix<f64>) {
         let mut pts = Vec::new();
         for ti in [0.0, 30.0] {
             for tr in 0..31 {
@@ -744,8 +739,7 @@ mod tests {
                 }
             }
         }
-        let n = pts.len();
-        let x = DMatrix::from_fn(n, 3, |i, j| {
+        let x = DMatrix::from_fn(pts.len(), 3, |i, j| {
             let (ti, tr, ph) = pts[i];
             match j {
                 0 => (ph / 40.0).cos(),
@@ -753,6 +747,19 @@ mod tests {
                 _ => (ph / 70.0).sin() * (1.0 + ti / 30.0) + 0.3 * tr / 60.0,
             }
         });
+        (pts, x)
+    }
+
+    /// Replicated least squares on a goniometer-like grid (2 x 31 rows of 41 `phi`) with
+    /// noise `row + along + 0.5 white`: `along` AR(1) in `phi` at `rho_phi`, `row` a row
+    /// effect AR(1) in `theta_r` at `rho_row` (scale `row_sd`). Per column of a design
+    /// with one column varying along `phi`, one constant within a row and one mixed: the
+    /// mean independent-residual and sweep-robust standard errors over the spread of the
+    /// estimates, and the mean lag-1 autocorrelation along `phi`.
+    fn se_over_spread(rho_phi: f64, rho_row: f64, row_sd: f64) -> ([f64; 3], [f64; 3], f64) {
+        use rand::SeedableRng;
+        let (pts, x) = sweep_design();
+        let n = pts.len();
         let xtx_inv = (x.transpose() * &x).try_inverse().expect("full rank");
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
         let mut normal = || crate::simulate::trace::gauss(&mut rng);
@@ -872,23 +879,8 @@ mod tests {
                 layout.fixed[id.index()] = Some(0.5);
             }
         }
-        let pts: Vec<(f64, f64, f64)> = [0.0, 30.0]
-            .into_iter()
-            .flat_map(|ti| {
-                (0..31).flat_map(move |tr| {
-                    (0..41).map(move |ph| (ti, tr as f64 * 2.0, ph as f64 * 9.0 - 180.0))
-                })
-            })
-            .collect();
+        let (pts, jac) = sweep_design();
         let n = pts.len();
-        let jac = DMatrix::from_fn(n, 3, |i, j| {
-            let (ti, tr, ph) = pts[i];
-            match j {
-                0 => (ph / 40.0).cos(),
-                1 => tr / 60.0 - 0.5,
-                _ => (ph / 70.0).sin() * (1.0 + ti / 30.0) + 0.3 * tr / 60.0,
-            }
-        });
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(11);
         let r = DVector::from_fn(n, |_, _| crate::simulate::trace::gauss(&mut rng));
         let u = DVector::from_vec(vec![0.7, -1.2, 0.4]);
