@@ -626,8 +626,6 @@ fn sweep_robust_var(
 mod tests {
     use super::*;
 
-    /// A column within the span of the held effects (R = 0.995) is flagged, one at
-    /// R = 0.98 and one orthogonal are not, and a held parameter itself is left alone.
     #[test]
     fn residual_variance_counts_the_exposure_as_an_unknown() {
         // 5 residuals, 2 free parameters and the exposure: 5 - 2 - 1 = 2 degrees of freedom.
@@ -681,6 +679,8 @@ mod tests {
         );
     }
 
+    /// A column within the span of the held effects (R = 0.995) is flagged, one at
+    /// R = 0.98 and one orthogonal are not, and a held parameter itself is left alone.
     #[test]
     fn flag_coupled_uses_the_span_of_the_held_effects() {
         let n = 50;
