@@ -218,9 +218,11 @@ impl LevenbergMarquardt {
 
     /// Stop once the damping has grown past any use (no step on a true Jacobian lowers
     /// the cost): converged if the standard-error test (when set) passes there, else
-    /// [`DAMPING_EXHAUSTED`].
+    /// [`DAMPING_EXHAUSTED`]. Called only on a true Jacobian: both callers first replace
+    /// a secant one ([`Self::refresh`]).
     fn check_exhausted(&mut self, jtj: &DMatrix<f64>, grad: &DVector<f64>, r: &DVector<f64>) {
-        if self.mu <= MAX_DAMPING || !self.fresh {
+        debug_assert!(self.fresh, "damping judged on a secant Jacobian");
+        if self.mu <= MAX_DAMPING {
             return;
         }
         self.converged = Some(DAMPING_EXHAUSTED);
@@ -321,25 +323,28 @@ where
             a[(i, i)] += self.mu * d[i];
         }
         let step = a.cholesky().map(|c| c.solve(&(-&grad)));
-        let Some(delta) = step.filter(|s| s.iter().all(|x| x.is_finite())) else {
-            self.mu *= self.nu;
-            self.nu *= 2.0;
-            self.rejected += 1;
-            self.check_exhausted(&jtj, &grad, &r);
-            return Ok((with_point(state, u, r, jac, grad, cost), None));
+        // The trial step, its point and gain ratio; `None` when there is no finite step
+        // (a failed factorisation), which is rejected like a step that does not descend.
+        let trial = match step.filter(|s| s.iter().all(|x| x.is_finite())) {
+            Some(delta) => {
+                let u_new = &u + &delta;
+                let r_new = problem.apply(&u_new)?;
+                let cost_new = 0.5 * r_new.norm_squared();
+                // Predicted reduction of the quadratic model: 0.5 delta^T (mu D delta - g).
+                let md = delta.zip_map(&d, |x, s| self.mu * s * x);
+                let pred = 0.5 * delta.dot(&(md - &grad));
+                let rho = if pred > 0.0 {
+                    (cost - cost_new) / pred
+                } else {
+                    -1.0
+                };
+                Some((delta, u_new, r_new, cost_new, rho))
+            }
+            None => None,
         };
-        let u_new = &u + &delta;
-        let r_new = problem.apply(&u_new)?;
-        let cost_new = 0.5 * r_new.norm_squared();
-        // Predicted reduction of the quadratic model: 0.5 delta^T (mu D delta - g).
-        let md = delta.zip_map(&d, |x, s| self.mu * s * x);
-        let pred = 0.5 * delta.dot(&(md - &grad));
-        let rho = if pred > 0.0 {
-            (cost - cost_new) / pred
-        } else {
-            -1.0
-        };
-        if rho > 0.0 && cost_new.is_finite() {
+        if let Some((delta, u_new, r_new, cost_new, rho)) =
+            trial.filter(|t| t.4 > 0.0 && t.3.is_finite())
+        {
             self.mu *= (1.0f64 / 3.0).max(1.0 - (2.0 * rho - 1.0).powi(3));
             self.nu = 2.0;
             self.accepted += 1;
@@ -539,6 +544,159 @@ mod tests {
         let g = j.transpose() * &r;
         let step = gauss_newton_step_se(&(j.transpose() * &j), &g, &r, f64::INFINITY);
         assert!(step <= 0.1, "Gauss-Newton step {step} standard errors");
+    }
+
+    /// A problem that records where its Jacobian was evaluated.
+    struct Recorded<P> {
+        inner: P,
+        jac_at: std::cell::RefCell<Vec<DVector<f64>>>,
+    }
+    impl<P: Operator<Param = DVector<f64>, Output = DVector<f64>>> Operator for Recorded<P> {
+        type Param = DVector<f64>;
+        type Output = DVector<f64>;
+        fn apply(&self, p: &DVector<f64>) -> Result<DVector<f64>, Error> {
+            self.inner.apply(p)
+        }
+    }
+    impl<P: Jacobian<Param = DVector<f64>, Jacobian = DMatrix<f64>>> Jacobian for Recorded<P> {
+        type Param = DVector<f64>;
+        type Jacobian = DMatrix<f64>;
+        fn jacobian(&self, p: &DVector<f64>) -> Result<DMatrix<f64>, Error> {
+            self.jac_at.borrow_mut().push(p.clone());
+            self.inner.jacobian(p)
+        }
+    }
+
+    /// With Broyden updates a run still ends only on a step computed from a true
+    /// Jacobian (module doc): the step that met a tolerance started from a point where
+    /// the Jacobian was differentiated, and a gradient that met `gtol` is the true one.
+    /// A stop on a secant step would trust a direction built from rank-one guesses.
+    /// Points are matched by their cost, recomputed by the same code the solver ran on
+    /// the same parameters, so bit for bit.
+    #[test]
+    fn broyden_runs_stop_only_on_steps_from_a_true_jacobian() {
+        fn check<P>(inner: P, start: &[f64], to_gtol: bool)
+        where
+            P: Operator<Param = DVector<f64>, Output = DVector<f64>>
+                + Jacobian<Param = DVector<f64>, Jacobian = DMatrix<f64>>,
+        {
+            let mut lm = LevenbergMarquardt::new(Instant::now());
+            lm.broyden = true;
+            if to_gtol {
+                // Only the gradient test can end the run, at a gradient round-off lets
+                // this decay reach (at the default 1e-10 the damping ran out first).
+                (lm.ftol, lm.xtol, lm.gtol) = (0.0, 0.0, 1e-6);
+            }
+            let problem = Recorded {
+                inner,
+                jac_at: Default::default(),
+            };
+            let res = Executor::new(problem, lm)
+                .configure(|s| s.param(DVector::from_vec(start.to_vec())).max_iters(500))
+                .run()
+                .unwrap();
+            let reason = res.solver.converged_reason();
+            let trace = &res.solver.trace;
+            let problem = res.problem.problem.as_ref().unwrap();
+            if to_gtol {
+                // The gradient that passed is that of the true Jacobian at the end point.
+                assert_eq!(reason, Some("gradient below tolerance"));
+                let u = res.state.get_param().unwrap();
+                let jac = res.state.get_jacobian().unwrap();
+                assert_eq!(
+                    *jac,
+                    problem.jacobian(u).unwrap(),
+                    "stopped on a secant gradient"
+                );
+                return;
+            }
+            assert!(
+                matches!(
+                    reason,
+                    Some("relative cost change below tolerance" | "step below tolerance")
+                ),
+                "{reason:?}"
+            );
+            let from = trace[trace.len() - 2].cost;
+            let fresh_costs: Vec<f64> = problem
+                .jac_at
+                .borrow()
+                .iter()
+                .map(|u| 0.5 * problem.apply(u).unwrap().norm_squared())
+                .collect();
+            assert!(
+                fresh_costs.contains(&from),
+                "the last step started at cost {from}, Jacobians at {fresh_costs:?}"
+            );
+            // Secant updates did happen (else the test would check nothing).
+            assert!(fresh_costs.len() < trace.len(), "no secant step taken");
+        }
+        check(Decay::new(), &[1.0, 0.2, 0.0], false);
+        check(Rosen, &[-1.2, 1.0], false);
+        check(Decay::new(), &[1.0, 0.2, 0.0], true);
+    }
+
+    /// `Decay` in rescaled coordinates `v = s * u` (per-coordinate factors `s`).
+    struct Rescaled {
+        s: DVector<f64>,
+    }
+    impl Operator for Rescaled {
+        type Param = DVector<f64>;
+        type Output = DVector<f64>;
+        fn apply(&self, v: &DVector<f64>) -> Result<DVector<f64>, Error> {
+            Decay::new().apply(&v.component_div(&self.s))
+        }
+    }
+    impl Jacobian for Rescaled {
+        type Param = DVector<f64>;
+        type Jacobian = DMatrix<f64>;
+        fn jacobian(&self, v: &DVector<f64>) -> Result<DMatrix<f64>, Error> {
+            let j = Decay::new().jacobian(&v.component_div(&self.s))?;
+            Ok(DMatrix::from_fn(j.nrows(), j.ncols(), |i, k| {
+                j[(i, k)] / self.s[k]
+            }))
+        }
+    }
+
+    /// Moré's scaling `D^2 = diag(J^T J)` makes the damped step covariant with a rescaling
+    /// of the parameters, so a run in coordinates scaled by 1e4 and 1e-3 takes the same
+    /// path: the same accepted-step costs and the same optimum. The scale-dependent stops
+    /// (`gtol`, `xtol`) are off so that both runs end by the same (relative-cost) rule.
+    /// Tolerance 1e-9 relative: identical algebra up to the round-off of the scaling, which
+    /// the 3x3 solves amplify by their condition number; damping without `D` (a fixed
+    /// multiple of the identity) changes the path at the percent level.
+    #[test]
+    fn damping_is_invariant_to_parameter_scaling() {
+        let run = |s: [f64; 3]| {
+            let s = DVector::from_vec(s.to_vec());
+            let mut lm = LevenbergMarquardt::new(Instant::now());
+            (lm.gtol, lm.xtol) = (0.0, 0.0);
+            let start = DVector::from_vec(vec![1.0, 0.2, 0.0]).component_mul(&s);
+            let res = Executor::new(Rescaled { s: s.clone() }, lm)
+                .configure(|st| st.param(start).max_iters(100))
+                .run()
+                .unwrap();
+            let u = res.state.get_best_param().unwrap().component_div(&s);
+            let costs: Vec<f64> = res.solver.trace.iter().map(|t| t.cost).collect();
+            (u, costs, res.solver.rejected)
+        };
+        let (u1, c1, rej1) = run([1.0, 1.0, 1.0]);
+        let (u2, c2, rej2) = run([1e4, 1e-3, 1.0]);
+        assert!(c1.len() > 3, "{} accepted steps", c1.len() - 1);
+        assert_eq!(
+            (c1.len(), rej1),
+            (c2.len(), rej2),
+            "paths differ: {c1:?} vs {c2:?}"
+        );
+        for (a, b) in c1.iter().zip(&c2) {
+            assert!((a - b).abs() <= 1e-9 * a, "cost {a} vs {b}");
+        }
+        for k in 0..3 {
+            assert!(
+                (u1[k] - u2[k]).abs() <= 1e-9 * u1[k].abs().max(1.0),
+                "{u1} vs {u2}"
+            );
+        }
     }
 
     /// The stall rule: ten accepted steps worth < 0.01 chi^2 in all end a run; a window

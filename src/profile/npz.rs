@@ -1097,6 +1097,30 @@ mod tests {
         w.finish().unwrap().into_inner()
     }
 
+    /// Every sample of a multi-channel grid is named by its own cell, channel included
+    /// (messages about a sample, such as a merge's duplicate or a weighted fit's worst
+    /// residual, send the user to that cell): the cell a sample's origin names holds that
+    /// sample's value.
+    #[test]
+    fn each_sample_is_named_by_its_own_cell() {
+        let shape = [2, 2, 3, 2];
+        let bytes = archive(
+            &[0.0, 30.0],
+            &[-10.0, 10.0],
+            &[0.0, 5.0, 10.0],
+            &shape,
+            |k| 1.0 + k as f64,
+        );
+        let (p, _) = parse_npz(&bytes, Path::new("a.npz")).unwrap();
+        assert_eq!(p.samples.len(), 24);
+        for s in &p.samples {
+            // Value 1 + k sits at row-major index k.
+            let k = s.value as usize - 1;
+            let ix = [k / 12, k / 6 % 2, k / 2 % 3, k % 2];
+            assert_eq!(p.origin_of(s).unwrap(), format!("a.npz index {ix:?}"));
+        }
+    }
+
     /// `present` holds only 1 (a sample) and 0 (none): a 2 is an error naming the array,
     /// the first such cell (in index order) and the value, not a silent "present".
     #[test]

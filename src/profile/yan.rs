@@ -368,6 +368,29 @@ mod tests {
         assert!(e.starts_with("y.txt:1:"), "{e}");
     }
 
+    /// A file may repeat its `# theta_i:` line (a header template pasted twice), but not
+    /// contradict it: the second line is named, with the first. A contradiction read as
+    /// the last value would move every row to another incident angle without a word.
+    #[test]
+    fn repeated_theta_i_lines_must_agree() {
+        let (pr, _) = p(
+            "# theta_i: 30\n0 10 1\n# theta_i: 30.0\n5 10 2\n",
+            &LoadOptions::default(),
+        )
+        .unwrap();
+        assert!(pr.samples.iter().all(|s| s.theta_i == 30.0));
+        let e = p(
+            "# theta_i: 30\n0 10 1\n# theta_i: 45\n5 10 2\n",
+            &LoadOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "y.txt:3: theta_i comment: theta_i 45 contradicts theta_i 30 on line 1"
+        );
+    }
+
     #[test]
     fn offset_and_flips() {
         let o = LoadOptions {
