@@ -1,6 +1,6 @@
 //! Path tracing with multiple scattering between fibers: next-event estimation to the
-//! directional light (a delta light: no MIS), Russian roulette after the third vertex,
-//! per-lobe AOVs split at the first fiber vertex. The environment is reached by BCSDF
+//! directional light (a delta light: no MIS), Russian roulette from the third vertex
+//! ([`Integrator::roulette_from`]), per-lobe AOVs split at the first fiber vertex. The environment is reached by BCSDF
 //! sampling alone unless [`Integrator::env_nee`] also samples it at every vertex (uniform
 //! sphere, MIS with BCSDF sampling by the power heuristic). That is off by default: on the
 //! test lock it costs a shadow ray and two pdf evaluations per vertex, and those rays
@@ -40,6 +40,10 @@ pub struct Integrator<'a> {
     pub env: Environment,
     pub mode: Mode,
     pub max_depth: usize,
+    /// First vertex (0-based) after which a path may be ended by Russian roulette, with
+    /// survival probability `min(max throughput, 0.95)` and the throughput divided by it
+    /// (unbiased). 2 in renders; `>= max_depth` turns roulette off (tests compare both).
+    pub roulette_from: usize,
     pub footprint_scale: f64,
     pub secondary_spread: f64,
     /// Also sample the environment at every vertex (next-event estimation with MIS).
@@ -203,7 +207,7 @@ impl Integrator<'_> {
             if m.is_nan() || m <= 0.0 || !m.is_finite() {
                 break;
             }
-            if depth >= 2 {
+            if depth >= self.roulette_from {
                 let q = m.min(0.95);
                 if rng.random::<f64>() >= q {
                     break;

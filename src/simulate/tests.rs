@@ -92,6 +92,39 @@ fn energy_conserved_without_absorption() {
     }
 }
 
+/// Mean over the entry offset `h` (uniform on [-1, 1], theta_i = 0) of `f(F, b)`: `F` the
+/// Fresnel reflectance at entry, `b = |h| / eta` the impact parameter that every internal
+/// pass of a smooth centred circular fiber keeps (reflection at a centred circle preserves
+/// it), which fixes the chord lengths of every pass. Midpoint rule with 4000 points: its
+/// error is far below the Monte Carlo noise of the tests that use it.
+fn mean_over_h(eta: f64, f: impl Fn(f64, f64) -> f64) -> f64 {
+    let m = 4000;
+    let mut e = 0.0;
+    for i in 0..m {
+        let h = -1.0 + (i as f64 + 0.5) * 2.0 / m as f64;
+        e += f(fresnel_dielectric((1.0 - h * h).sqrt(), eta), h.abs() / eta);
+    }
+    e / m as f64
+}
+
+/// Medulla chord length at impact parameter `b` (0 when the pass misses the medulla).
+fn medulla_chord(kappa: f64, b: f64) -> f64 {
+    2.0 * (kappa * kappa - b * b).max(0.0).sqrt()
+}
+
+/// Trace `n` paths at theta_i = 0; returns the exited weight and scattering count of each
+/// path (every path must exit or be absorbed: none of these fibers guides light).
+fn trace_exits(fiber: &Fiber, n: usize, seed: u64) -> Vec<(f64, u32)> {
+    let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);
+    (0..n)
+        .map(|_| match trace_path(fiber, 0.0, &mut rng) {
+            Outcome::Exit(e) => (e.weight, e.scatters),
+            Outcome::Absorbed => (0.0, 0),
+            Outcome::Guided(w) => panic!("guided path of weight {w}"),
+        })
+        .collect()
+}
+
 /// Weighted absorption with Russian roulette is unbiased: for kappa = 0, smooth, theta_i = 0
 /// the analytic exit energy is sum over paths of R + (1-F)^2 T (1 + F T + (F T)^2 ...)
 /// averaged over h, with T = exp(-2 sigma cos(gamma_t)) (3-D length = 2D / cos theta_t = 2D
@@ -103,18 +136,10 @@ fn absorption_matches_beer_lambert() {
     let p = params([eta, 0.0, 0.0, 1.0, 1.0, sigma, 0.0, 0.0, 0.0, 1.0]);
     let n = 200_000u64;
     let r = simulate(&settings(p, 0.0, n, true), |_| {}).unwrap();
-    // Reference: midpoint rule over h (4000 points, error << MC noise).
-    let m = 4000;
-    let mut e = 0.0;
-    for i in 0..m {
-        let h = -1.0 + (i as f64 + 0.5) * 2.0 / m as f64;
-        let gi = h.asin();
-        let gt = (h / eta).asin();
-        let f = fresnel_dielectric(gi.cos(), eta);
-        let t = (-2.0 * sigma * gt.cos()).exp();
-        e += f + (1.0 - f) * (1.0 - f) * t / (1.0 - f * t);
-    }
-    e /= m as f64;
+    let e = mean_over_h(eta, |f, b| {
+        let t = (-2.0 * sigma * (1.0 - b * b).sqrt()).exp();
+        f + (1.0 - f) * (1.0 - f) * t / (1.0 - f * t)
+    });
     let tol = 5.0 * 0.5 / (n as f64).sqrt();
     assert!(
         (r.tally[0].exited - e).abs() < tol,
@@ -521,5 +546,88 @@ fn uneven_grids_get_centred_bins_without_overlap() {
         let mut n = 0;
         det.deposit(0.0, (k as f64 - 179.5).to_radians(), |_| n += 1);
         assert!(n <= 1, "phi {k}: {n} bins");
+    }
+}
+
+/// Concentric index-matched medulla, smooth cuticle, theta_i = 0: every internal pass of a
+/// path entering at `h` runs at impact parameter `b = h / eta` (see [`mean_over_h`]),
+/// through `L_m` of medulla and `2 sqrt(1 - b^2) - L_m` of cortex. With `g = 1` the HG
+/// phase function is a delta forward, so scattering events happen but never turn the ray.
+/// Then the exit energy is the series of `absorption_matches_beer_lambert` with the per
+/// pass transmission `exp(-sigma_c_a (L - L_m) - sigma_m_a L_m)`, whatever `sigma_m_s`
+/// (absorption counts on the way to every event, not just to the boundary); and without
+/// absorption (every path exits with weight 1) the mean number of events per path is
+/// `sigma_m_s mean_h L_m`: entry `1 - F` times `1 / (1 - F)` passes. Tolerances: 5
+/// standard errors (an exit weight lies in [0, 1]: std <= 0.5; the count's std measured).
+#[test]
+fn medulla_absorbs_and_scatters_along_straight_paths() {
+    let (eta, kappa, sc, sm, ss) = (1.55, 0.6, 0.4, 1.5, 2.0);
+    let mut fiber = Fiber::new(
+        &params([eta, kappa, 0.0, 1.0, 1.0, sc, ss, sm, 0.0, 1.0]),
+        None,
+        None,
+        true,
+    );
+    fiber.g = 1.0;
+    let n = 400_000;
+    let got = trace_exits(&fiber, n, 21).iter().map(|e| e.0).sum::<f64>() / n as f64;
+    let e = mean_over_h(eta, |f, b| {
+        let (l, lm) = (2.0 * (1.0 - b * b).sqrt(), medulla_chord(kappa, b));
+        let t = (-sc * (l - lm) - sm * lm).exp();
+        f + (1.0 - f) * (1.0 - f) * t / (1.0 - f * t)
+    });
+    let tol = 5.0 * 0.5 / (n as f64).sqrt();
+    assert!((got - e).abs() < tol, "exit energy {got} vs {e}");
+
+    fiber.sigma_c_a = 0.0;
+    fiber.sigma_m_a = 0.0;
+    let counts: Vec<f64> = trace_exits(&fiber, n, 22)
+        .iter()
+        .map(|&(w, k)| {
+            assert_eq!(w, 1.0, "lossless: every path exits whole");
+            k as f64
+        })
+        .collect();
+    let mean = counts.iter().sum::<f64>() / n as f64;
+    let var = counts.iter().map(|k| (k - mean).powi(2)).sum::<f64>() / n as f64;
+    let expected = ss * mean_over_h(eta, |_, b| medulla_chord(kappa, b));
+    assert!(
+        (mean - expected).abs() < 5.0 * (var / n as f64).sqrt(),
+        "events per path {mean} vs {expected}"
+    );
+}
+
+/// A medulla with its own IOR reflects part of the light at its boundary. Make it opaque
+/// (`sigma_m_a` 200: a pass through it keeps `exp(-200 L_m)`, which matters only within
+/// ~1e-4 of its rim) and lossless elsewhere, smooth, theta_i = 0: a path whose internal
+/// pass misses the medulla (`b >= kappa`) exits whole; one that meets it (at incidence
+/// `asin(b / kappa)`) survives only by the medulla's Fresnel reflection `F_m` at ratio
+/// `eta_m / eta`, bouncing between cuticle and medulla: `F + (1 - F)^2 F_m / (1 - F F_m)`.
+/// Index matched, `F_m = 0`: only the R reflection survives. Tolerance 5 standard errors
+/// (std of a weight in [0, 1] <= 0.5).
+#[test]
+fn a_medulla_with_its_own_index_reflects_at_its_boundary() {
+    let (eta, kappa) = (1.55, 0.6);
+    let p = params([eta, kappa, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0]);
+    let n = 400_000;
+    for eta_m in [None, Some(2.2)] {
+        let mut fiber = Fiber::new(&p, None, eta_m, true);
+        fiber.sigma_m_a = 200.0;
+        let got = trace_exits(&fiber, n, 23).iter().map(|e| e.0).sum::<f64>() / n as f64;
+        let e = mean_over_h(eta, |f, b| {
+            if b >= kappa {
+                return 1.0;
+            }
+            let fm = match eta_m {
+                Some(em) => fresnel_dielectric((1.0 - (b / kappa).powi(2)).sqrt(), em / eta),
+                None => 0.0,
+            };
+            f + (1.0 - f) * (1.0 - f) * fm / (1.0 - f * fm)
+        });
+        let tol = 5.0 * 0.5 / (n as f64).sqrt();
+        assert!(
+            (got - e).abs() < tol,
+            "eta_m {eta_m:?}: exit energy {got} vs {e}"
+        );
     }
 }
