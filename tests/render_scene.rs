@@ -522,9 +522,10 @@ fn later_vertices_light_goes_to_the_first_vertex_lobe() {
     s.env = Environment::constant(0.0);
     s.spp = 1;
     let scene = Scene::build(&s.strand);
+    let full_depth = s.max_depth;
     for lobe in [furfit::model::Lobe::R, furfit::model::Lobe::TT] {
         s.lobes = furfit::model::LobeSet::only(lobe);
-        s.max_depth = 16;
+        s.max_depth = full_depth;
         let r = render_scene(&scene, &fur(), &s).unwrap();
         let k = lobe.index();
         for (i, b) in r.beauty.data.iter().enumerate() {

@@ -1,14 +1,14 @@
 //! Path tracing with multiple scattering between fibers: next-event estimation to the
 //! directional light (a delta light: no MIS), Russian roulette from the third vertex
-//! ([`Integrator::roulette_from`]), per-lobe AOVs split at the first fiber vertex. The environment is reached by BCSDF
-//! sampling alone unless [`Integrator::env_nee`] also samples it at every vertex (uniform
-//! sphere, MIS with BCSDF sampling by the power heuristic). That is off by default: on the
-//! test lock it costs a shadow ray and two pdf evaluations per vertex, and those rays
-//! mostly cross the whole lock, while the BCSDF sampler already follows the lobes that
-//! weigh the smooth environment. Measured (`furfit render-convergence` without and with
-//! `--env-nee`, red fox, one after the other on 2026-11-28; `reports/render_convergence.md`
-//! and `reports/env_nee/`): RMSE^2 x seconds 9.0e-3 near / 6.3e-3 multi-scale without it,
-//! 1.25e-2 / 1.12e-2 with it.
+//! ([`Integrator::roulette_from`]), per-lobe AOVs split at the first fiber vertex. The
+//! environment is reached by BCSDF sampling alone unless [`Integrator::env_nee`] also
+//! samples it at every vertex (uniform sphere, MIS with BCSDF sampling by the power
+//! heuristic). That is off by default: on the test lock it costs a shadow ray and two pdf
+//! evaluations per vertex, and those rays mostly cross the whole lock, while the BCSDF
+//! sampler already follows the lobes that weigh the smooth environment. Measured
+//! (`furfit render-convergence` without and with `--env-nee`, red fox, one after the other
+//! on 2026-11-28; `reports/render_convergence.md` and `reports/env_nee/`): RMSE^2 x seconds
+//! 9.0e-3 near / 6.3e-3 multi-scale without it, 1.25e-2 / 1.12e-2 with it.
 //!
 //! Pixel footprint (seed Eq. 27): each ray carries a cone, width `w0 + t * spread`.
 //! Primary rays start with `w0 = 0` and `spread` = one pixel's angle, and the coverage is
