@@ -176,6 +176,8 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "weighted": opts.weighted,
             "wall_time_s": out.wall_time_s,
             "model_time_s": out.model_time_s,
+            // Estimated model seconds (`FitOutcome::model_time_s`, summed over evaluations
+            // that ran side by side) per wall second: above 1 on several cores.
             "model_time_share": out.model_time_s / out.wall_time_s.max(1e-12),
             "termination": out.termination,
             // The local optimum's distance from the result in standard errors (converged:

@@ -42,9 +42,11 @@
 //! # Sampling (seed Sec. 6)
 //! 1. `h`: near field uses the hit's `h`; far field / multi-scale draw `h` uniformly in
 //!    `[h1, h2]`.
-//! 2. Lobe `l` with probability ∝ its energy at the camera side's specular `theta_d`
-//!    (`theta_d = -theta_o`): `A_l(h) * (mass of M_l inside the domain)` for R/TT/TRT,
-//!    `A^s_l(h) * C^N scattered fraction` for TTs/TRTs, averaged over RGB. The
+//! 2. Lobe `l` with probability ∝ its energy, averaged over RGB: for R/TT/TRT
+//!    `A_l(h) * (mass of M_l inside the domain)` at the camera side's specular `theta_d`
+//!    (`theta_d = -theta_o`); for TTs/TRTs the column mass of `M_s` times the mean of
+//!    `A^s_l(h) * C^N scattered fraction` at quantiles of that column (the path at `h` may
+//!    miss the medulla at the specular `theta_d` and meet it at the ones `M_s` draws). The
 //!    probabilities depend only on `(theta_o, h)`, so the mixture pdf below is exact. A
 //!    render reads them (and the scattered lobes' frame of step 3) from a table bilinear
 //!    in `(theta_o, h)` ([`super::select`]): sampler and pdf read the same values, so the
@@ -54,13 +56,13 @@
 //!    lobe falls back to uniform `theta`, pdf `1/pi`); then `phi` from the wrapped Gaussian
 //!    `D_l` about `Phi_l(h)` at the sampled `theta_d` (pdf = the model's `D_l` exactly).
 //!    Scattered lobes sample the medulla tables: `psi` from `C^N(x, .)` and
-//!    `phi = Phi^s_p + psi`, with `x` and `Phi^s_p` taken at the camera side's specular
-//!    `theta_d` (they depend on `theta_d` through `eta'`, which is not known before `theta`
-//!    is drawn), then `theta` from `M_s(., theta_o, phi)` = the front/back blend of `C^M`
+//!    `phi = Phi^s_p + psi`, with `x` and `Phi^s_p` taken at the quantile path of step 2
+//!    where the lobes' energy is largest (they depend on `theta_d` through `eta'`, which is
+//!    not known before `theta` is drawn), then `theta` from `M_s(., theta_o, phi)` = the front/back blend of `C^M`
 //!    (seed Eq. 19) read down a column (light side unknown, camera side given) —
 //!    `MedullaSampler::sample_cn` / `sample_cm_incident`, whose pdfs are exact for the
-//!    piecewise-linear table densities. Using the specular `theta_d` for the frame only
-//!    costs efficiency away from it; the pdf is exact for what is drawn.
+//!    piecewise-linear table densities. Using one `theta_d` for the frame only costs
+//!    efficiency away from it; the pdf is exact for what is drawn.
 //! 4. pdf: the full mixture `sum_l P_l pdf_l(theta, phi | h)` in the `(theta, phi)` measure.
 //!
 //! For far field and multi-scale the marginal over `h` has no closed form. The renderer
@@ -347,6 +349,10 @@ pub struct CameraSide {
     m: TruncM,
 }
 
+/// Quantile nodes of `M_s` at which [`FiberBsdf::scattered_selection`] reads the scattered
+/// lobes' energy.
+const SCATTER_NODES: usize = 5;
+
 /// Midpoints of the span averaged by [`FiberBsdf::pdf_mis`].
 const MIS_POINTS: usize = 4;
 
@@ -601,26 +607,18 @@ impl FiberBsdf {
     fn selection(&self, side: &CameraSide, h: f64) -> Selection {
         let theta_o = side.theta_o;
         let geo = self.models[0].azimuthal(-theta_o).geometry(h);
-        let x_med = medulla_offset(&geo, self.models[0].params.kappa);
         let mut w = [0.0; 5];
         for a in self.attenuation_rgb(-theta_o, &geo) {
-            for l in self.lobes.iter() {
+            for l in self.lobes.iter().filter(|l| !l.is_scattered()) {
                 w[l.index()] += a.get(l) / 3.0;
             }
         }
-        let mut frac = None;
-        for l in self.lobes.iter() {
-            let i = l.index();
-            if l.is_scattered() {
-                let f = *frac.get_or_insert_with(|| {
-                    self.models[0]
-                        .medulla()
-                        .map_or(0.0, |m| m.scattered_fraction(x_med))
-                });
-                w[i] *= f;
-            } else {
-                w[i] *= side.m.mass(i).max(MIN_MASS);
-            }
+        for l in self.lobes.iter().filter(|l| !l.is_scattered()) {
+            w[l.index()] *= side.m.mass(l.index()).max(MIN_MASS);
+        }
+        let (ws, x_med, phi_s) = self.scattered_selection(theta_o, h, geo);
+        for l in self.lobes.iter().filter(|l| l.is_scattered()) {
+            w[l.index()] = ws[l.p() - 1];
         }
         let sum: f64 = w.iter().sum();
         Selection {
@@ -630,8 +628,62 @@ impl FiberBsdf {
                 [0.0; 5]
             },
             x_med,
-            phi_s: [1, 2].map(|p| azimuthal::phi_s_p(p, &geo)),
+            phi_s,
         }
+    }
+
+    /// The scattered lobes' part of [`Self::selection`]: their energies (TTs, TRTs) and
+    /// frame (`x`, `Phi^s_p`) at offset `h`, `geo` being the path at the specular
+    /// `theta_d = -theta_o`.
+    ///
+    /// `M_s` spreads over a wide range of light inclinations, and whether the path at `h`
+    /// meets the medulla depends on `theta_d` (through `eta'`): near the rim a path misses
+    /// it at the specular `theta_d` and meets it at steeper ones (`fur()` of the tests,
+    /// `theta_o` 0.4, `h` -0.79: `A^s` 0 at `theta_d` -0.4, 0.66 at -0.82). Read at the
+    /// specular `theta_d` alone the lobe got probability 0 there, and its light was found
+    /// only through the other lobes' pdfs, as rare huge weights. So the energy of lobe `p`
+    /// is the expectation over the light inclinations the lobe samples: the column mass of
+    /// `M_s(., theta_o, Phi^s_p)` times the mean of `A^s_p * scattered fraction` at
+    /// [`SCATTER_NODES`] equal-mass quantiles of that column. The frame is the path at the
+    /// node where a lobe's energy is largest (the specular path when no node has any).
+    fn scattered_selection(
+        &self,
+        theta_o: f64,
+        h: f64,
+        geo: PathGeometry,
+    ) -> ([f64; 2], f64, [f64; 2]) {
+        let kappa = self.models[0].params.kappa;
+        let frame = |g: &PathGeometry| {
+            (
+                medulla_offset(g, kappa),
+                [1, 2].map(|p| azimuthal::phi_s_p(p, g)),
+            )
+        };
+        let spec = frame(&geo);
+        let Some(med) = self.models[0].medulla() else {
+            return ([0.0; 2], spec.0, spec.1);
+        };
+        let sm = med.sampler();
+        let mut energy = [0.0; 2];
+        let (mut best, mut best_frame) = (0.0, spec);
+        for l in self.lobes.iter().filter(|l| l.is_scattered()) {
+            let i = l.p() - 1;
+            let phi = spec.1[i];
+            let mass = sm.column_mass(theta_o, phi);
+            for k in 0..SCATTER_NODES {
+                let u = (k as f64 + 0.5) / SCATTER_NODES as f64;
+                let td = geometry::theta_d(theta_o, sm.sample_cm_incident(theta_o, phi, u).0);
+                let g = self.models[0].azimuthal(td).geometry(h);
+                let frac = med.scattered_fraction(medulla_offset(&g, kappa));
+                let a: f64 = self.attenuation_rgb(td, &g).iter().map(|a| a.get(l)).sum();
+                let e = mass * frac * a / (3.0 * SCATTER_NODES as f64);
+                energy[i] += e;
+                if e > best {
+                    (best, best_frame) = (e, frame(&g));
+                }
+            }
+        }
+        (energy, best_frame.0, best_frame.1)
     }
 
     /// Tabulate the lobe selection ([`super::select`]) for this render.
@@ -931,5 +983,38 @@ mod tests {
         }
         // Both branches must be exercised (43 of the 400 cases skip).
         assert!(skipped > 20 && skipped < 380, "{skipped}");
+    }
+
+    /// `trunc_sample` is the exact inverse of the truncated normal's CDF on
+    /// [-pi/2, pi/2], for centres of either sign and widths from narrow to wider than the
+    /// domain (where both tails hold several percent of the mass, as for a rough TRT lobe):
+    /// `F(x(u)) = u` at evenly spread `u` (`1 - u` for a centre above 0, which is sampled
+    /// mirrored so the erfc tails stay precise). The erfc / inverfc round trip is good to ~1e-13
+    /// here; 1e-9 is far below the error of dropping a tail (>= 1e-3 for these cases).
+    #[test]
+    fn trunc_sample_inverts_the_truncated_cdf() {
+        for (mu, s) in [
+            (0.3, 1.0),
+            (-0.4, 1.5),
+            (1.2, 0.4),
+            (-1.5, 0.05),
+            (0.0, 0.8),
+        ] {
+            let cdf = |x: f64| 0.5 * puruspe::erfc(-(x - mu) / (s * SQRT_2));
+            let (lo, hi) = (cdf(-FRAC_PI_2), cdf(FRAC_PI_2));
+            let tails = trunc_tails(mu, s);
+            assert!(
+                ((tails.0 - tails.1) - (hi - lo)).abs() < 1e-12,
+                "mass {mu} {s}"
+            );
+            for k in 0..200 {
+                let u = (k as f64 + 0.5) / 200.0;
+                let x = trunc_sample(mu, s, tails, u);
+                assert!(x.abs() <= FRAC_PI_2, "{x}");
+                let f = (cdf(x) - lo) / (hi - lo);
+                let want = if mu > 0.0 { 1.0 - u } else { u };
+                assert!((f - want).abs() < 1e-9, "mu {mu} s {s} u {u}: F(x) = {f}");
+            }
+        }
     }
 }

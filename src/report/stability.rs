@@ -250,38 +250,51 @@ fn sweep(v: &[f64; 10], phis: &[f64]) -> CaseResult {
             if !fs.stats().capped.is_empty() {
                 r.capped += 1;
             }
-            let mut peak = [0.0f64; 5];
-            let mut dips = [0.0f64; 5];
-            for &phi in phis {
-                // `eval` is `eval_raw` with negatives set to 0.
-                let raw = fs.eval_raw(phi);
-                for i in 0..5 {
-                    r.evals += 1;
-                    if !raw.0[i].is_finite() {
-                        r.nonfinite += 1;
-                        continue;
-                    }
-                    if raw.0[i] < 0.0 {
-                        r.neg_raw += 1;
-                        dips[i] = dips[i].max(-raw.0[i]);
-                    }
-                    peak[i] = peak[i].max(raw.0[i]);
-                }
-                r.neg += fs.eval(phi).0.iter().filter(|x| **x < 0.0).count();
-            }
-            // Relative to the slice's largest lobe peak (what a profile value sums): a lobe
-            // that is itself vanishingly small (peak ~1e-40 at grazing) made per-lobe
-            // ratios like 1e12 out of dips no profile can see.
-            let scale = peak.iter().cloned().fold(0.0, f64::max);
-            for &d in &dips {
-                if d > 0.0 {
-                    let rel = if scale > 0.0 { d / scale } else { 1.0 };
-                    r.worst_dip[mode] = r.worst_dip[mode].max(rel);
-                }
-            }
+            // `eval` is `eval_raw` with negatives set to 0.
+            tally_slice(
+                &mut r,
+                mode,
+                phis.iter().map(|&phi| (fs.eval_raw(phi), fs.eval(phi))),
+            );
         }
     }
     r
+}
+
+/// Count one slice's values into `r`: per phi the raw values (before the clamp of rounding
+/// dips) and the clamped ones users get. NaN and Inf are counted and kept out of the peak;
+/// the worst dip of `mode` is taken relative to the slice's largest lobe peak (what a
+/// profile value sums): a lobe that is itself vanishingly small (peak ~1e-40 at grazing)
+/// made per-lobe ratios like 1e12 out of dips no profile can see.
+fn tally_slice(
+    r: &mut CaseResult,
+    mode: usize,
+    values: impl Iterator<Item = (LobeValues, LobeValues)>,
+) {
+    let mut peak = [0.0f64; 5];
+    let mut dips = [0.0f64; 5];
+    for (raw, clamped) in values {
+        for i in 0..5 {
+            r.evals += 1;
+            if !raw.0[i].is_finite() {
+                r.nonfinite += 1;
+                continue;
+            }
+            if raw.0[i] < 0.0 {
+                r.neg_raw += 1;
+                dips[i] = dips[i].max(-raw.0[i]);
+            }
+            peak[i] = peak[i].max(raw.0[i]);
+        }
+        r.neg += clamped.0.iter().filter(|x| **x < 0.0).count();
+    }
+    let scale = peak.iter().cloned().fold(0.0, f64::max);
+    for &d in &dips {
+        if d > 0.0 {
+            let rel = if scale > 0.0 { d / scale } else { 1.0 };
+            r.worst_dip[mode] = r.worst_dip[mode].max(rel);
+        }
+    }
 }
 
 /// Dense phi grid on which the far field's own maximum is located per lobe.
@@ -658,4 +671,58 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
         out.join("stability.md").display()
     ));
     Ok(sum)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The counts the report and the exit status rest on, from values with known faults:
+    /// NaN and Inf are counted and kept out of the peak (an Inf peak would hide every
+    /// dip), negatives are counted before and after the clamp, and the worst dip is taken
+    /// relative to the slice's largest lobe peak, for its mode only.
+    #[test]
+    fn tally_counts_nonfinite_negatives_and_dips() {
+        let mut r = CaseResult::default();
+        let v = |x: [f64; 5]| LobeValues(x);
+        let values = [
+            (
+                v([1.0, f64::NAN, -0.02, 0.0, f64::INFINITY]),
+                v([1.0, f64::NAN, 0.0, 0.0, f64::INFINITY]),
+            ),
+            (
+                v([2.0, 0.5, 0.1, -1e-3, 0.0]),
+                v([2.0, 0.5, 0.1, -1e-3, 0.0]),
+            ),
+        ];
+        tally_slice(&mut r, 1, values.into_iter());
+        assert_eq!((r.evals, r.nonfinite, r.neg_raw, r.neg), (10, 2, 2, 1));
+        // 0.02 / 2.0, exactly representable to well under 1e-15.
+        assert!((r.worst_dip[1] - 0.01).abs() < 1e-15, "{:?}", r.worst_dip);
+        assert_eq!(r.worst_dip[0], 0.0);
+        // A slice with dips and no positive value: the dip counts as a whole peak.
+        tally_slice(
+            &mut r,
+            0,
+            [(v([-1e-30, 0.0, 0.0, 0.0, 0.0]), v([0.0; 5]))].into_iter(),
+        );
+        assert_eq!(r.worst_dip[0], 1.0);
+        assert_eq!((r.evals, r.neg_raw, r.neg), (15, 3, 1));
+    }
+
+    /// One parameter vector of the sweep: every theta_d, slice (far field and each
+    /// multi-scale range, in both modes), phi and lobe is evaluated once, and the mid-range
+    /// parameters give no NaN, Inf or (clamped) negative value. Parameters outside their
+    /// bounds are skipped, not evaluated.
+    #[test]
+    fn sweep_evaluates_every_slice_lobe_and_phi() {
+        let phis = [-3.0, -1.0, 0.0, 0.5, 2.5];
+        let r = sweep(&MID, &phis);
+        let slices = THETA_D.len() * modes().len() * (1 + MS_RANGES.len());
+        assert_eq!(r.slices, slices);
+        assert_eq!(r.evals, slices * phis.len() * 5);
+        assert_eq!((r.nonfinite, r.neg), (0, 0));
+        let bad = sweep(&with(MID, &[(0, 0.5)]), &phis);
+        assert_eq!((bad.slices, bad.evals), (0, 0));
+    }
 }
