@@ -56,13 +56,13 @@
 //!    lobe falls back to uniform `theta`, pdf `1/pi`); then `phi` from the wrapped Gaussian
 //!    `D_l` about `Phi_l(h)` at the sampled `theta_d` (pdf = the model's `D_l` exactly).
 //!    Scattered lobes sample the medulla tables: `psi` from `C^N(x, .)` and
-//!    `phi = Phi^s_p + psi`, with `x` and `Phi^s_p` taken at the quantile path of step 2
-//!    where the lobes' energy is largest (they depend on `theta_d` through `eta'`, which is
-//!    not known before `theta` is drawn), then `theta` from `M_s(., theta_o, phi)` = the front/back blend of `C^M`
-//!    (seed Eq. 19) read down a column (light side unknown, camera side given) —
-//!    `MedullaSampler::sample_cn` / `sample_cm_incident`, whose pdfs are exact for the
-//!    piecewise-linear table densities. Using one `theta_d` for the frame only costs
-//!    efficiency away from it; the pdf is exact for what is drawn.
+//!    `phi = Phi^s_p + psi`, with `x` and `Phi^s_p` the energy-weighted mean over the
+//!    quantile paths of step 2 (they depend on `theta_d` through `eta'`, which is not
+//!    known before `theta` is drawn), then `theta` from `M_s(., theta_o, phi)` = the
+//!    front/back blend of `C^M` (seed Eq. 19) read down a column (light side unknown,
+//!    camera side given) — `MedullaSampler::sample_cn` / `sample_cm_incident`, whose pdfs
+//!    are exact for the piecewise-linear table densities. One frame for all `theta_d`
+//!    only costs efficiency away from it; the pdf is exact for what is drawn.
 //! 4. pdf: the full mixture `sum_l P_l pdf_l(theta, phi | h)` in the `(theta, phi)` measure.
 //!
 //! For far field and multi-scale the marginal over `h` has no closed form. The renderer
@@ -560,7 +560,13 @@ impl FiberBsdf {
 
     /// Lobe selection probabilities at (`theta_o`, `h`) (module doc, step 2).
     pub fn lobe_probs(&self, theta_o: f64, h: f64) -> [f64; 5] {
-        self.select_at(&self.camera_side(theta_o), h).probs
+        self.lobe_selection(theta_o, h).probs
+    }
+
+    /// The whole lobe selection at (`theta_o`, `h`): probabilities and the scattered
+    /// lobes' frame (from the table when one is set).
+    pub fn lobe_selection(&self, theta_o: f64, h: f64) -> Selection {
+        self.select_at(&self.camera_side(theta_o), h)
     }
 
     /// The camera side of a vertex ([`CameraSide`]): the truncated `M_l` of the
@@ -644,8 +650,11 @@ impl FiberBsdf {
     /// only through the other lobes' pdfs, as rare huge weights. So the energy of lobe `p`
     /// is the expectation over the light inclinations the lobe samples: the column mass of
     /// `M_s(., theta_o, Phi^s_p)` times the mean of `A^s_p * scattered fraction` at
-    /// [`SCATTER_NODES`] equal-mass quantiles of that column. The frame is the path at the
-    /// node where a lobe's energy is largest (the specular path when no node has any).
+    /// [`SCATTER_NODES`] equal-mass quantiles of that column. The frame is the nodes'
+    /// energy-weighted mean (circular for `Phi^s_p`; the specular path's when no node has
+    /// energy): it moves continuously with (`theta_o`, `h`), so the bilinear selection
+    /// table interpolates it faithfully. The node of largest energy, the first choice,
+    /// jumped between nodes and the table's blends of two frames sampled far from the lobe.
     fn scattered_selection(
         &self,
         theta_o: f64,
@@ -665,7 +674,8 @@ impl FiberBsdf {
         };
         let sm = med.sampler();
         let mut energy = [0.0; 2];
-        let (mut best, mut best_frame) = (0.0, spec);
+        // Energy-weighted sums of the nodes' frames: x, and (cos, sin) of each Phi^s_p.
+        let (mut x_sum, mut rot) = (0.0, [[0.0; 2]; 2]);
         for l in self.lobes.iter().filter(|l| l.is_scattered()) {
             let i = l.p() - 1;
             let phi = spec.1[i];
@@ -678,12 +688,24 @@ impl FiberBsdf {
                 let a: f64 = self.attenuation_rgb(td, &g).iter().map(|a| a.get(l)).sum();
                 let e = mass * frac * a / (3.0 * SCATTER_NODES as f64);
                 energy[i] += e;
-                if e > best {
-                    (best, best_frame) = (e, frame(&g));
-                }
+                let (x, phis) = frame(&g);
+                x_sum += e * x;
+                rot[i][0] += e * phis[i].cos();
+                rot[i][1] += e * phis[i].sin();
             }
         }
-        (energy, best_frame.0, best_frame.1)
+        let total = energy[0] + energy[1];
+        if total <= 0.0 {
+            return (energy, spec.0, spec.1);
+        }
+        let phi_s = [0, 1].map(|i| {
+            if energy[i] > 0.0 {
+                rot[i][1].atan2(rot[i][0])
+            } else {
+                spec.1[i]
+            }
+        });
+        (energy, x_sum / total, phi_s)
     }
 
     /// Tabulate the lobe selection ([`super::select`]) for this render.

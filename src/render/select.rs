@@ -71,8 +71,16 @@ impl SelectTable {
         let at = |a: usize, b: usize| &self.nodes[a * N_H + b];
         let (n00, n01, n10, n11) = (at(i, j), at(i, j + 1), at(i + 1, j), at(i + 1, j + 1));
         let v: [f64; 8] = std::array::from_fn(|k| {
-            let lo = f64::from(n00[k]) + fh * (f64::from(n01[k]) - f64::from(n00[k]));
-            let hi = f64::from(n10[k]) + fh * (f64::from(n11[k]) - f64::from(n10[k]));
+            let c = [n00[k], n01[k], n10[k], n11[k]].map(f64::from);
+            // The azimuths `Phi^s_p` are angles: the corners are read on the branch of
+            // the first, else a cell straddling +-pi interpolates to the opposite side.
+            let c = if k >= 6 {
+                c.map(|a| c[0] + crate::model::azimuthal::wrap_angle(a - c[0]))
+            } else {
+                c
+            };
+            let lo = c[0] + fh * (c[1] - c[0]);
+            let hi = c[2] + fh * (c[3] - c[2]);
             lo + ft * (hi - lo)
         });
         let mut probs = [v[0], v[1], v[2], v[3], v[4]];
@@ -83,7 +91,7 @@ impl SelectTable {
         Selection {
             probs,
             x_med: v[5],
-            phi_s: [v[6], v[7]],
+            phi_s: [v[6], v[7]].map(crate::model::azimuthal::wrap_angle),
         }
     }
 }
@@ -132,5 +140,28 @@ mod tests {
         // Linear in h between nodes (the x_med column is linear in h): exact up to f32.
         let s = t.lookup(0.2, 0.5 * D_H + 0.01);
         assert!((s.x_med - 0.3 * (0.5 * D_H + 0.01)).abs() < 1e-6);
+    }
+
+    /// `Phi^s_p` is an angle: a cell whose nodes straddle +-pi interpolates on the short
+    /// arc (a plain blend of 3.1 and -3.1 gave 0, the opposite side of the fiber).
+    #[test]
+    fn lookup_interpolates_azimuths_on_the_short_arc() {
+        let t = SelectTable::build(|_, h| Selection {
+            probs: [1.0, 0.0, 0.0, 0.0, 0.0],
+            x_med: 0.0,
+            phi_s: [if h < 0.0 { 3.1 } else { -3.1 }, 0.2],
+        });
+        // h = 0 is a node (N_H odd); halfway to the node below, the arc's middle is pi.
+        let s = t.lookup(0.3, -0.5 * D_H);
+        // f32 storage of 3.1: 1e-6.
+        assert!((s.phi_s[0].abs() - PI).abs() < 1e-6, "{s:?}");
+        assert!(s.phi_s[0] > -PI && s.phi_s[0] <= PI);
+        // A quarter of the way from the 3.1 node: 3.1 + 0.25 * (2 pi - 6.2), wrapped.
+        let s = t.lookup(0.3, -0.75 * D_H);
+        assert!(
+            (s.phi_s[0] - (3.1 + 0.25 * (2.0 * PI - 6.2))).abs() < 1e-6,
+            "{s:?}"
+        );
+        assert!((s.phi_s[1] - 0.2).abs() < 1e-6);
     }
 }
