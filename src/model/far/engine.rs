@@ -180,10 +180,11 @@ struct MemoEntries {
 
 impl NodeMemo {
     fn new() -> Self {
-        // A grid synthesis slice's few hundred nodes with at most one regrowth.
+        // A grid synthesis slice's 250-400 nodes (cat, human presets) without regrowing
+        // (a regrowth copied its 232-byte nodes).
         NodeMemo(RefCell::new(MemoEntries {
-            index: BitsMap::with_capacity_and_hasher(256, Default::default()),
-            nodes: Vec::with_capacity(256),
+            index: BitsMap::with_capacity_and_hasher(512, Default::default()),
+            nodes: Vec::with_capacity(512),
         }))
     }
 }
@@ -1039,42 +1040,55 @@ impl<'a> FarSlice<'a> {
     /// at grazing `theta_d`); the tolerance budget built from it then becomes absurdly
     /// tight and the refinement runs away. This only sets the budget's scale: 1 % is ample.
     fn mass(&self, memo: &NodeMemo, nodes: &[Node], set: LobeSet) -> [f64; 5] {
-        let mut coarse = [0.0f64; 5];
-        let simpson = |a: &Node, m: &Node, b: &Node, l: Lobe| {
-            (b.u - a.u) / 6.0
-                * (Self::density(a, l) + 4.0 * Self::density(m, l) + Self::density(b, l))
-        };
-        for k in (0..nodes.len().saturating_sub(2)).step_by(2) {
+        // The bisection stack holds each node's `u` and densities, not the whole node
+        // (a fifth of its size): copying nodes in and out of it was most of the build's
+        // memmove time (human preset, tolerance mode).
+        let dens = |n: &Node| {
+            let mut d = [0.0f64; 5];
             for l in set.iter() {
-                coarse[l.index()] += simpson(&nodes[k], &nodes[k + 1], &nodes[k + 2], l);
+                d[l.index()] = Self::density(n, l);
+            }
+            (n.u, d)
+        };
+        let simpson = |a: &(f64, [f64; 5]), m: &(f64, [f64; 5]), b: &(f64, [f64; 5]), i: usize| {
+            (b.0 - a.0) / 6.0 * (a.1[i] + 4.0 * m.1[i] + b.1[i])
+        };
+        let slim: Vec<(f64, [f64; 5])> = nodes.iter().map(dens).collect();
+        let mut coarse = [0.0f64; 5];
+        for k in (0..slim.len().saturating_sub(2)).step_by(2) {
+            for l in set.iter() {
+                let i = l.index();
+                coarse[i] += simpson(&slim[k], &slim[k + 1], &slim[k + 2], i);
             }
         }
         let mut out = [0.0f64; 5];
-        let mut stack: Vec<(Node, Node, Node, u32)> = (0..nodes.len().saturating_sub(2))
+        let mut stack: Vec<_> = (0..slim.len().saturating_sub(2))
             .step_by(2)
-            .map(|k| (nodes[k], nodes[k + 1], nodes[k + 2], 0))
+            .map(|k| (slim[k], slim[k + 1], slim[k + 2], 0u32))
             .collect();
+        let scattered = set.intersect(LobeSet::SCATTERED) != LobeSet::NONE;
         while let Some((a, m, b, depth)) = stack.pop() {
-            let scattered = set.intersect(LobeSet::SCATTERED) != LobeSet::NONE;
             let (q1, q3) = (
-                self.node_memo(memo, 0.5 * (a.u + m.u), scattered),
-                self.node_memo(memo, 0.5 * (m.u + b.u), scattered),
+                dens(&self.node_memo(memo, 0.5 * (a.0 + m.0), scattered)),
+                dens(&self.node_memo(memo, 0.5 * (m.0 + b.0), scattered)),
             );
             let mut done = true;
             for l in set.iter() {
-                let whole = simpson(&a, &m, &b, l);
-                let halves = simpson(&a, &q1, &m, l) + simpson(&m, &q3, &b, l);
+                let i = l.index();
+                let whole = simpson(&a, &m, &b, i);
+                let halves = simpson(&a, &q1, &m, i) + simpson(&m, &q3, &b, i);
                 // Relative to the larger of the coarse total and this triple's own estimate,
                 // so a coarse total that missed the mass (even 0) cannot demand more than
                 // 1 % of the triple itself.
-                let scale = coarse[l.index()].abs().max(halves.abs());
+                let scale = coarse[i].abs().max(halves.abs());
                 if (halves - whole).abs() > MASS_REL * scale {
                     done = false;
                 }
             }
             if done || depth >= MASS_MAX_DEPTH {
                 for l in set.iter() {
-                    out[l.index()] += simpson(&a, &q1, &m, l) + simpson(&m, &q3, &b, l);
+                    let i = l.index();
+                    out[i] += simpson(&a, &q1, &m, i) + simpson(&m, &q3, &b, i);
                 }
             } else {
                 stack.push((a, q1, m, depth + 1));
