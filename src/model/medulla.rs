@@ -1068,6 +1068,24 @@ impl CnRows<'_> {
     /// once along the direction of `step` and unrolled past its period, so a weight reads
     /// a strided run of it (contiguous for a one-bin step) with no wrap per point.
     pub fn correlate(&self, acc: &RowWeights, step: i64, out: &mut [f64]) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            return unsafe { self.correlate_avx2(acc, step, out) };
+        }
+        self.correlate_body(acc, step, out)
+    }
+
+    /// [`Self::correlate`] compiled for AVX2 (the same multiplies and adds in the same
+    /// order, four lanes wide: the same values bit for bit).
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn correlate_avx2(&self, acc: &RowWeights, step: i64, out: &mut [f64]) {
+        self.correlate_body(acc, step, out)
+    }
+
+    #[inline(always)]
+    fn correlate_body(&self, acc: &RowWeights, step: i64, out: &mut [f64]) {
         let n = self.n;
         let m = step.unsigned_abs() as usize % n;
         // A weight at bin k reads R[k + step q] (mod n) for point q: with a one-bin step a
@@ -1077,44 +1095,60 @@ impl CnRows<'_> {
         // more than the sums (a synthesis slice has ~10 rows but ~70 nonzero weights).
         for (r, _) in acc.touched.iter().enumerate().filter(|(_, t)| **t) {
             let row = &self.v[r * n..(r + 1) * n];
-            for (k, &w) in acc.w[r * n..(r + 1) * n].iter().enumerate() {
-                if w == 0.0 {
+            // Nine in ten weights of a synthesis slice are 0: skip them eight at a time
+            // (a compare per weight was a third of the time here).
+            let ws = &acc.w[r * n..(r + 1) * n];
+            for (j, chunk) in ws.chunks(8).enumerate() {
+                // No short circuit, so the test compiles to a few vector compares.
+                if !chunk.iter().fold(false, |a, &w| a | (w != 0.0)) {
                     continue;
                 }
-                match (m, step >= 0) {
-                    // A whole number of periods per step: every point reads R[k].
-                    (0, _) => out.iter_mut().for_each(|o| *o += w * row[k]),
-                    (1, true) => {
-                        let (mut q, mut i) = (0, k);
-                        while q < out.len() {
-                            let run = (out.len() - q).min(n - i);
-                            for (o, e) in out[q..q + run].iter_mut().zip(&row[i..i + run]) {
-                                *o += w * e;
-                            }
-                            (q, i) = (q + run, 0);
-                        }
+                for (i, &w) in chunk.iter().enumerate() {
+                    if w != 0.0 {
+                        Self::add_term(out, row, m, step >= 0, 8 * j + i, w);
                     }
-                    (1, false) => {
-                        let (mut q, mut i) = (0, k);
-                        while q < out.len() {
-                            let run = (out.len() - q).min(i + 1);
-                            let src = row[i + 1 - run..=i].iter().rev();
-                            for (o, e) in out[q..q + run].iter_mut().zip(src) {
-                                *o += w * e;
-                            }
-                            (q, i) = (q + run, n - 1);
-                        }
+                }
+            }
+        }
+    }
+
+    /// `out[q] += w R[k + s m q]` (modulo the row's length, `s` the sign of `up`), the
+    /// term of one weight in [`Self::correlate`].
+    #[inline(always)]
+    fn add_term(out: &mut [f64], row: &[f64], m: usize, up: bool, k: usize, w: f64) {
+        let n = row.len();
+        match (m, up) {
+            // A whole number of periods per step: every point reads R[k].
+            (0, _) => out.iter_mut().for_each(|o| *o += w * row[k]),
+            (1, true) => {
+                let (mut q, mut i) = (0, k);
+                while q < out.len() {
+                    let run = (out.len() - q).min(n - i);
+                    for (o, e) in out[q..q + run].iter_mut().zip(&row[i..i + run]) {
+                        *o += w * e;
                     }
-                    (_, up) => {
-                        let di = if up { m } else { n - m };
-                        let mut i = k;
-                        for o in out.iter_mut() {
-                            *o += w * row[i];
-                            i += di;
-                            if i >= n {
-                                i -= n;
-                            }
-                        }
+                    (q, i) = (q + run, 0);
+                }
+            }
+            (1, false) => {
+                let (mut q, mut i) = (0, k);
+                while q < out.len() {
+                    let run = (out.len() - q).min(i + 1);
+                    let src = row[i + 1 - run..=i].iter().rev();
+                    for (o, e) in out[q..q + run].iter_mut().zip(src) {
+                        *o += w * e;
+                    }
+                    (q, i) = (q + run, n - 1);
+                }
+            }
+            (_, up) => {
+                let di = if up { m } else { n - m };
+                let mut i = k;
+                for o in out.iter_mut() {
+                    *o += w * row[i];
+                    i += di;
+                    if i >= n {
+                        i -= n;
                     }
                 }
             }
@@ -1755,6 +1789,34 @@ mod tests {
                         "step {step} q {q}: {o} vs {sum}"
                     );
                 }
+            }
+        }
+    }
+
+    /// The AVX2 build of [`CnRows::correlate`] gives the portable build's values bit for
+    /// bit (the dispatch picks one by CPU; results may not depend on the machine), for
+    /// steps of either sign, one bin and several.
+    #[test]
+    fn correlate_avx2_equals_portable_build() {
+        let s = MedullaTables::builtin().slice(0.9, 0.4);
+        let rows = s.cn_rows();
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(59);
+        let mut acc = rows.row_weights();
+        for _ in 0..20 {
+            let i = rng.random_range(0..rows.x_nodes().len() - 1);
+            let psi0: f64 = rng.random_range(-4.0..4.0);
+            let len: f64 = 10f64.powf(rng.random_range(-3.0..0.5));
+            let g = [0, 1].map(|_| std::array::from_fn(|_| rng.random_range(0.0..2.0)));
+            rows.accumulate_piece(&mut acc, i, psi0, len, &g);
+        }
+        for step in [1i64, -1, 3, -7, 0] {
+            let mut portable = vec![0.5; 200];
+            rows.correlate_body(&acc, step, &mut portable);
+            let mut chosen = vec![0.5; 200];
+            rows.correlate(&acc, step, &mut chosen);
+            assert!(portable.iter().any(|&v| v > 0.5));
+            for (a, b) in portable.iter().zip(&chosen) {
+                assert_eq!(a.to_bits(), b.to_bits(), "step {step}");
             }
         }
     }
