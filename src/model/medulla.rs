@@ -1064,9 +1064,8 @@ impl CnRows<'_> {
 
     /// `out[q] += sum_rows sum_k acc[row][k] R_row[k + step q]` (indices modulo the bins):
     /// every accumulated piece at once, [`Self::dot`] summed over the pieces with `shift =
-    /// step q`, in one pass per touched row instead of one per piece. Each row is laid out
-    /// once along the direction of `step` and unrolled past its period, so a weight reads
-    /// a strided run of it (contiguous for a one-bin step) with no wrap per point.
+    /// step q`, in one pass per touched row instead of one per piece: each nonzero weight
+    /// adds a strided run of its row ([`Self::add_term`]).
     pub fn correlate(&self, acc: &RowWeights, step: i64, out: &mut [f64]) {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
@@ -1091,12 +1090,13 @@ impl CnRows<'_> {
         // A weight at bin k reads R[k + step q] (mod n) for point q: with a one-bin step a
         // few contiguous runs of the row (ascending, or descending for a negative step),
         // which vectorise; otherwise an index stepped modulo n. Each point adds its terms
-        // in the order (row, bin). Laying each row out unrolled past its period first cost
-        // more than the sums (a synthesis slice has ~10 rows but ~70 nonzero weights).
+        // in the order (row, bin). Laying each row out unrolled past its period first (as
+        // this did before) cost more than the sums: a synthesis slice touches ~10 rows but
+        // has only ~70 nonzero weights.
         for (r, _) in acc.touched.iter().enumerate().filter(|(_, t)| **t) {
             let row = &self.v[r * n..(r + 1) * n];
-            // Nine in ten weights of a synthesis slice are 0: skip them eight at a time
-            // (a compare per weight was a third of the time here).
+            // Over nine in ten weights of a synthesis slice are 0 (~70 of ~2000): skip them
+            // eight at a time (a compare per weight was a third of the time here).
             let ws = &acc.w[r * n..(r + 1) * n];
             for (j, chunk) in ws.chunks(8).enumerate() {
                 // No short circuit, so the test compiles to a few vector compares.
