@@ -1752,6 +1752,19 @@ mod tests {
         }
     }
 
+    /// A random `psi` piece for the correlation tests: lower row `i`, start `psi0`, length
+    /// (1e-3 to 3 rad) and the quadratics `g`.
+    fn random_piece(
+        rng: &mut rand_xoshiro::Xoshiro256PlusPlus,
+        rows: &CnRows,
+    ) -> (usize, f64, f64, [[f64; 3]; 2]) {
+        let i = rng.random_range(0..rows.x_nodes().len() - 1);
+        let psi0: f64 = rng.random_range(-4.0..4.0);
+        let len: f64 = 10f64.powf(rng.random_range(-3.0..0.5));
+        let g = [0, 1].map(|_| std::array::from_fn(|_| rng.random_range(0.0..2.0)));
+        (i, psi0, len, g)
+    }
+
     /// Pieces accumulated per table row ([`CnRows::accumulate_piece`]) and correlated
     /// along a grid equal the sum of their own dots at every grid point (1e-12 of the
     /// scale: the same products, summed in another order), for steps of either sign and
@@ -1766,10 +1779,7 @@ mod tests {
             acc.clear();
             let mut pieces = Vec::new();
             for _ in 0..30 {
-                let i = rng.random_range(0..rows.x_nodes().len() - 1);
-                let psi0: f64 = rng.random_range(-4.0..4.0);
-                let len: f64 = 10f64.powf(rng.random_range(-3.0..0.5));
-                let g = [0, 1].map(|_| std::array::from_fn(|_| rng.random_range(0.0..2.0)));
+                let (i, psi0, len, g) = random_piece(&mut rng, &rows);
                 let w = rows.weights(psi0, len, &g);
                 rows.accumulate_piece(&mut acc, i, psi0, len, &g);
                 pieces.push((i, w, len));
@@ -1803,10 +1813,7 @@ mod tests {
         let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(59);
         let mut acc = rows.row_weights();
         for _ in 0..20 {
-            let i = rng.random_range(0..rows.x_nodes().len() - 1);
-            let psi0: f64 = rng.random_range(-4.0..4.0);
-            let len: f64 = 10f64.powf(rng.random_range(-3.0..0.5));
-            let g = [0, 1].map(|_| std::array::from_fn(|_| rng.random_range(0.0..2.0)));
+            let (i, psi0, len, g) = random_piece(&mut rng, &rows);
             rows.accumulate_piece(&mut acc, i, psi0, len, &g);
         }
         for step in [1i64, -1, 3, -7, 0] {
