@@ -7,7 +7,7 @@ pub mod closed_form;
 mod engine;
 mod reference;
 
-pub use engine::{BitsMap, Decisions, FarSlice, SliceStats, CULL_SIGMAS};
+pub use engine::{BitsMap, Decisions, FarSlice, LobeWork, SliceStats, CULL_SIGMAS};
 
 pub use reference::REFERENCE_REL_TOL;
 

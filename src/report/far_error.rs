@@ -621,7 +621,7 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
 /// Where a grid synthesis spends its time, on one thread: per `|theta_d|` slice of
 /// `plan`, the mean slice build (segmentation and fits) and evaluation at its `|phi|`
 /// (best of three passes over all slices), and the mean quadrature pieces and nodes per
-/// slice. At 1e7 samples/s on two cores the 4 x 61 x 181 grid allows about 85 us per
+/// slice, in all and per lobe (with the closed-form pieces). At 1e7 samples/s on two cores the 4 x 61 x 181 grid allows about 85 us per
 /// slice on each (a budget, not a measurement).
 fn slice_breakdown(model: &FurModel, plan: &crate::synth::GridPlan, opts: &FarOptions) -> String {
     use crate::model::far::FarSlice;
@@ -642,20 +642,46 @@ fn slice_breakdown(model: &FurModel, plan: &crate::synth::GridPlan, opts: &FarOp
         eval = eval.min(e);
     }
     let (mut gl, mut nodes) = (0usize, 0usize);
+    let mut per_lobe = [crate::model::far::LobeWork::default(); 5];
     for (td, _) in groups {
         let s = FarSlice::far(&model.azimuthal(*td), LobeSet::ALL, opts).stats();
         gl += s.gl_segments;
         nodes += s.gl_nodes;
+        for (sum, w) in per_lobe.iter_mut().zip(&s.per_lobe) {
+            sum.closed_form += w.closed_form;
+            sum.gl_segments += w.gl_segments;
+            sum.gl_nodes += w.gl_nodes;
+        }
     }
     let n = groups.len().max(1) as f64;
     let phis = groups.iter().map(|g| g.1.len()).max().unwrap_or(0);
+    // Where the evaluation's work sits: every phi pays for each closed-form piece in reach
+    // and for each quadrature node's Gaussian.
+    let lobes: Vec<String> = crate::model::Lobe::ALL
+        .iter()
+        .zip(&per_lobe)
+        .map(|(l, w)| {
+            if l.is_scattered() {
+                format!("{} {:.1}", l.name(), w.closed_form as f64 / n)
+            } else {
+                format!(
+                    "{} {:.1} + {:.1} ({:.1} nodes)",
+                    l.name(),
+                    w.closed_form as f64 / n,
+                    w.gl_segments as f64 / n,
+                    w.gl_nodes as f64 / n
+                )
+            }
+        })
+        .collect();
     format!(
-        "  one thread, per slice ({} slices of up to {phis} phi): build {:.1} us, evaluation {:.1} us; quadrature pieces {:.1}, nodes {:.1}",
+        "  one thread, per slice ({} slices of up to {phis} phi): build {:.1} us, evaluation {:.1} us; quadrature pieces {:.1}, nodes {:.1}\n  per lobe and slice, closed-form pieces + quadrature pieces (their nodes): {}",
         groups.len(),
         1e6 * build / n,
         1e6 * eval / n,
         gl as f64 / n,
-        nodes as f64 / n
+        nodes as f64 / n,
+        lobes.join(", ")
     )
 }
 

@@ -384,9 +384,21 @@ pub struct SliceStats {
     /// Gauss-Legendre nodes over those segments (each a Gaussian every `phi` pays for).
     pub gl_nodes: usize,
     pub scattered_segments: usize,
+    /// The counts above per lobe, indexed by [`Lobe::index`]: closed-form pieces (`Phi`
+    /// pieces of R, TT, TRT; segments of TTs, TRTs), Gauss-Legendre pieces and their nodes
+    /// (unscattered lobes only).
+    pub per_lobe: [LobeWork; 5],
     /// Lobes whose refinement stopped at [`MAX_SPLITS`] or the maximum depth while its
     /// error check still asked for more (their accuracy is not guaranteed by `tol`).
     pub capped: LobeSet,
+}
+
+/// One lobe's share of [`SliceStats`].
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct LobeWork {
+    pub closed_form: usize,
+    pub gl_segments: usize,
+    pub gl_nodes: usize,
 }
 
 /// The refinement decisions of one slice build, per part and lobe, in the order taken
@@ -1705,18 +1717,30 @@ impl<'a> FarSlice<'a> {
             ..Default::default()
         };
         for part in &self.parts {
-            for v in &part.unsc {
+            for (p, v) in part.unsc.iter().enumerate() {
+                let w = &mut s.per_lobe[p];
                 for pc in v {
                     match pc {
-                        Piece::Phi { .. } => s.unscattered_segments += 1,
+                        Piece::Phi { .. } => w.closed_form += 1,
                         Piece::Gl { nodes, .. } => {
-                            s.gl_segments += 1;
-                            s.gl_nodes += nodes.len();
+                            w.gl_segments += 1;
+                            w.gl_nodes += nodes.len();
                         }
                     }
                 }
             }
-            s.scattered_segments += part.scat[0].segments + part.scat[1].segments;
+            for (k, sn) in part.scat.iter().enumerate() {
+                s.per_lobe[3 + k].closed_form += sn.segments;
+            }
+        }
+        for (l, w) in s.per_lobe.iter().enumerate() {
+            if l < 3 {
+                s.unscattered_segments += w.closed_form;
+                s.gl_segments += w.gl_segments;
+                s.gl_nodes += w.gl_nodes;
+            } else {
+                s.scattered_segments += w.closed_form;
+            }
         }
         s
     }

@@ -615,6 +615,24 @@ fn tol_mode_meets_tighter_tolerances_on_presets() {
     }
 }
 
+/// [`SliceStats::per_lobe`] books each piece under the lobe that built it: a one-lobe
+/// slice has work under that lobe only (cat: it has a medulla, so every lobe builds
+/// pieces).
+#[test]
+fn slice_stats_book_pieces_per_lobe() {
+    let m = FurModel::new(&FurParams::preset("cat").unwrap());
+    let opts = FarOptions::default();
+    for td in [0.1, 0.6] {
+        for l in Lobe::ALL {
+            let st = m.azimuthal(td).far_slice(LobeSet::only(l), &opts).stats();
+            for (k, w) in st.per_lobe.iter().enumerate() {
+                let any = w.closed_form + w.gl_segments > 0;
+                assert_eq!(any, k == l.index(), "{l:?} at {td}: {st:?}");
+            }
+        }
+    }
+}
+
 /// Wide unscattered lobes (red fox, beta_n 17.6 deg) are resolved by the 4-point rule of
 /// the Gauss-Legendre cascade ([`FarSlice::gl_piece_with`]): most pieces of TT and TRT
 /// keep 4 nodes (8 or 16 before the cascade; 44 nodes over 8 pieces measured for TT at
