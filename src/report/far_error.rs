@@ -621,8 +621,9 @@ pub fn synth_throughput(log: &mut dyn FnMut(&str)) {
 /// Where a grid synthesis spends its time, on one thread: per `|theta_d|` slice of
 /// `plan`, the mean slice build (segmentation and fits) and evaluation at its `|phi|`
 /// (best of three passes over all slices), and the mean quadrature pieces and nodes per
-/// slice, in all and per lobe (with the closed-form pieces). At 1e7 samples/s on two cores the 4 x 61 x 181 grid allows about 85 us per
-/// slice on each (a budget, not a measurement).
+/// slice, in all and per lobe (with the closed-form pieces). At 1e7 samples/s on two
+/// cores the 4 x 61 x 181 grid allows about 85 us per slice on each (a budget, not a
+/// measurement).
 fn slice_breakdown(model: &FurModel, plan: &crate::synth::GridPlan, opts: &FarOptions) -> String {
     use crate::model::far::FarSlice;
     let groups = plan.groups();
@@ -641,12 +642,9 @@ fn slice_breakdown(model: &FurModel, plan: &crate::synth::GridPlan, opts: &FarOp
         build = build.min(b);
         eval = eval.min(e);
     }
-    let (mut gl, mut nodes) = (0usize, 0usize);
     let mut per_lobe = [crate::model::far::LobeWork::default(); 5];
     for (td, _) in groups {
         let s = FarSlice::far(&model.azimuthal(*td), LobeSet::ALL, opts).stats();
-        gl += s.gl_segments;
-        nodes += s.gl_nodes;
         for (sum, w) in per_lobe.iter_mut().zip(&s.per_lobe) {
             sum.closed_form += w.closed_form;
             sum.gl_segments += w.gl_segments;
@@ -655,6 +653,8 @@ fn slice_breakdown(model: &FurModel, plan: &crate::synth::GridPlan, opts: &FarOp
     }
     let n = groups.len().max(1) as f64;
     let phis = groups.iter().map(|g| g.1.len()).max().unwrap_or(0);
+    let gl: usize = per_lobe.iter().map(|w| w.gl_segments).sum();
+    let nodes: usize = per_lobe.iter().map(|w| w.gl_nodes).sum();
     // Where the evaluation's work sits: every phi pays for each closed-form piece in reach
     // and for each quadrature node's Gaussian.
     let lobes: Vec<String> = crate::model::Lobe::ALL
