@@ -1729,17 +1729,17 @@ impl<'a> FarSlice<'a> {
                     }
                 }
             }
-            for (k, sn) in part.scat.iter().enumerate() {
-                s.per_lobe[3 + k].closed_form += sn.segments;
+            for (l, sn) in [Lobe::TTs, Lobe::TRTs].into_iter().zip(&part.scat) {
+                s.per_lobe[l.index()].closed_form += sn.segments;
             }
         }
-        for (l, w) in s.per_lobe.iter().enumerate() {
-            if l < 3 {
+        for (l, w) in Lobe::ALL.into_iter().zip(&s.per_lobe) {
+            if l.is_scattered() {
+                s.scattered_segments += w.closed_form;
+            } else {
                 s.unscattered_segments += w.closed_form;
                 s.gl_segments += w.gl_segments;
                 s.gl_nodes += w.gl_nodes;
-            } else {
-                s.scattered_segments += w.closed_form;
             }
         }
         s
