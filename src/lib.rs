@@ -19,6 +19,7 @@ pub mod fit;
 pub mod grid;
 pub mod io;
 pub mod model;
+pub mod models;
 pub mod params;
 pub mod profile;
 pub mod render;

@@ -10,60 +10,10 @@ use crate::model::far::{Decisions, FarOptions};
 use crate::model::{FurModel, LobeSet, LobeValues};
 use crate::params::FurParams;
 use crate::params::ParamId;
-use crate::synth::{GridPlan, ModelKind, PairTerms};
-use std::sync::{Arc, OnceLock};
+use crate::synth::{ModelKind, PairTerms};
+use std::sync::Arc;
 
-/// Goniometer points `(theta_i, theta_r, phi)` in radians, with their grid structure
-/// ([`GridPlan`]) found on first use and kept, since a fit evaluates the same points
-/// hundreds of times.
-#[derive(Clone, Debug, Default)]
-pub struct Points {
-    pub pts: Vec<(f64, f64, f64)>,
-    plan: OnceLock<Arc<GridPlan>>,
-}
-
-impl PartialEq for Points {
-    fn eq(&self, other: &Self) -> bool {
-        self.pts == other.pts
-    }
-}
-
-impl Points {
-    pub fn len(&self) -> usize {
-        self.pts.len()
-    }
-
-    pub fn is_empty(&self) -> bool {
-        self.pts.is_empty()
-    }
-
-    pub fn push(&mut self, theta_i: f64, theta_r: f64, phi: f64) {
-        self.pts.push((theta_i, theta_r, phi));
-        self.plan = OnceLock::new();
-    }
-
-    /// The grid `theta_i x theta_r x phi` given in degrees ([`crate::synth::grid_points`]).
-    pub fn grid_degrees(theta_i: &[f64], theta_r: &[f64], phi: &[f64]) -> Points {
-        let mut p = Points::default();
-        for (ti, tr, ph) in crate::synth::grid_points(theta_i, theta_r, phi) {
-            p.push(ti.to_radians(), tr.to_radians(), ph.to_radians());
-        }
-        p
-    }
-
-    /// The points at the given indices.
-    pub fn subset(&self, idx: &[usize]) -> Points {
-        Points {
-            pts: idx.iter().map(|&i| self.pts[i]).collect(),
-            plan: OnceLock::new(),
-        }
-    }
-
-    /// The grid structure of the points (built on first use).
-    pub fn plan(&self) -> &GridPlan {
-        self.plan.get_or_init(|| Arc::new(GridPlan::new(&self.pts)))
-    }
-}
+pub use crate::models::Points;
 
 /// Model value (no exposure) of the lobes in `lobes` at every point, written into `out`
 /// (`out.len() == points.len()`): the far field of [`crate::synth::predict`], summed over

@@ -1,0 +1,359 @@
+//! The model interface: every fiber model the fitter, `synth`, the reports and `stability`
+//! evaluate implements [`FiberModel`] once, in a room of its own:
+//!
+//! | name | model | room |
+//! |---|---|---|
+//! | `yan2017` (default) | the 5-lobe fur BCSDF of seed `000` (MODEL.md) | [`crate::model`], adapted in [`yan2017`] |
+//! | `marschner2003` | Marschner et al. 2003 (seed `002`), R, TT, TRT | [`marschner2003`] |
+//! | `chiang2016` | Chiang et al. 2016 as pbrt-v4 / Mitsuba 3 implement it | [`chiang2016`] |
+//!
+//! A trait object, not a closed enum: each model keeps its own precomputed state (the fur
+//! model's medulla table slice, Marschner's root tables, Chiang's quadrature rules) behind
+//! [`FiberModel::predict`] and [`ModelTerms`], and the generic code holds only
+//! `&'static dyn FiberModel` with a plain parameter vector ([`ModelParams`]). Adding a model
+//! is one file set and one line in [`MODELS`]; nothing generic names a parameter.
+//!
+//! # What every model predicts
+//! A goniometer sample (collimated light from `theta_i`, detector at `(theta_r, phi)`)
+//! predicts `k * sum_p f_p(theta_i, theta_r, phi)` with the exposure `k` solved by the
+//! fitter. `f_p` is the model's rendering-equation integrand for a collimated source in
+//! the `(theta_i, phi_i)` measure MODEL.md uses for the fur model (seed 000 Eq. 2:
+//! `L_r = integral L_i S cos^2 theta_i dtheta_i dphi_i`), averaged over the fiber offset
+//! `h` (the far field). Each model's doc comment states its factor (fur: `M_p N_p`).
+//!
+//! Parameters are vectors in the model's [`FiberModel::specs`] order: *file units*
+//! (degrees for angles) at the boundary, *internal units* (radians) inside, as
+//! [`ParamSpec::to_internal`] converts.
+
+mod params;
+mod points;
+pub mod yan2017;
+
+pub use params::ModelParams;
+pub use points::Points;
+
+use crate::model::far::FarOptions;
+use crate::model::{LobeSet, LobeValues};
+pub use crate::params::ParamSpec;
+
+/// The registered models, default first.
+pub static MODELS: [&'static dyn FiberModel; 1] = [&yan2017::Yan2017];
+
+/// The default model (`yan2017`).
+pub fn default_model() -> &'static dyn FiberModel {
+    MODELS[0]
+}
+
+/// The names of the registered models, for messages.
+pub fn names() -> Vec<&'static str> {
+    MODELS.iter().map(|m| m.name()).collect()
+}
+
+/// A registered model by name (case-insensitive).
+pub fn by_name(name: &str) -> crate::Result<&'static dyn FiberModel> {
+    let key = name.trim().to_ascii_lowercase();
+    MODELS
+        .iter()
+        .copied()
+        .find(|m| m.name() == key)
+        .ok_or_else(|| {
+            crate::Error::Invalid(format!(
+                "unknown model '{}' (expected one of: {})",
+                name.trim(),
+                names().join(", ")
+            ))
+        })
+}
+
+/// A named parameter set of a model (file units, in [`FiberModel::specs`] order).
+#[derive(Clone, Copy, Debug)]
+pub struct Preset {
+    pub name: &'static str,
+    pub values: &'static [f64],
+}
+
+/// What [`FiberModel::predict`] returns: per-lobe values (no exposure) at every point, and
+/// `(capped, slices)`: how many of the model's slices could not be refined to the
+/// tolerance (their values are not guaranteed to it), of how many.
+#[derive(Clone, Debug, Default)]
+pub struct Prediction {
+    pub lobes: Vec<LobeValues>,
+    pub capped: (usize, usize),
+}
+
+/// Which integral over `h` a prediction uses.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Integral {
+    /// The model's own far field (fast; the tolerance contract of [`FarOptions::tol`]).
+    Far,
+    /// The near field integrated over `h` by adaptive quadrature (~1e-10 relative; slow):
+    /// the reference the far field is tested against.
+    NearQuadrature,
+}
+
+impl std::fmt::Debug for dyn FiberModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// One fiber scattering model (see the module doc). Object safe: the generic code holds
+/// `&'static dyn FiberModel`.
+pub trait FiberModel: Send + Sync + 'static {
+    /// Registry name (`yan2017`, `marschner2003`, `chiang2016`), as `--model` and fit
+    /// files spell it.
+    fn name(&self) -> &'static str;
+
+    /// One line for humans: authors, year, lobes.
+    fn title(&self) -> &'static str;
+
+    /// Name, unit, hard bounds (file units) of each parameter, in vector order.
+    fn specs(&self) -> &'static [ParamSpec];
+
+    /// The lobes' names, at most five, in [`LobeValues`] slot order.
+    fn lobe_names(&self) -> &'static [&'static str];
+
+    /// The solver's smooth bounded map of parameter `i` (file units).
+    fn map(&self, i: usize) -> Map;
+
+    /// The box the fitter's global stage samples for parameter `i`: `(lo, hi, log_scale)`
+    /// in file units (plausible values, inside the hard bounds).
+    fn plausible_box(&self, i: usize) -> (f64, f64, bool);
+
+    /// Named parameter sets: starts of the fitter's global stage, and names `--params`
+    /// accepts for this model.
+    fn presets(&self) -> &'static [Preset];
+
+    /// Checks across parameters beyond each one's hard bound (internal units; called
+    /// after those). Errors name the model and the parameter.
+    fn check(&self, _p: &[f64]) -> crate::Result<()> {
+        Ok(())
+    }
+
+    /// Notes on how the model reads these parameters (internal units): tables left,
+    /// widths floored. `synth` and `render` print them, fits record them.
+    fn notes(&self, _p: &[f64]) -> Vec<String> {
+        Vec::new()
+    }
+
+    /// The lobes that can be non-zero for these parameters (internal units).
+    fn active_lobes(&self, _p: &[f64]) -> LobeSet {
+        LobeSet((1u8 << self.lobe_names().len()) - 1)
+    }
+
+    /// Per-lobe prediction (no exposure) of the lobes in `lobes` at every point of
+    /// `points` (others 0). `p` is in internal units and within the hard bounds.
+    /// The model exploits the grid's structure (cached in `points`).
+    fn predict(
+        &self,
+        p: &[f64],
+        points: &Points,
+        far: &FarOptions,
+        lobes: LobeSet,
+        integral: Integral,
+    ) -> Prediction;
+
+    /// The terms of the far-field prediction of all lobes at `p`, kept so that the
+    /// fitter's finite-difference columns recompute only what a parameter changes.
+    fn terms(&self, p: &[f64], points: &Points, far: &FarOptions) -> Box<dyn ModelTerms>;
+}
+
+/// A model's far-field prediction at one parameter set, kept by the fitter
+/// ([`FiberModel::terms`]).
+pub trait ModelTerms: Send + Sync {
+    /// Model value (no exposure, lobes summed) at every point, into `out`.
+    fn values(&self, points: &Points, out: &mut [f64]);
+
+    /// The terms at `p`, which differs from these terms' parameters only in parameter
+    /// `changed` (a finite-difference step). A model may reuse what `changed` cannot reach
+    /// and replay its refinement decisions, so the terms are a smooth function of the step.
+    fn with_change(
+        &self,
+        p: &[f64],
+        changed: usize,
+        points: &Points,
+        far: &FarOptions,
+    ) -> Box<dyn ModelTerms>;
+
+    /// `(capped, slices)` as in [`Prediction::capped`].
+    fn capped_slices(&self) -> (usize, usize);
+}
+
+/// [`ModelTerms`] that keep only the values: every change recomputes them in full.
+pub struct PlainTerms {
+    pub model: &'static dyn FiberModel,
+    pub values: Vec<f64>,
+    pub capped: (usize, usize),
+}
+
+impl PlainTerms {
+    /// The far-field values of all lobes of `model` at `p`.
+    pub fn new(
+        model: &'static dyn FiberModel,
+        p: &[f64],
+        points: &Points,
+        far: &FarOptions,
+    ) -> PlainTerms {
+        let pred = model.predict(p, points, far, LobeSet::ALL, Integral::Far);
+        PlainTerms {
+            model,
+            values: pred.lobes.iter().map(|l| l.sum()).collect(),
+            capped: pred.capped,
+        }
+    }
+}
+
+impl ModelTerms for PlainTerms {
+    fn values(&self, _points: &Points, out: &mut [f64]) {
+        out.copy_from_slice(&self.values);
+    }
+
+    fn with_change(
+        &self,
+        p: &[f64],
+        _changed: usize,
+        points: &Points,
+        far: &FarOptions,
+    ) -> Box<dyn ModelTerms> {
+        Box::new(PlainTerms::new(self.model, p, points, far))
+    }
+
+    fn capped_slices(&self) -> (usize, usize) {
+        self.capped
+    }
+}
+
+/// Clamp of the solver coordinate for sigmoid and exp maps (sigmoid(30) = 1 - 9.4e-14:
+/// representable below 1).
+pub const U_MAX: f64 = 30.0;
+/// Clamp for tanh maps: tanh(30) rounds to exactly 1.0 in f64, tanh(17) = 1 - 3.4e-15 does not.
+pub const U_MAX_TANH: f64 = 17.0;
+
+/// The shape of one parameter's smooth bounded map from the solver's unbounded coordinate
+/// `u` to its value (file units); see [`crate::fit::reparam`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Map {
+    /// `lo + span * sigmoid(u)`.
+    Sigmoid { lo: f64, span: f64 },
+    /// `scale * tanh(u)`.
+    Tanh { scale: f64 },
+    /// `exp(u)`.
+    Exp,
+}
+
+impl Map {
+    /// `u` clamped so that rounding can never land on an open bound.
+    pub fn clamp_u(self, u: f64) -> f64 {
+        let m = match self {
+            Map::Tanh { .. } => U_MAX_TANH,
+            _ => U_MAX,
+        };
+        u.clamp(-m, m)
+    }
+
+    /// The value (file units) at `u`.
+    pub fn to_value(self, u: f64) -> f64 {
+        let u = self.clamp_u(u);
+        match self {
+            Map::Sigmoid { lo, span } => lo + span * sigmoid(u),
+            Map::Tanh { scale } => scale * u.tanh(),
+            Map::Exp => u.exp(),
+        }
+    }
+
+    /// `d value / d u` at `u`; 0 beyond the clamp.
+    pub fn derivative(self, u: f64) -> f64 {
+        if self.clamp_u(u) != u {
+            return 0.0;
+        }
+        match self {
+            Map::Sigmoid { span, .. } => {
+                let s = sigmoid(u);
+                span * s * (1.0 - s)
+            }
+            Map::Tanh { scale } => {
+                let t = u.tanh();
+                scale * (1.0 - t * t)
+            }
+            Map::Exp => u.exp(),
+        }
+    }
+
+    /// The coordinate of value `v`; a value on or beyond a bound maps to the clamp.
+    pub fn to_u(self, v: f64) -> f64 {
+        let u = match self {
+            // Clamped first: a value beyond the range maps to the clamp, not to NaN (-> 0).
+            Map::Sigmoid { lo, span } => logit(((v - lo) / span).clamp(0.0, 1.0)),
+            Map::Tanh { scale } => (v / scale).clamp(-1.0, 1.0).atanh(),
+            Map::Exp => v.ln(),
+        };
+        if u.is_nan() {
+            0.0
+        } else {
+            self.clamp_u(u)
+        }
+    }
+}
+
+fn sigmoid(u: f64) -> f64 {
+    1.0 / (1.0 + (-u).exp())
+}
+
+fn logit(y: f64) -> f64 {
+    (y / (1.0 - y)).ln()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every registered model's maps stay inside its hard bounds at any coordinate, its
+    /// plausible box lies inside them, and its presets are valid parameter sets.
+    #[test]
+    fn registered_models_are_consistent() {
+        for m in MODELS {
+            let n = m.specs().len();
+            assert!(m.lobe_names().len() <= 5, "{}", m.name());
+            for i in 0..n {
+                let s = &m.specs()[i];
+                for u in [-1e9, -U_MAX, -40.0, 0.0, 40.0, U_MAX, 1e9] {
+                    let v = m.map(i).to_value(u);
+                    assert!(s.contains(v), "{} {} u={u} -> {v}", m.name(), s.name);
+                }
+                let (lo, hi, _) = m.plausible_box(i);
+                assert!(
+                    s.contains(lo) && s.contains(hi) && lo < hi,
+                    "{} {}",
+                    m.name(),
+                    s.name
+                );
+            }
+            for p in m.presets() {
+                assert_eq!(p.values.len(), n, "{} {}", m.name(), p.name);
+                ModelParams::from_file_units(m, p.values).unwrap();
+            }
+            assert_eq!(by_name(m.name()).unwrap().name(), m.name());
+        }
+        let e = by_name("blinn").err().expect("no model blinn").to_string();
+        assert!(e.contains("blinn") && e.contains("yan2017"), "{e}");
+    }
+
+    #[test]
+    fn maps_round_trip() {
+        for map in [
+            Map::Sigmoid { lo: 1.0, span: 2.0 },
+            Map::Tanh { scale: 20.0 },
+            Map::Exp,
+        ] {
+            for v in [1.3f64, 2.9, 0.5] {
+                let v = if matches!(map, Map::Sigmoid { .. }) {
+                    v.max(1.01)
+                } else {
+                    v
+                };
+                // Closed-form inverses: float rounding only (1e-12 relative).
+                assert!((map.to_value(map.to_u(v)) - v).abs() < 1e-12 * v.abs());
+            }
+        }
+    }
+}

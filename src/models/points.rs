@@ -1,0 +1,124 @@
+//! Goniometer points with the grid structures models find in them, kept between
+//! evaluations (a fit evaluates the same points hundreds of times).
+
+use crate::synth::GridPlan;
+use std::any::Any;
+use std::sync::{Arc, Mutex, OnceLock};
+
+/// A model's grid structure of a point list, type-erased so each model keeps its own.
+type Cached = Arc<dyn Any + Send + Sync>;
+
+/// Goniometer points `(theta_i, theta_r, phi)` in radians, with the fur model's
+/// [`GridPlan`] and any other model's plan found on first use and kept.
+#[derive(Default)]
+pub struct Points {
+    pub pts: Vec<(f64, f64, f64)>,
+    plan: OnceLock<Arc<GridPlan>>,
+    plans: Mutex<Vec<(&'static str, Cached)>>,
+}
+
+impl Clone for Points {
+    fn clone(&self) -> Self {
+        Points {
+            pts: self.pts.clone(),
+            plan: self.plan.clone(),
+            plans: Mutex::new(self.plans.lock().map(|p| p.clone()).unwrap_or_default()),
+        }
+    }
+}
+
+impl std::fmt::Debug for Points {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Points").field("pts", &self.pts).finish()
+    }
+}
+
+impl PartialEq for Points {
+    fn eq(&self, other: &Self) -> bool {
+        self.pts == other.pts
+    }
+}
+
+impl Points {
+    /// Points from a list (radians).
+    pub fn new(pts: Vec<(f64, f64, f64)>) -> Points {
+        Points {
+            pts,
+            ..Points::default()
+        }
+    }
+
+    pub fn len(&self) -> usize {
+        self.pts.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.pts.is_empty()
+    }
+
+    pub fn push(&mut self, theta_i: f64, theta_r: f64, phi: f64) {
+        self.pts.push((theta_i, theta_r, phi));
+        self.plan = OnceLock::new();
+        self.plans = Mutex::new(Vec::new());
+    }
+
+    /// The grid `theta_i x theta_r x phi` given in degrees ([`crate::synth::grid_points`]).
+    pub fn grid_degrees(theta_i: &[f64], theta_r: &[f64], phi: &[f64]) -> Points {
+        Points::new(
+            crate::synth::grid_points(theta_i, theta_r, phi)
+                .into_iter()
+                .map(|(ti, tr, ph)| (ti.to_radians(), tr.to_radians(), ph.to_radians()))
+                .collect(),
+        )
+    }
+
+    /// The points at the given indices.
+    pub fn subset(&self, idx: &[usize]) -> Points {
+        Points::new(idx.iter().map(|&i| self.pts[i]).collect())
+    }
+
+    /// The fur model's grid structure of the points (built on first use).
+    pub fn plan(&self) -> &GridPlan {
+        self.plan.get_or_init(|| Arc::new(GridPlan::new(&self.pts)))
+    }
+
+    /// A model's own grid structure `T` of the points under `key` (the model's name),
+    /// built by `build` on first use and kept.
+    pub fn cached<T: Any + Send + Sync>(
+        &self,
+        key: &'static str,
+        build: impl FnOnce(&[(f64, f64, f64)]) -> T,
+    ) -> Arc<T> {
+        let mut plans = self.plans.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, p)) = plans.iter().find(|(k, _)| *k == key) {
+            if let Ok(t) = p.clone().downcast::<T>() {
+                return t;
+            }
+        }
+        let t = Arc::new(build(&self.pts));
+        plans.retain(|(k, _)| *k != key);
+        plans.push((key, t.clone()));
+        t
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cached_plans_are_built_once_and_dropped_on_push() {
+        let mut p = Points::new(vec![(0.0, 0.1, 0.2)]);
+        let calls = std::cell::Cell::new(0);
+        let build = |pts: &[(f64, f64, f64)]| {
+            calls.set(calls.get() + 1);
+            pts.len()
+        };
+        assert_eq!(*p.cached("a", build), 1);
+        assert_eq!(*p.cached("a", build), 1);
+        assert_eq!(calls.get(), 1);
+        p.push(0.0, 0.0, 0.0);
+        assert_eq!(*p.cached("a", build), 2);
+        assert_eq!(calls.get(), 2);
+    }
+}
