@@ -334,7 +334,10 @@ mod tests {
             }
             assert_eq!(by_name(m.name()).unwrap().name(), m.name());
         }
-        let e = by_name("blinn").err().expect("no model blinn").to_string();
+        let e = match by_name("blinn") {
+            Err(e) => e.to_string(),
+            Ok(_) => panic!("no model blinn"),
+        };
         assert!(e.contains("blinn") && e.contains("yan2017"), "{e}");
     }
 
