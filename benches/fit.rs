@@ -29,7 +29,11 @@ fn profile() -> FitData {
 
 fn bench(c: &mut Criterion) {
     let data = profile();
-    let prob = LogResidualProblem::new(&data, ParamLayout::all_free(), FarOptions::paper());
+    let prob = LogResidualProblem::new(
+        &data,
+        ParamLayout::all_free(furfit::models::default_model()),
+        FarOptions::paper(),
+    );
     let start = FurParams::preset("cat").unwrap().to_file_units();
     let u = DVector::from_vec(prob.layout.to_u(&start));
     let mut g = c.benchmark_group("fit_15066_samples");

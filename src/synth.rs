@@ -13,7 +13,7 @@ use crate::model::far::{BitsMap, Decisions, FarOptions, FarSlice};
 use crate::model::geometry::theta_d;
 use crate::model::medulla::front_back_lerp;
 use crate::model::{AzimuthalSlice, FurModel, Lobe, LobeSet, LobeValues};
-use crate::params::FurParams;
+use crate::models::{Integral, ModelParams, Points};
 use crate::profile::{Profile, Sample};
 use rayon::prelude::*;
 use std::path::Path;
@@ -351,49 +351,50 @@ pub fn grid_points(theta_i: &[f64], theta_r: &[f64], phi: &[f64]) -> Vec<(f64, f
 pub const SOURCE: &str = "synthetic: furfit synth (model prediction, no noise)";
 
 /// Synthesize a profile on the grid `theta_i x theta_r x phi` (degrees), value
-/// `exposure * sum_{p in lobes} M_p N_p`. The metadata says it is synthetic and records
-/// the parameters, model, lobes and options. `params` must be validated.
+/// `exposure * sum_{p in lobes} f_p` of any model ([`crate::models`]). The metadata says it
+/// is synthetic and records the model, parameters, integral, lobes and options. `params`
+/// must be validated.
 #[allow(clippy::too_many_arguments)]
 pub fn synthesize(
-    params: &FurParams,
+    params: &ModelParams,
     theta_i: &[f64],
     theta_r: &[f64],
     phi: &[f64],
-    model_kind: ModelKind,
+    integral: Integral,
     lobes: LobeSet,
     exposure: f64,
     opts: &FarOptions,
 ) -> Profile {
-    let model = FurModel::new(params);
     let deg = grid_points(theta_i, theta_r, phi);
-    let rad: Vec<(f64, f64, f64)> = deg
-        .iter()
-        .map(|&(a, b, c)| (a.to_radians(), b.to_radians(), c.to_radians()))
-        .collect();
-    let plan = GridPlan::new(&rad);
-    let (values, capped) = if model_kind == ModelKind::Far {
-        let (v, capped) = plan.predict_far_checked(&model, lobes, opts);
-        (v, Some(capped))
-    } else {
-        (plan.predict(&model, lobes, model_kind, opts), None)
-    };
+    let points = Points::new(
+        deg.iter()
+            .map(|&(a, b, c)| (a.to_radians(), b.to_radians(), c.to_radians()))
+            .collect(),
+    );
+    let model = params.model;
+    let pred = model.predict(&params.values, &points, opts, lobes, integral);
     let samples = deg
         .iter()
-        .zip(&values)
+        .zip(&pred.lobes)
         .map(|(&(ti, tr, p), v)| Sample::new(ti, tr, p, exposure * v.sum()))
         .collect();
-    let lobe_names: Vec<&str> = lobes.iter().map(|l| l.name()).collect();
+    let names = model.lobe_names();
+    let lobe_names: Vec<&str> = (0..names.len())
+        .filter(|&i| lobes.0 & (1 << i) != 0)
+        .map(|i| names[i])
+        .collect();
     let mut prof = Profile {
         samples,
         ..Default::default()
     };
     prof.set_meta("synthetic", "true");
     prof.set_meta("source", SOURCE);
+    prof.set_meta("model", model.name());
     prof.set_meta("params", params.to_json_value().to_string());
     prof.set_meta("exposure", crate::error::Num(exposure).to_string());
-    prof.set_meta("model", model_kind.name());
+    prof.set_meta("integral", integral.name());
     prof.set_meta("lobes", lobe_names.join(","));
-    if model_kind == ModelKind::Far {
+    if integral == Integral::Far {
         prof.set_meta(
             "segments",
             format!("{},{}", opts.n_unscattered, opts.n_scattered),
@@ -403,11 +404,12 @@ pub fn synthesize(
             opts.tol.map_or("none".to_string(), |t| format!("{t}")),
         );
         prof.set_meta("cull", format!("{}", opts.cull));
-    }
-    if let Some(c) = capped {
         // Slices whose tolerance-mode refinement hit its split or depth limit: their
         // values are not guaranteed to `tol` (the CLI says so on stderr).
-        prof.set_meta("capped_slices", format!("{c} of {}", plan.slices()));
+        prof.set_meta(
+            "capped_slices",
+            format!("{} of {}", pred.capped.0, pred.capped.1),
+        );
     }
     prof.set_meta("furfit_version", crate::TOOL_VERSION);
     prof
@@ -419,11 +421,11 @@ pub fn synthesize(
 /// per channel (`params_<name>`, ...) instead of one value.
 #[allow(clippy::too_many_arguments)]
 pub fn synthesize_channels(
-    channels: &[(String, FurParams, f64)],
+    channels: &[(String, ModelParams, f64)],
     theta_i: &[f64],
     theta_r: &[f64],
     phi: &[f64],
-    model_kind: ModelKind,
+    integral: Integral,
     lobes: LobeSet,
     exposure: Option<f64>,
     opts: &FarOptions,
@@ -431,7 +433,7 @@ pub fn synthesize_channels(
     let mut out = Profile::default();
     for (c, (name, params, k)) in channels.iter().enumerate() {
         let k = exposure.unwrap_or(*k);
-        let p = synthesize(params, theta_i, theta_r, phi, model_kind, lobes, k, opts);
+        let p = synthesize(params, theta_i, theta_r, phi, integral, lobes, k, opts);
         if c == 0 {
             out.metadata = p.metadata.clone();
             out.metadata.retain(|(key, _)| {
@@ -461,6 +463,7 @@ pub fn save(path: &Path, prof: &Profile) -> crate::Result<()> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::params::FurParams;
 
     #[test]
     fn predict_matches_pointwise_evaluation() {
@@ -504,11 +507,11 @@ mod tests {
             let mut p = FurParams::preset("red-fox").unwrap();
             p.beta_n = beta_n_deg.to_radians();
             let prof = synthesize(
-                &p,
+                &p.into(),
                 &[0.0, 30.0],
                 &[-40.0, 0.0, 40.0],
                 &[-90.0, 0.0, 90.0, 180.0],
-                ModelKind::Far,
+                Integral::Far,
                 LobeSet::ALL,
                 1.0,
                 &FarOptions {

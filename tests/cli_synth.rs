@@ -389,7 +389,7 @@ fn synth_replaces_only_its_own_profiles_and_only_with_force() {
 }
 
 /// Far-field options that change nothing are said on stderr (they were silently
-/// ignored): all of them with `--model near-quadrature`, `--scattered-step` with
+/// ignored): all of them with `--integral near-quadrature`, `--scattered-step` with
 /// `--tol none`; the far field's own use of them is quiet.
 #[test]
 fn synth_warns_about_ignored_far_field_options() {
@@ -405,7 +405,7 @@ fn synth_warns_about_ignored_far_field_options() {
         String::from_utf8_lossy(&o.stderr).into_owned()
     };
     let err = run(&[
-        "--model",
+        "--integral",
         "near-quadrature",
         "--tol",
         "1e-3",
@@ -414,13 +414,13 @@ fn synth_warns_about_ignored_far_field_options() {
     ]);
     assert_eq!(
         err,
-        "warning: --segments, --tol only affect the far field, which --model \
+        "warning: --segments, --tol only affect the far field, which --integral \
          near-quadrature does not use: ignored\n"
     );
     // One option: "affects" (it read "--tol only affect").
     assert_eq!(
-        run(&["--model", "near-quadrature", "--tol", "1e-3"]),
-        "warning: --tol only affects the far field, which --model near-quadrature does not \
+        run(&["--integral", "near-quadrature", "--tol", "1e-3"]),
+        "warning: --tol only affects the far field, which --integral near-quadrature does not \
          use: ignored\n"
     );
     let err = run(&["--tol", "none", "--scattered-step", "strict"]);
@@ -689,7 +689,7 @@ fn synth_survives_absorption_near_the_f64_limit() {
             .arg("--params")
             .arg(&params)
             .args(["--theta-i", "-90", "--theta-r", "90", "--phi", "0,90,180"])
-            .args(["--model", model, "--out"])
+            .args(["--integral", model, "--out"])
             .arg(&out)
             .output()
             .unwrap();
@@ -843,7 +843,7 @@ fn output_folder_is_made_after_the_checks_and_said() {
     let dir = tempfile::tempdir().unwrap();
     for (i, bad) in [
         ["--lobes", "XX"],
-        ["--model", "nope"],
+        ["--integral", "nope"],
         ["--exposure", "-1"],
         ["--exposure", "1e-400"],
     ]

@@ -54,7 +54,7 @@ fn data_at_the_bounds_gives_in_bound_fits() {
     let mut m = vec![0.0; pts.len()];
     predict_points(&truth, &pts, &FarOptions::paper(), LobeSet::ALL, &mut m);
     let fit = fit_data(&FitData::new(pts, &m, None), &quick(), None).unwrap();
-    assert_inside(&fit.params);
+    assert_inside(&fit.params.fur().unwrap());
 }
 
 #[test]
@@ -67,7 +67,7 @@ fn featureless_data_gives_in_bound_fits() {
         .map(|i| 1.0 + 0.01 * (i % 7) as f64)
         .collect();
     let fit = fit_data(&FitData::new(pts, &y, None), &quick(), None).unwrap();
-    assert_inside(&fit.params);
+    assert_inside(&fit.params.fur().unwrap());
     assert!(fit.nrmse.is_finite());
 }
 

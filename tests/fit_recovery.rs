@@ -93,10 +93,14 @@ fn recovery_z(truth: FurParams, noise: f64, seed: u64, opts: &FitOptions) -> Vec
         "nrmse {:.3e} (noise floor {:.3e}), iters {}, evals {}, {}",
         fit.nrmse, noise_floor, fit.iterations, fit.evaluations, fit.termination
     );
-    let (t, f) = (file(&truth), file(&fit.params));
+    let (t, f) = (file(&truth), file(&fit.params.fur().unwrap()));
     for id in ParamId::ALL {
         let k = id.index();
-        let flagged = fit.uncertainty.unconstrained.iter().any(|(p, _)| *p == id);
+        let flagged = fit
+            .uncertainty
+            .unconstrained
+            .iter()
+            .any(|(p, _)| *p == id.into());
         eprintln!(
             "{:>10} truth {:>9.4} fit {:>9.4} se {:?} {}",
             id.spec().name,
@@ -123,7 +127,11 @@ fn recovery_z(truth: FurParams, noise: f64, seed: u64, opts: &FitOptions) -> Vec
     let mut z = Vec::new();
     for id in ParamId::ALL {
         let k = id.index();
-        let flagged = fit.uncertainty.unconstrained.iter().any(|(p, _)| *p == id);
+        let flagged = fit
+            .uncertainty
+            .unconstrained
+            .iter()
+            .any(|(p, _)| *p == id.into());
         if noise == 0.0 || flagged || opts.layout.fixed[k].is_some() {
             continue;
         }
@@ -205,7 +213,7 @@ fn noise_free_fit_finds_a_dense_medulla() {
         // The truth fits exactly; a near-exact fit (the solver may stop at its iteration
         // cap a hair short) is far below the wrong basin's 1.4e-2.
         assert!(fit.nrmse < 1e-3, "seed {seed}: NRMSE {}", fit.nrmse);
-        let g = file(&fit.params)[ParamId::G.index()];
+        let g = file(&fit.params.fur().unwrap())[ParamId::G.index()];
         assert!((g - 0.79).abs() < 0.01, "seed {seed}: g {g}");
     }
 }
@@ -227,10 +235,14 @@ fn profile_interval_matches_the_standard_error_in_a_quadratic_valley() {
             o.fix(id.spec().name, t[id.index()]).unwrap();
         }
     }
-    o.profile = vec![ParamId::Eta, ParamId::BetaM, ParamId::SigmaCA];
+    o.profile = vec![
+        ParamId::Eta.into(),
+        ParamId::BetaM.into(),
+        ParamId::SigmaCA.into(),
+    ];
     let fit = fit_data(&data, &o, None).unwrap();
     assert_eq!(fit.profile.len(), 3);
-    let at = fit.params.to_file_units();
+    let at = fit.params.fur().unwrap().to_file_units();
     for iv in &fit.profile {
         let k = iv.id.index();
         let se = fit.uncertainty.se[k].unwrap();
@@ -257,11 +269,11 @@ fn profile_interval_matches_the_standard_error_in_a_quadratic_valley() {
 /// floor).
 fn noise_free(truth: &FurParams, ti: &[f64], tr: &[f64], phi: &[f64]) -> FitData {
     let prof = furfit::synth::synthesize(
-        truth,
+        &(*truth).into(),
         ti,
         tr,
         phi,
-        furfit::synth::ModelKind::Far,
+        furfit::models::Integral::Far,
         LobeSet::ALL,
         1.0,
         &FarOptions::default(),
@@ -270,7 +282,10 @@ fn noise_free(truth: &FurParams, ti: &[f64], tr: &[f64], phi: &[f64]) -> FitData
 }
 
 fn assert_exact(fit: &furfit::fit::FitOutcome, truth: &FurParams, ids: &[ParamId]) {
-    let (f, t) = (fit.params.to_file_units(), truth.to_file_units());
+    let (f, t) = (
+        fit.params.fur().unwrap().to_file_units(),
+        truth.to_file_units(),
+    );
     for id in ids {
         let k = id.index();
         // Noise-free data of the fitter's own model: recovered to the solver's tolerance
@@ -313,10 +328,10 @@ fn fit_leaves_a_bound_the_data_do_not_favour() {
     let tr: Vec<f64> = (0..41).map(|k| -80.0 + 4.0 * k as f64).collect();
     let phi: Vec<f64> = (0..46).map(|j| -90.0 + 4.0 * j as f64).collect();
     let data = noise_free(&truth, &[0.0, 15.0, 30.0, 45.0], &tr, &phi);
-    for init in [Some(truth.to_file_units()), None] {
+    for init in [Some(truth.to_file_units().to_vec()), None] {
         // The command line's defaults (seed 0), where the trap was found.
         let o = FitOptions {
-            init,
+            init: init.clone(),
             ..FitOptions::default()
         };
         let fit = fit_data(&data, &o, None).unwrap();
@@ -344,7 +359,11 @@ fn profile_repolishes_from_a_better_re_solve() {
     // seeds 1, 4 and 6 found smaller improvements, which are only reported.
     let data = synth(&truth, 0.05, 2);
     let o = FitOptions {
-        profile: vec![ParamId::Kappa, ParamId::G, ParamId::SigmaMS],
+        profile: vec![
+            ParamId::Kappa.into(),
+            ParamId::G.into(),
+            ParamId::SigmaMS.into(),
+        ],
         ..opts()
     };
     let fit = fit_data(&data, &o, None).unwrap();
@@ -380,20 +399,20 @@ fn profile_re_solves_a_partner_off_its_bound() {
     ] {
         let data = synth(&truth, 0.05, seed);
         let o = FitOptions {
-            profile: vec![id],
+            profile: vec![id.into()],
             ..opts()
         };
         let fit = fit_data(&data, &o, None).unwrap();
         assert_eq!(
             fit.uncertainty.at_bound(),
-            vec![partner],
+            vec![partner.into()],
             "seed {seed}: precondition (partner on its bound) no longer holds"
         );
         // Its linearised SE is conditional on the partner's bound value: flagged as such.
         assert!(
             fit.uncertainty
                 .unconstrained
-                .contains(&(id, furfit::fit::uncertainty::Why::Coupled)),
+                .contains(&(id.into(), furfit::fit::uncertainty::Why::Coupled)),
             "seed {seed}: {:?}",
             fit.uncertainty.unconstrained
         );

@@ -331,6 +331,19 @@ pub(crate) fn load_params(
     FurParams::load_json(spec)
 }
 
+/// [`crate::models::ModelParams::load`] for a command's `--params` (or `--init`) of the
+/// model `want` (default: the file's own, or the default model for a preset), saying
+/// first when a file of that name is read in place of the preset of that name.
+pub(crate) fn load_model_params(
+    spec: &str,
+    want: Option<&'static dyn crate::models::FiberModel>,
+) -> crate::Result<(crate::models::ModelParams, f64, Option<serde_json::Value>)> {
+    if let Some(n) = crate::params::preset_shadow_note(spec) {
+        eprintln!("{n}");
+    }
+    crate::models::ModelParams::load(spec, want)
+}
+
 /// Print [`crate::grid::radians_note`] for each of a command's angle grids.
 pub(crate) fn note_radian_grids(grids: &[(&str, &[f64])]) {
     for (what, g) in grids {

@@ -1,18 +1,22 @@
 //! `furfit synth`: synthesize a profile from parameters on an angle grid.
 
 use crate::grid::{check_grid_size, parse_phi_grid, parse_theta_grid};
-use crate::model::LobeSet;
+use crate::models::{Integral, ModelParams};
 use crate::profile::Sample;
-use crate::synth::{self, ModelKind};
-use crate::FurParams;
+use crate::synth;
 use anyhow::{bail, Context};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Parameters: a preset name (e.g. red-fox), a parameter JSON or a fit JSON.
+    /// Parameters: a preset name (e.g. red-fox), a parameter JSON or a fit JSON (of any
+    /// model: the file names it).
     #[arg(long)]
     pub params: String,
+    /// The model of a preset, or the model the file must be of: yan2017 (default for
+    /// presets), marschner2003, chiang2016.
+    #[arg(long)]
+    pub model: Option<String>,
     /// Incident inclinations, degrees (`start:stop:step` or a comma list).
     #[arg(long = "theta-i", allow_hyphen_values = true)]
     pub theta_i: String,
@@ -22,10 +26,11 @@ pub struct Args {
     /// Relative azimuths, degrees.
     #[arg(long, allow_hyphen_values = true)]
     pub phi: String,
-    /// Azimuthal integral: `far` (piecewise analytic) or `near-quadrature` (reference).
+    /// Integral over the fiber offset: `far` (the model's far field) or `near-quadrature`
+    /// (the near field by adaptive quadrature: the reference, slow).
     #[arg(long, default_value = "far")]
-    pub model: String,
-    /// Lobes to include: R,TT,TRT,TTs,TRTs or all.
+    pub integral: String,
+    /// Lobes to include, by the model's names (yan2017: R,TT,TRT,TTs,TRTs), or all.
     #[arg(long, default_value = "all")]
     pub lobes: String,
     /// For a fit file with several channels (e.g. r, g, b): the channel to synthesize, or
@@ -81,15 +86,17 @@ const UNDERFLOW_TAIL: f64 = 1e-12;
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     check_out(&a.out, a.force).context("--out")?;
-    let (params, file_k, json) = super::load_params(&a.params)?;
+    let want = a.model.as_deref().map(crate::models::by_name).transpose()?;
+    let (params, file_k, json) = super::load_model_params(&a.params, want)?;
+    let model = params.model;
     let fitted = match &json {
-        Some(v) => crate::params::fit_channels(v, &a.params)?,
+        Some(v) => crate::models::fit_channels(v, &a.params)?,
         None => Vec::new(),
     };
     let names: Vec<&str> = fitted.iter().map(|c| c.name.as_str()).collect();
     // (name, parameters, exposure) per output channel; an unnamed single one for a preset,
     // a parameter file or a single-channel fit.
-    let channels: Vec<(String, FurParams, f64)> = match a.channel.as_deref() {
+    let channels: Vec<(String, ModelParams, f64)> = match a.channel.as_deref() {
         None | Some("all") if fitted.len() > 1 => {
             eprintln!(
                 "note: {} has channels {}: one output channel each (--channel NAME for one)",
@@ -98,21 +105,21 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
             fitted
                 .iter()
-                .map(|c| (c.name.clone(), c.params, c.exposure))
+                .map(|c| (c.name.clone(), c.params.clone(), c.exposure))
                 .collect()
         }
         // `all` of a single set of parameters is that set (named if its fit's channel was).
         None | Some("all") => match fitted.as_slice() {
-            [f] => vec![(f.name.clone(), f.params, f.exposure)],
+            [f] => vec![(f.name.clone(), f.params.clone(), f.exposure)],
             _ => vec![(String::new(), params, file_k)],
         },
         Some(c) => {
-            let f = crate::params::select_channel(&fitted, c, &a.params)?;
-            vec![(f.name.clone(), f.params, f.exposure)]
+            let f = crate::models::select_channel(&fitted, c, &a.params)?;
+            vec![(f.name.clone(), f.params.clone(), f.exposure)]
         }
     };
     for (_, p, _) in &channels {
-        for n in crate::model::FurModel::model_notes(p) {
+        for n in model.notes(&p.values) {
             eprintln!("note: {n}");
         }
     }
@@ -133,8 +140,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             );
         }
     }
-    let kind = ModelKind::parse(&a.model).context("--model")?;
-    let lobes = LobeSet::parse(&a.lobes).context("--lobes")?;
+    let kind = Integral::parse(&a.integral).context("--integral")?;
+    let lobes = model.parse_lobes(&a.lobes).context("--lobes")?;
     if let Some(k) = a.exposure.filter(|k| !(k.is_finite() && *k > 0.0)) {
         anyhow::bail!(
             "--exposure must be a finite number > 0, got {}",
@@ -150,7 +157,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     let opts = a.far.options()?;
-    let unused = (kind != ModelKind::Far).then(|| format!("--model {}", kind.name()));
+    let unused = (kind != Integral::Far).then(|| format!("--integral {}", kind.name()));
     for w in a.far.ignored(&opts, unused.as_deref()) {
         eprintln!("warning: {w}");
     }
@@ -247,7 +254,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     for (key, c) in &prof.metadata {
         if key.starts_with("capped_slices") && !c.starts_with("0 ") {
             eprintln!(
-                "note: {c} theta_d slices hit the far field's refinement limit; their values are not guaranteed to --tol (recorded as {key} in the file)"
+                "note: {c} far-field slices hit the refinement limit; their values are not guaranteed to --tol (recorded as {key} in the file)"
             );
         }
     }
@@ -257,7 +264,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     synth::save(&a.out, &prof)?;
     let n = prof.samples.len();
     outln!(
-        "wrote {} samples ({} theta_i x {} theta_r x {} phi{}, model {}) to {} in {:.3} s ({:.3e} samples/s)",
+        "wrote {} samples ({} theta_i x {} theta_r x {} phi{}, model {}, {} integral) to {} in {:.3} s ({:.3e} samples/s)",
         n,
         ti.len(),
         tr.len(),
@@ -267,6 +274,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         } else {
             String::new()
         },
+        model.name(),
         kind.name(),
         a.out.display(),
         dt,

@@ -24,7 +24,7 @@
 use super::problem::LogResidualProblem;
 use super::reparam;
 use super::uncertainty::{residual_variance, Uncertainty};
-use crate::params::ParamId;
+use crate::models::Param;
 use nalgebra::DVector;
 
 /// Multiples of the step tried on each side.
@@ -89,7 +89,7 @@ impl End {
 /// The profile interval of one parameter.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Interval {
-    pub id: ParamId,
+    pub id: Param,
     /// The fitted value (file units).
     pub at: f64,
     /// Lower and upper end (file units).
@@ -119,7 +119,7 @@ pub type Resolve<'r> = dyn FnMut(f64, &DVector<f64>) -> (f64, DVector<f64>) + 'r
 
 /// What the profile of one parameter needs to know about the fit.
 pub struct ProfileProblem {
-    pub id: ParamId,
+    pub id: Param,
     /// The parameter's position among the free coordinates.
     pub j: usize,
     /// The fitted free coordinates.
@@ -225,7 +225,7 @@ fn narrow(
     mut inner: (f64, f64, DVector<f64>),
     mut outer: (f64, f64, DVector<f64>),
     probe: &mut Resolve,
-    id: ParamId,
+    id: Param,
 ) -> f64 {
     let guess = |a: &(f64, f64, DVector<f64>), b: &(f64, f64, DVector<f64>)| {
         let t = fraction(a.1, b.1);
@@ -286,7 +286,7 @@ pub fn intervals(
     u: &DVector<f64>,
     r: &DVector<f64>,
     unc: &Uncertainty,
-    ids: &[ParamId],
+    ids: &[Param],
     refit: &mut Refit,
     say: &dyn Fn(&str),
 ) -> Vec<Interval> {
@@ -294,7 +294,7 @@ pub fn intervals(
     let rss0 = r.norm_squared();
     let s2 = residual_variance(r, free.len());
     let mut out = Vec::new();
-    let todo: Vec<ParamId> = ids.iter().copied().filter(|id| free.contains(id)).collect();
+    let todo: Vec<Param> = ids.iter().copied().filter(|id| free.contains(id)).collect();
     for (k, &id) in todo.iter().enumerate() {
         let Some(j) = free.iter().position(|&f| f == id) else {
             continue;
@@ -345,7 +345,7 @@ pub fn intervals(
 
 /// `u` with every coordinate on its bound ([`reparam::at_bound`]) moved to the map's
 /// interior edge on that side ([`reparam::interior_edge`]), where a solver can move it.
-fn lift_off_bounds(free: &[ParamId], u: &DVector<f64>) -> DVector<f64> {
+fn lift_off_bounds(free: &[Param], u: &DVector<f64>) -> DVector<f64> {
     DVector::from_iterator(
         u.len(),
         free.iter().zip(u.iter()).map(|(&id, &v)| {
@@ -420,6 +420,13 @@ pub fn to_json(ivs: &[Interval], time_s: f64) -> serde_json::Value {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::params::ParamId;
+
+    /// The fur model's parameter `id`.
+    #[allow(non_snake_case)]
+    fn P(id: ParamId) -> Param {
+        id.into()
+    }
 
     /// A quadratic valley `RSS(u_j) = rss0 + s2 ((u_j - u0) / se)^2` (the others
     /// irrelevant): the profile crosses 1 at exactly `u0 ± se`, which the `sqrt(Delta)`
@@ -428,7 +435,7 @@ mod tests {
     fn quadratic_valley_crosses_at_one_standard_error() {
         let (u0, se, rss0, s2) = (0.3, 0.25, 10.0, 0.01);
         let pp = ProfileProblem {
-            id: ParamId::Eta,
+            id: P(ParamId::Eta),
             j: 0,
             u: DVector::from_vec(vec![u0, 1.0]),
             se_u: Some(0.6 * se),
@@ -436,7 +443,7 @@ mod tests {
         let mut resolve =
             |uj: f64, start: &DVector<f64>| (rss0 + s2 * ((uj - u0) / se).powi(2), start.clone());
         let iv = interval(&pp, rss0, s2, &mut resolve);
-        let eta = |u: f64| reparam::to_value(ParamId::Eta, u);
+        let eta = |u: f64| reparam::to_value(P(ParamId::Eta), u);
         // Exact in u up to rounding (1e-12 of the value).
         assert!((iv.lo.value() - eta(u0 - se)).abs() < 1e-12, "{iv:?}");
         assert!((iv.hi.value() - eta(u0 + se)).abs() < 1e-12, "{iv:?}");
@@ -455,7 +462,7 @@ mod tests {
         let (u0, rss0, s2) = (-3.5, 1.0, 1.0);
         let wall = -1.0; // Delta = exp(8 (u - wall)): 1 at the wall, 0.0004 at u0 + 1.
         let pp = ProfileProblem {
-            id: ParamId::SigmaCA,
+            id: P(ParamId::SigmaCA),
             j: 0,
             u: DVector::from_vec(vec![u0]),
             se_u: Some(24.0),
@@ -484,14 +491,14 @@ mod tests {
     fn parameter_on_its_bound_gets_a_one_sided_interval() {
         let (rss0, s2) = (5.0, 0.1);
         let pp = ProfileProblem {
-            id: ParamId::SigmaMA,
+            id: P(ParamId::SigmaMA),
             j: 0,
             u: DVector::from_vec(vec![-reparam::U_MAX]),
             se_u: None,
         };
         // Delta = (x / 0.3)^2 in the value x: the end at 0.3.
         let mut resolve = |uj: f64, s: &DVector<f64>| {
-            let x = reparam::to_value(ParamId::SigmaMA, uj);
+            let x = reparam::to_value(P(ParamId::SigmaMA), uj);
             (rss0 + s2 * (x / 0.3).powi(2), s.clone())
         };
         let iv = interval(&pp, rss0, s2, &mut resolve);
@@ -510,7 +517,7 @@ mod tests {
     fn flat_side_ends_at_the_bound() {
         let (u0, rss0, s2) = (-6.0, 5.0, 0.1);
         let pp = ProfileProblem {
-            id: ParamId::SigmaMA,
+            id: P(ParamId::SigmaMA),
             j: 0,
             u: DVector::from_vec(vec![u0]),
             se_u: Some(2.0),
@@ -533,7 +540,7 @@ mod tests {
     #[test]
     fn lower_cost_and_flat_valley_are_reported() {
         let (u0, rss0, s2) = (0.0, 1.0, 1.0);
-        let id = ParamId::SigmaMS;
+        let id = P(ParamId::SigmaMS);
         let pp = ProfileProblem {
             id,
             j: 0,
@@ -560,7 +567,7 @@ mod tests {
     #[test]
     fn a_tight_standard_error_still_walks_to_the_crossing() {
         let (u0, rss0, s2) = (-1.0, 1.0, 1.0);
-        let id = ParamId::SigmaMA;
+        let id = P(ParamId::SigmaMA);
         let pp = ProfileProblem {
             id,
             j: 0,

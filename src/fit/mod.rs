@@ -27,6 +27,8 @@
 //! column per species, and a per-channel fit keeps the ten-key `params` object of DATA.md
 //! meaningful for every channel. See [`job::fit_loaded`] and [`channel_data`].
 
+pub mod batch;
+pub mod file;
 pub mod forward;
 pub mod job;
 pub mod likelihood;
@@ -39,7 +41,7 @@ pub mod uncertainty;
 
 use crate::error::{Error, Num, Result};
 use crate::model::far::FarOptions;
-use crate::params::{FurParams, ParamId, N_PARAMS};
+use crate::models::{FiberModel, ModelParams, Param};
 use crate::profile::Profile;
 use argmin::core::{Executor, State, TerminationStatus};
 use forward::Points;
@@ -70,8 +72,8 @@ pub struct FitOptions {
     /// segments).
     pub far: FarOptions,
     /// User start (file units); always among the LM starts.
-    pub init: Option<[f64; N_PARAMS]>,
-    /// Fixed parameters (file units).
+    pub init: Option<Vec<f64>>,
+    /// The model fitted and its fixed parameters (file units).
     pub layout: ParamLayout,
     /// Weight residuals by the relative standard error `sigma/value` (every sample needs
     /// one; [`channel_data`] refuses otherwise).
@@ -90,7 +92,7 @@ pub struct FitOptions {
     pub broyden: bool,
     /// Free parameters to give a profile-likelihood interval ([`likelihood`]; up to eight
     /// re-solves each, after the fit).
-    pub profile: Vec<ParamId>,
+    pub profile: Vec<Param>,
     /// Relative floor of the data used ([`channel_data`], [`DEFAULT_FLOOR`]).
     pub floor: f64,
 }
@@ -105,7 +107,7 @@ impl Default for FitOptions {
             max_iters: 100,
             far: FarOptions::default(),
             init: None,
-            layout: ParamLayout::all_free(),
+            layout: ParamLayout::all_free(crate::models::default_model()),
             weighted: false,
             ftol: 1e-6,
             step_se: Some(0.1),
@@ -117,15 +119,40 @@ impl Default for FitOptions {
 }
 
 impl FitOptions {
-    /// Fix parameter `key` at `value` (file units), checked against its hard bound.
-    pub fn fix(&mut self, key: &str, value: f64) -> Result<()> {
-        let id = ParamId::from_name(key).ok_or_else(|| Error::Param {
+    /// The default options for fitting `model`.
+    pub fn for_model(model: &'static dyn FiberModel) -> FitOptions {
+        FitOptions {
+            layout: ParamLayout::all_free(model),
+            ..FitOptions::default()
+        }
+    }
+
+    /// The model fitted.
+    pub fn model(&self) -> &'static dyn FiberModel {
+        self.layout.model
+    }
+
+    /// The parameter `key` of the model fitted, or an error listing the model's.
+    pub fn param(&self, key: &str) -> Result<Param> {
+        let model = self.model();
+        Param::by_name(model, key).ok_or_else(|| Error::Param {
             key: key.into(),
             msg: format!(
-                "unknown parameter (expected one of: {})",
-                ParamId::ALL.map(|p| p.spec().name).join(", ")
+                "unknown parameter of model {} (expected one of: {})",
+                model.name(),
+                model
+                    .specs()
+                    .iter()
+                    .map(|s| s.name)
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
-        })?;
+        })
+    }
+
+    /// Fix parameter `key` at `value` (file units), checked against its hard bound.
+    pub fn fix(&mut self, key: &str, value: f64) -> Result<()> {
+        let id = self.param(key)?;
         if !id.spec().contains(value) {
             return Err(Error::Param {
                 key: key.into(),
@@ -185,7 +212,7 @@ pub struct TraceEntry {
 /// The result of fitting one channel.
 #[derive(Clone, Debug)]
 pub struct FitOutcome {
-    pub params: FurParams,
+    pub params: ModelParams,
     /// Exposure `k` of the solve (weighted when `weighted`).
     pub exposure: f64,
     /// MODEL.md NRMSE (unit weights, its own optimal exposure) on the samples used.
@@ -398,7 +425,10 @@ pub fn fit_data(
     }
     // Direct multi-start on all samples when a subsample would not save much.
     let use_sub = data.len() > opts.n_sub * 3 / 2;
-    let sub_idx = starts::subsample_grouped(&data.points.pts, opts.n_sub, opts.seed);
+    let model = layout.model;
+    let sub_idx = starts::subsample_grouped(&data.points.pts, opts.n_sub, opts.seed, |ti, tr| {
+        model.slice_of(ti, tr)
+    });
     let sub_data = if use_sub {
         data.subset(&sub_idx)
     } else {
@@ -418,9 +448,9 @@ pub fn fit_data(
     let sub = LogResidualProblem::new(&sub_data, layout.clone(), sub_far);
 
     // 1. Global stage.
-    let mut cands: Vec<[f64; N_PARAMS]> = Vec::new();
-    if let Some(init) = opts.init {
-        let mut v = init;
+    let mut cands: Vec<Vec<f64>> = Vec::new();
+    if let Some(init) = &opts.init {
+        let mut v = init.clone();
         for (k, f) in layout.fixed.iter().enumerate() {
             if let Some(x) = f {
                 v[k] = *x;
@@ -563,7 +593,7 @@ pub fn fit_data(
     // so LM cannot leave a bound that the subsample's model led it to, even where all
     // samples favour an interior value (noise-free data, fitted exactly from another
     // start, ended on a bound); and a --init start must never end worse than it began.
-    let init_u = opts.init.map(|_| scored[0].2.clone());
+    let init_u = opts.init.as_ref().map(|_| scored[0].2.clone());
     let retries = second_polish_starts(&full, &u, cost, init_u, &runs, &order, &scored);
     let (mut u, mut termination, mut cost) = (u, termination, cost);
     for (why, start) in retries {

@@ -1,5 +1,5 @@
 //! The fit file `fits/<species>.json` (DATA.md "Layout"): parameters in file units
-//! (loadable by [`FurParams::load`]), exposure, NRMSE as a fraction, uncertainty,
+//! (loadable by [`ModelParams::load`]; the `model` key names the model), exposure, NRMSE as a fraction, uncertainty,
 //! correlation, solver statistics, data provenance and the convergence trace.
 //!
 //! Everything except the wall-clock fields (`solver.wall_time_s`, `solver.model_time_s`,
@@ -7,7 +7,7 @@
 //! the options and the seed.
 
 use super::{FitOptions, FitOutcome};
-use crate::params::{FurParams, ParamId};
+use crate::models::{FiberModel, ModelParams, Param};
 use serde_json::{json, Map, Value};
 
 /// Provenance of the data one fit used.
@@ -31,10 +31,10 @@ pub struct DataInfo {
     pub notes: Vec<String>,
 }
 
-/// Units of the ten keys, in file units.
-pub fn units_json() -> Value {
+/// Units of the model's keys, in file units.
+pub fn units_json(model: &'static dyn FiberModel) -> Value {
     let mut m = Map::new();
-    for id in ParamId::ALL {
+    for id in Param::all(model) {
         m.insert(id.spec().name.into(), Value::from(id.spec().unit));
     }
     Value::Object(m)
@@ -53,12 +53,11 @@ pub const ROBUST_METHOD: &str = "per-parameter diagonal of the sandwich H^+ Omeg
 
 /// `uncertainty.robust` of a fit file: the sweep-correlation-robust standard errors, or
 /// null with too few rows.
-fn robust_json(rb: Option<&super::uncertainty::Robust>) -> Value {
+fn robust_json(model: &'static dyn FiberModel, rb: Option<&super::uncertainty::Robust>) -> Value {
     let Some(rb) = rb else {
         return Value::Null;
     };
-    let se: Map<String, Value> = ParamId::ALL
-        .iter()
+    let se: Map<String, Value> = Param::all(model)
         .map(|id| {
             let v = rb.se[id.index()].map(num).unwrap_or(Value::Null);
             (id.spec().name.to_string(), v)
@@ -67,8 +66,7 @@ fn robust_json(rb: Option<&super::uncertainty::Robust>) -> Value {
     json!({
         "standard_error": se,
         "rows": rb.rows,
-        "bandwidth": ParamId::ALL
-            .iter()
+        "bandwidth": Param::all(model)
             .map(|id| (id.spec().name.to_string(), json!(rb.bandwidth[id.index()])))
             .collect::<Map<String, Value>>(),
         "phi_lag1_autocorrelation": num(rb.phi_lag1),
@@ -82,15 +80,15 @@ fn robust_json(rb: Option<&super::uncertainty::Robust>) -> Value {
 /// The JSON object of one channel's fit.
 pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
     let unc = &out.uncertainty;
+    let model = opts.model();
     let mut se = Map::new();
-    for id in ParamId::ALL {
+    for id in Param::all(model) {
         se.insert(
             id.spec().name.into(),
             unc.se[id.index()].map(num).unwrap_or(Value::Null),
         );
     }
-    let fixed: Vec<&str> = ParamId::ALL
-        .into_iter()
+    let fixed: Vec<&str> = Param::all(model)
         .filter(|id| opts.layout.fixed[id.index()].is_some())
         .map(|id| id.spec().name)
         .collect();
@@ -118,8 +116,9 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
         .map(|(p, h, rel, s)| json!({"path": p, "sha256": h, "from_fit": rel, "samples_sha256": s}))
         .collect();
     json!({
+        "model": model.name(),
         "params": out.params.to_json_value(),
-        "units": units_json(),
+        "units": units_json(model),
         "exposure": out.exposure,
         "nrmse": out.nrmse,
         // The exposure the NRMSE is taken at (MODEL.md: its own optimum, unweighted): equal
@@ -135,7 +134,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             // direction): every standard error above is conditional on them, and far too
             // small if the data favour other values of them.
             "conditional_on": unc.held().iter().map(|id| id.spec().name).collect::<Vec<_>>(),
-            "robust": robust_json(unc.robust.as_ref()),
+            "robust": robust_json(model, unc.robust.as_ref()),
             "profile": (!out.profile.is_empty())
                 .then(|| {
                     let mut v = crate::fit::likelihood::to_json(&out.profile, out.profile_time_s);
@@ -154,9 +153,8 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "starts": {"global": out.starts_global, "lm": out.starts_lm, "subsample": opts.n_sub},
             "max_iters": opts.max_iters,
             // The --init start (file units), so the fit can be reproduced.
-            "init": opts.init.map(|v| {
-                crate::params::ParamId::ALL
-                    .iter()
+            "init": opts.init.as_ref().map(|v| {
+                Param::all(model)
                     .map(|id| (id.spec().name.to_string(), serde_json::json!(v[id.index()])))
                     .collect::<serde_json::Map<_, _>>()
             }),
@@ -168,11 +166,11 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             // theta_d slices of the final evaluation whose refinement hit its limit (their
             // model values are not guaranteed to `tol`).
             "capped_slices": {"capped": out.capped_slices.0, "slices": out.capped_slices.1},
-            // How the model read the result (`FurModel::model_notes`; the key keeps its
-            // first name): where it leaves the medulla tables' (tau, g) range, so the
-            // scattered lobes were evaluated with the shape at the nearest table edge, and
-            // a roughness below the model's floor.
-            "table_notes": crate::model::FurModel::model_notes(&out.params),
+            // How the model read the result (`FiberModel::notes`; the key keeps its first
+            // name): for the fur model, where it leaves the medulla tables' (tau, g)
+            // range, so the scattered lobes were evaluated with the shape at the nearest
+            // table edge, and a roughness below the model's floor.
+            "table_notes": model.notes(&out.params.values),
             "weighted": opts.weighted,
             "wall_time_s": out.wall_time_s,
             "model_time_s": out.model_time_s,
@@ -203,7 +201,7 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
 }
 
 /// Read back the parameters and exposure of a fit file value (same rules as
-/// [`FurParams::from_json_value`]).
-pub fn params_of(v: &Value) -> crate::Result<(FurParams, f64)> {
-    FurParams::from_json_value(v)
+/// [`ModelParams::from_json_value`]).
+pub fn params_of(v: &Value) -> crate::Result<(ModelParams, f64)> {
+    ModelParams::from_json_value(v, None)
 }

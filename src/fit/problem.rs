@@ -13,10 +13,9 @@
 //! Model values are floored at `f64::MIN_POSITIVE` before the logarithm, so a lobe that
 //! underflows to zero gives a large but finite residual instead of `-inf`.
 
-use super::forward::{ModelTerms, Points};
 use super::reparam;
 use crate::model::far::FarOptions;
-use crate::params::{FurParams, ParamId, N_PARAMS};
+use crate::models::{FiberModel, ModelParams, ModelTerms, Param, Points};
 use argmin::core::{Error as ArgminError, Jacobian, Operator};
 use nalgebra::{DMatrix, DVector};
 use rayon::prelude::*;
@@ -144,60 +143,77 @@ pub fn nrmse(m: &[f64], ln_y: &[f64], range: f64) -> (f64, f64) {
     ((ss / ln_m.len().max(1) as f64).sqrt(), lk.exp())
 }
 
-/// Which parameters are free (solved for) and the file-unit values of the fixed ones.
-#[derive(Clone, Debug, PartialEq)]
+/// The model being fitted, which of its parameters are free (solved for) and the file-unit
+/// values of the fixed ones.
+#[derive(Clone, Debug)]
 pub struct ParamLayout {
-    /// File-unit value of each fixed parameter, `None` for free ones.
-    pub fixed: [Option<f64>; N_PARAMS],
+    pub model: &'static dyn FiberModel,
+    /// File-unit value of each fixed parameter, `None` for free ones (model order).
+    pub fixed: Vec<Option<f64>>,
+}
+
+impl PartialEq for ParamLayout {
+    fn eq(&self, o: &Self) -> bool {
+        self.model.name() == o.model.name() && self.fixed == o.fixed
+    }
 }
 
 impl ParamLayout {
-    /// All ten free.
-    pub fn all_free() -> ParamLayout {
+    /// All parameters of `model` free.
+    pub fn all_free(model: &'static dyn FiberModel) -> ParamLayout {
         ParamLayout {
-            fixed: [None; N_PARAMS],
+            model,
+            fixed: vec![None; model.specs().len()],
         }
     }
 
-    /// The free parameters in table order.
-    pub fn free(&self) -> Vec<ParamId> {
-        ParamId::ALL
-            .into_iter()
+    /// The model's parameters in order.
+    pub fn all(&self) -> impl Iterator<Item = Param> {
+        Param::all(self.model)
+    }
+
+    /// The free parameters in the model's order.
+    pub fn free(&self) -> Vec<Param> {
+        self.all()
             .filter(|id| self.fixed[id.index()].is_none())
             .collect()
     }
 
     /// File-unit values at free coordinates `u` (one per free parameter).
-    pub fn file_values(&self, u: &[f64]) -> [f64; N_PARAMS] {
-        let mut out = [0.0; N_PARAMS];
+    pub fn file_values(&self, u: &[f64]) -> Vec<f64> {
         let mut k = 0;
-        for id in ParamId::ALL {
-            out[id.index()] = match self.fixed[id.index()] {
+        self.all()
+            .map(|id| match self.fixed[id.index()] {
                 Some(v) => v,
                 None => {
                     k += 1;
                     reparam::to_value(id, u[k - 1])
                 }
-            };
-        }
-        out
+            })
+            .collect()
     }
 
     /// Model parameters (internal units) at free coordinates `u`. Always within the hard
     /// bounds: the maps cannot leave them and fixed values are validated at the boundary.
-    pub fn params(&self, u: &[f64]) -> FurParams {
-        let f = self.file_values(u);
-        let mut a = [0.0; N_PARAMS];
-        for id in ParamId::ALL {
-            a[id.index()] = id.spec().to_internal(f[id.index()]);
+    pub fn internal(&self, u: &[f64]) -> Vec<f64> {
+        self.all()
+            .zip(self.file_values(u))
+            .map(|(id, v)| id.spec().to_internal(v))
+            .collect()
+    }
+
+    /// [`Self::internal`] as a parameter set of the model.
+    pub fn params(&self, u: &[f64]) -> ModelParams {
+        ModelParams {
+            model: self.model,
+            values: self.internal(u),
         }
-        FurParams::from_array(a)
     }
 
     /// Free coordinates of a full file-unit vector, as a start point
     /// ([`reparam::to_u_start`]: a value on or beyond a bounded range starts just inside
     /// it, where the solver can still move it).
-    pub fn to_u(&self, file: &[f64; N_PARAMS]) -> Vec<f64> {
+    pub fn to_u(&self, file: &[f64]) -> Vec<f64> {
         self.free()
             .into_iter()
             .map(|id| reparam::to_u_start(id, file[id.index()]))
@@ -220,7 +236,7 @@ pub struct LogResidualProblem<'a> {
 }
 
 /// Residuals and model terms at one point `u`.
-type Cached = (DVector<f64>, DVector<f64>, Arc<ModelTerms>);
+type Cached = (DVector<f64>, DVector<f64>, Arc<dyn ModelTerms>);
 
 /// Relative forward-difference step in `u`.
 pub const FD_STEP: f64 = 1e-6;
@@ -243,13 +259,14 @@ impl<'a> LogResidualProblem<'a> {
     }
 
     /// Model terms at `u` (all lobes; parallel inside).
-    fn terms(&self, u: &[f64]) -> ModelTerms {
+    fn terms(&self, u: &[f64]) -> Arc<dyn ModelTerms> {
         self.evals.fetch_add(1, Ordering::Relaxed);
-        ModelTerms::new(&self.layout.params(u), &self.data.points, &self.far)
+        let p = self.layout.internal(u);
+        Arc::from(self.layout.model.terms(&p, &self.data.points, &self.far))
     }
 
     /// Model values (no exposure) of `terms`.
-    fn values(&self, terms: &ModelTerms) -> Vec<f64> {
+    fn values(&self, terms: &dyn ModelTerms) -> Vec<f64> {
         let mut out = vec![0.0; self.data.len()];
         terms.values(&self.data.points, &mut out);
         out
@@ -257,7 +274,7 @@ impl<'a> LogResidualProblem<'a> {
 
     /// Model values (no exposure) at `u`.
     pub fn model_values(&self, u: &[f64]) -> Vec<f64> {
-        self.values(&self.terms(u))
+        self.values(&*self.terms(u))
     }
 
     /// Residuals and `ln k` of model values `m`.
@@ -297,7 +314,7 @@ impl<'a> LogResidualProblem<'a> {
         &self,
         u: &DVector<f64>,
         r0: &DVector<f64>,
-        base: &ModelTerms,
+        base: &dyn ModelTerms,
     ) -> DMatrix<f64> {
         let free = self.layout.free();
         let cols: Vec<DVector<f64>> = (0..u.len())
@@ -309,9 +326,10 @@ impl<'a> LogResidualProblem<'a> {
                 let h = up[j] - u[j];
                 self.evals.fetch_add(1, Ordering::Relaxed);
                 self.fd_columns.fetch_add(1, Ordering::Relaxed);
-                let params = self.layout.params(up.as_slice());
-                let terms = base.with_change(&params, free[j], &self.data.points, &self.far);
-                (self.residuals_of(&self.values(&terms)).0 - r0) / h
+                let params = self.layout.internal(up.as_slice());
+                let terms =
+                    base.with_change(&params, free[j].index(), &self.data.points, &self.far);
+                (self.residuals_of(&self.values(&*terms)).0 - r0) / h
             })
             .collect();
         DMatrix::from_columns(&cols)
@@ -319,9 +337,9 @@ impl<'a> LogResidualProblem<'a> {
 
     /// Residuals, `ln k` and model terms at `u`, remembered for the Jacobian at the same
     /// point.
-    fn evaluate(&self, u: &DVector<f64>) -> (DVector<f64>, f64, Arc<ModelTerms>) {
-        let terms = Arc::new(self.terms(u.as_slice()));
-        let (r, lk) = self.residuals_of(&self.values(&terms));
+    fn evaluate(&self, u: &DVector<f64>) -> (DVector<f64>, f64, Arc<dyn ModelTerms>) {
+        let terms = self.terms(u.as_slice());
+        let (r, lk) = self.residuals_of(&self.values(&*terms));
         *self.last.lock().expect("residual cache poisoned") =
             Some((u.clone(), r.clone(), terms.clone()));
         (r, lk, terms)
@@ -336,7 +354,7 @@ impl<'a> LogResidualProblem<'a> {
 
     /// [`Self::evaluate_at`], also returning the model terms (e.g. for
     /// [`ModelTerms::capped_slices`]).
-    pub fn evaluate_terms_at(&self, u: &DVector<f64>) -> (DVector<f64>, f64, Arc<ModelTerms>) {
+    pub fn evaluate_terms_at(&self, u: &DVector<f64>) -> (DVector<f64>, f64, Arc<dyn ModelTerms>) {
         self.evaluate(u)
     }
 
@@ -392,6 +410,6 @@ impl LogResidualProblem<'_> {
                 (r, t)
             }
         };
-        self.jacobian_forward(u, &r0, &base)
+        self.jacobian_forward(u, &r0, &*base)
     }
 }

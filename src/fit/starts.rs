@@ -1,32 +1,13 @@
-//! Automatic starting points: a scrambled Halton design over a plausible box of the free
-//! parameters, plus the seed Table 4 presets (and a user `--init`), scored on a subsample.
+//! Automatic starting points: a scrambled Halton design over the model's plausible box of
+//! the free parameters ([`crate::models::FiberModel::plausible_box`]), plus the model's
+//! presets (the fur model: seed Table 4) and a user `--init`, scored on a subsample.
 
 use super::problem::ParamLayout;
-use crate::params::{ParamId, N_PARAMS, PRESETS};
 use rand::{Rng, SeedableRng};
 use rand_xoshiro::Xoshiro256PlusPlus;
 
-/// The box the global stage samples, file units, per parameter: `(lo, hi, log_scale)`.
-/// It spans seed Table 4's fitted values with margin (the hard bounds are wider; the local
-/// solver may leave the box, never the hard bounds), and `sigma_m_s` up to the medulla
-/// tables' range (optical radius `sigma_m_s kappa` <= 20): ending at 5, just above the
-/// presets, it left a denser medulla's fit in a wrong basin (`g` 0.58 for 0.79).
-pub fn plausible_box(id: ParamId) -> (f64, f64, bool) {
-    match id {
-        ParamId::Eta => (1.1, 1.9, false),
-        ParamId::Kappa => (0.02, 0.95, false),
-        ParamId::Alpha => (-4.0, 8.0, false),
-        ParamId::BetaM => (1.5, 20.0, true),
-        ParamId::BetaN => (1.0, 30.0, true),
-        ParamId::SigmaCA => (0.005, 2.0, true),
-        ParamId::SigmaMS => (0.2, 25.0, true),
-        ParamId::SigmaMA => (0.005, 1.0, true),
-        ParamId::G => (-0.3, 0.9, false),
-        ParamId::L => (0.3, 3.0, true),
-    }
-}
-
-const PRIMES: [u64; N_PARAMS] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29];
+/// One Halton base per parameter (a model has at most this many).
+const PRIMES: [u64; 16] = [2, 3, 5, 7, 11, 13, 17, 19, 23, 29, 31, 37, 41, 43, 47, 53];
 
 fn radical_inverse(mut i: u64, base: u64) -> f64 {
     let (mut f, mut r) = (1.0, 0.0);
@@ -42,19 +23,23 @@ fn radical_inverse(mut i: u64, base: u64) -> f64 {
 /// `n` points of the Halton sequence in the free dimensions of `layout`, each coordinate
 /// shifted by a seeded random offset modulo 1 (Cranley-Patterson rotation), mapped into
 /// the plausible box. Fixed parameters keep their value. File units.
-pub fn halton_starts(layout: &ParamLayout, n: usize, seed: u64) -> Vec<[f64; N_PARAMS]> {
+pub fn halton_starts(layout: &ParamLayout, n: usize, seed: u64) -> Vec<Vec<f64>> {
+    let n_params = layout.fixed.len();
+    assert!(
+        n_params <= PRIMES.len(),
+        "a model has at most 16 parameters"
+    );
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed ^ 0x5eed_0fa1_7000u64);
-    let shift: Vec<f64> = (0..N_PARAMS).map(|_| rng.random::<f64>()).collect();
+    let shift: Vec<f64> = (0..n_params).map(|_| rng.random::<f64>()).collect();
     (0..n)
         .map(|i| {
-            let mut v = [0.0; N_PARAMS];
-            for id in ParamId::ALL {
-                let k = id.index();
+            let mut v = vec![0.0; n_params];
+            for k in 0..n_params {
                 v[k] = match layout.fixed[k] {
                     Some(x) => x,
                     None => {
                         let t = (radical_inverse(i as u64 + 1, PRIMES[k]) + shift[k]).fract();
-                        let (lo, hi, log) = plausible_box(id);
+                        let (lo, hi, log) = layout.model.plausible_box(k);
                         if log {
                             (lo.ln() + t * (hi.ln() - lo.ln())).exp()
                         } else {
@@ -68,12 +53,14 @@ pub fn halton_starts(layout: &ParamLayout, n: usize, seed: u64) -> Vec<[f64; N_P
         .collect()
 }
 
-/// The seed Table 4 presets as starts (fixed parameters overridden).
-pub fn preset_starts(layout: &ParamLayout) -> Vec<[f64; N_PARAMS]> {
-    PRESETS
+/// The model's presets as starts (fixed parameters overridden).
+pub fn preset_starts(layout: &ParamLayout) -> Vec<Vec<f64>> {
+    layout
+        .model
+        .presets()
         .iter()
         .map(|p| {
-            let mut v = p.values;
+            let mut v = p.values.to_vec();
             for (k, f) in layout.fixed.iter().enumerate() {
                 if let Some(x) = f {
                     v[k] = *x;
@@ -111,15 +98,17 @@ const PER_THETA_D: usize = 24;
 /// `points.len() <= n`) that keeps the evaluation cheap: every k-th distinct `theta_d`
 /// (in order, random offset, so the whole `theta_d` range stays covered) with k chosen for
 /// about [`PER_THETA_D`] samples each, then `n` samples drawn uniformly from those groups.
-pub fn subsample_grouped(points: &[(f64, f64, f64)], n: usize, seed: u64) -> Vec<usize> {
+pub fn subsample_grouped(
+    points: &[(f64, f64, f64)],
+    n: usize,
+    seed: u64,
+    slice_of: impl Fn(f64, f64) -> f64,
+) -> Vec<usize> {
     let total = points.len();
     if total <= n {
         return (0..total).collect();
     }
-    let td: Vec<f64> = points
-        .iter()
-        .map(|&(ti, tr, _)| crate::model::geometry::theta_d(ti, tr))
-        .collect();
+    let td: Vec<f64> = points.iter().map(|&(ti, tr, _)| slice_of(ti, tr)).collect();
     let mut distinct: Vec<f64> = td.clone();
     distinct.sort_by(f64::total_cmp);
     distinct.dedup();
@@ -164,10 +153,11 @@ mod tests {
                 }
             }
         }
-        let a = subsample_grouped(&pts, 1500, 3);
+        let td = crate::model::geometry::theta_d;
+        let a = subsample_grouped(&pts, 1500, 3, td);
         assert_eq!(a.len(), 1500);
-        assert_eq!(a, subsample_grouped(&pts, 1500, 3));
-        assert_ne!(a, subsample_grouped(&pts, 1500, 4));
+        assert_eq!(a, subsample_grouped(&pts, 1500, 3, td));
+        assert_ne!(a, subsample_grouped(&pts, 1500, 4, td));
         assert!(a.windows(2).all(|w| w[0] < w[1]));
         let mut tds: Vec<f64> = a
             .iter()
@@ -179,26 +169,28 @@ mod tests {
         assert!((55..=70).contains(&tds.len()), "{} theta_d", tds.len());
         assert!(tds[0] < (-55f64).to_radians() && tds[tds.len() - 1] > 30f64.to_radians());
         assert_eq!(
-            subsample_grouped(&pts[..100], 1500, 3),
+            subsample_grouped(&pts[..100], 1500, 3, td),
             (0..100).collect::<Vec<_>>()
         );
     }
 
     #[test]
     fn halton_is_in_box_and_seeded() {
-        let layout = ParamLayout::all_free();
-        let a = halton_starts(&layout, 64, 7);
-        let b = halton_starts(&layout, 64, 7);
-        let c = halton_starts(&layout, 64, 8);
-        assert_eq!(a, b);
-        assert_ne!(a, c);
-        for v in &a {
-            for id in ParamId::ALL {
-                let (lo, hi, _) = plausible_box(id);
-                let x = v[id.index()];
-                // exp(ln) round trip can overshoot the box edge by an ulp or so.
-                assert!(x >= lo * (1.0 - 1e-12) - 1e-12 && x <= hi * (1.0 + 1e-12) + 1e-12);
-                assert!(id.spec().contains(x));
+        for model in crate::models::MODELS {
+            let layout = ParamLayout::all_free(model);
+            let a = halton_starts(&layout, 64, 7);
+            let b = halton_starts(&layout, 64, 7);
+            let c = halton_starts(&layout, 64, 8);
+            assert_eq!(a, b);
+            assert_ne!(a, c);
+            for v in &a {
+                for id in layout.all() {
+                    let (lo, hi, _) = model.plausible_box(id.index());
+                    let x = v[id.index()];
+                    // exp(ln) round trip can overshoot the box edge by an ulp or so.
+                    assert!(x >= lo * (1.0 - 1e-12) - 1e-12 && x <= hi * (1.0 + 1e-12) + 1e-12);
+                    assert!(id.spec().contains(x));
+                }
             }
         }
     }

@@ -7,12 +7,14 @@
 //!   `1e-10` of the largest): its standard error is reported as `null` (infinite);
 //! - or one standard error either side spans most of its range: more than half of it for
 //!   the bounded maps, a factor above `e^4` for the exp ones ([`reparam::spans_most`]);
-//! - or, for `sigma_m_s`, `sigma_m_a` and `g`, when `kappa < 1e-3`: the medulla is (nearly)
-//!   absent, so the scattered lobes that carry these parameters vanish.
+//! - or when the other values leave it without effect (the model's
+//!   [`crate::models::FiberModel::inert`]; the fur model: `sigma_m_s`, `sigma_m_a` and `g`
+//!   when `kappa < 1e-3`, the medulla (nearly) absent, so the scattered lobes that carry
+//!   these parameters vanish).
 
 use super::problem::{LogResidualProblem, ParamLayout};
 use super::reparam;
-use crate::params::{ParamId, N_PARAMS};
+use crate::models::Param;
 use nalgebra::{DMatrix, DVector};
 
 /// Residual RMS below which a fit reproduces its data to rounding (`sqrt(s^2)` of the
@@ -32,8 +34,9 @@ pub enum Why {
     /// `u ± SE(u)` spans most of its range ([`reparam::spans_most`]): it stays in the
     /// covariance.
     Wide,
-    /// A medulla parameter while `kappa < KAPPA_ABSENT`.
-    NoMedulla,
+    /// The other values leave it without effect ([`crate::models::FiberModel::inert`]; the
+    /// fur model: a medulla parameter while `kappa` is ~0), with the model's reason.
+    Inert(&'static str),
     /// Its effect on the residuals is (nearly) that of a parameter held on its bound
     /// ([`flag_coupled`]): the two trade off, and its standard error, conditional on the
     /// held value, says nothing of how far it could move.
@@ -47,7 +50,7 @@ impl Why {
             Why::Bound => "on its bound, where the linearised standard error is undefined",
             Why::Singular => "no information in the data at this value (singular direction)",
             Why::Wide => "standard error spans most of its range",
-            Why::NoMedulla => "kappa ~ 0: no medulla, scattered lobes absent",
+            Why::Inert(reason) => reason,
             Why::Coupled => "trades off with a parameter held on its bound (see conditional_on); its standard error assumes that value",
         }
     }
@@ -65,20 +68,14 @@ impl std::fmt::Display for Why {
     }
 }
 
-/// kappa below which the medulla parameters count as unconstrained whatever their
-/// standard errors say. At kappa = 0.02 the scattered lobes still carried a median 13 %
-/// of a profile in an audit (and g came back to 6e-4), so the rule waits for a medulla
-/// 20 times thinner; between the two the standard errors decide.
-pub const KAPPA_ABSENT: f64 = 1e-3;
-
 #[derive(Clone, Debug, PartialEq)]
 pub struct Uncertainty {
     /// File-unit standard error per parameter (`None`: fixed or infinite).
-    pub se: [Option<f64>; N_PARAMS],
+    pub se: Vec<Option<f64>>,
     /// Parameters flagged as not constrained by the data, with the reason.
-    pub unconstrained: Vec<(ParamId, Why)>,
+    pub unconstrained: Vec<(Param, Why)>,
     /// Free parameters in the order of `correlation`.
-    pub free: Vec<ParamId>,
+    pub free: Vec<Param>,
     /// Correlation matrix of the free parameters (in `u`; NaN where undefined).
     pub correlation: DMatrix<f64>,
     /// Residual variance `s^2 = sum r^2 / (n - p - 1)` (`p` free parameters and the exposure).
@@ -97,7 +94,7 @@ impl Uncertainty {
     /// Free parameters on their bound ([`reparam::at_bound`]): the map's derivative all but
     /// vanishes there, so the linearisation holds them fixed and every other standard
     /// error is conditional on their bound value (profile intervals are not).
-    pub fn at_bound(&self) -> Vec<ParamId> {
+    pub fn at_bound(&self) -> Vec<Param> {
         self.unconstrained
             .iter()
             .filter(|(_, why)| *why == Why::Bound)
@@ -107,7 +104,7 @@ impl Uncertainty {
 
     /// Free parameters the linearisation holds fixed ([`Why::held`]): every other
     /// standard error is conditional on their fitted values.
-    pub fn held(&self) -> Vec<ParamId> {
+    pub fn held(&self) -> Vec<Param> {
         self.unconstrained
             .iter()
             .filter(|(_, why)| why.held())
@@ -130,7 +127,7 @@ pub fn bound_effects(
     u: &DVector<f64>,
     r: &DVector<f64>,
     unc: &Uncertainty,
-) -> Vec<(ParamId, DVector<f64>)> {
+) -> Vec<(Param, DVector<f64>)> {
     unc.at_bound()
         .into_iter()
         .filter_map(|id| {
@@ -154,7 +151,7 @@ pub fn bound_effects(
 /// `jac`'s own column says nothing). Such a parameter's conditional SE is falsely tight:
 /// the data fix only a combination with the held ones (two absorptions at correlation -1;
 /// springbok's fit: `sigma_c_a` in the thousands with `kappa` at 0.9999 and `sigma_m_a` at 0).
-pub fn flag_coupled(unc: &mut Uncertainty, jac: &DMatrix<f64>, held: &[(ParamId, DVector<f64>)]) {
+pub fn flag_coupled(unc: &mut Uncertainty, jac: &DMatrix<f64>, held: &[(Param, DVector<f64>)]) {
     let cols: Vec<&DVector<f64>> = held
         .iter()
         .map(|(_, c)| c)
@@ -344,7 +341,7 @@ pub fn estimate(
         // Every parameter fixed: nothing to estimate (and nalgebra's SVD refuses an empty
         // matrix).
         return Uncertainty {
-            se: [None; N_PARAMS],
+            se: vec![None; layout.fixed.len()],
             unconstrained: Vec::new(),
             free,
             correlation: DMatrix::zeros(0, 0),
@@ -374,9 +371,9 @@ pub fn estimate(
         MAX_SE_U,
     );
     cov *= s2;
-    let mut se = [None; N_PARAMS];
+    let mut se = vec![None; layout.fixed.len()];
     let mut unconstrained = Vec::new();
-    let kappa = layout.file_values(u.as_slice())[ParamId::Kappa.index()];
+    let (inert, inert_why) = layout.model.inert(&layout.file_values(u.as_slice()));
     for (j, id) in free.iter().enumerate() {
         let se_u = cov[(j, j)].max(0.0).sqrt();
         if bound[j] {
@@ -392,10 +389,8 @@ pub fn estimate(
         se[id.index()] = Some(reparam::derivative(*id, u[j]).abs() * se_u);
         if reparam::spans_most(*id, u[j], se_u) {
             unconstrained.push((*id, Why::Wide));
-        } else if kappa < KAPPA_ABSENT
-            && matches!(id, ParamId::SigmaMS | ParamId::SigmaMA | ParamId::G)
-        {
-            unconstrained.push((*id, Why::NoMedulla));
+        } else if inert.contains(&id.index()) {
+            unconstrained.push((*id, Why::Inert(inert_why)));
         }
     }
     let mut corr = DMatrix::from_element(p, p, f64::NAN);
@@ -435,12 +430,12 @@ pub fn estimate(
 #[derive(Clone, Debug, PartialEq)]
 pub struct Robust {
     /// File-unit standard error per parameter (`None` where [`estimate`] has none).
-    pub se: [Option<f64>; N_PARAMS],
+    pub se: Vec<Option<f64>>,
     /// Rows (distinct `(theta_i, theta_r)`) the scores are summed over.
     pub rows: usize,
     /// Per parameter, the lags in `theta_r` (rows of one `theta_i`) whose cross products
     /// are kept ([`long_run_variance`]).
-    pub bandwidth: [Option<usize>; N_PARAMS],
+    pub bandwidth: Vec<Option<usize>>,
     /// Lag-1 autocorrelation of consecutive residuals in `phi` within rows (pooled; across
     /// any gap a floor or a missing sample leaves): near 0 for independent noise, near 1
     /// for a smooth misfit.
@@ -448,7 +443,7 @@ pub struct Robust {
     /// Parameters not flagged unconstrained whose robust `u +- SE(u)` spans most of their
     /// range ([`reparam::spans_most`]): the flags follow the independent-residual
     /// errors, so these are named apart.
-    pub spans_most: Vec<ParamId>,
+    pub spans_most: Vec<Param>,
 }
 
 /// Fewest rows per free coordinate for [`robust`]: a long-run variance over few rows is
@@ -514,8 +509,8 @@ pub fn robust(
         .map(|id| unc.unconstrained.contains(&(*id, Why::Bound)))
         .collect();
     let (var, rows, lags, phi_lag1) = sweep_robust_var(jac, r, pts, &held)?;
-    let mut se = [None; N_PARAMS];
-    let mut bandwidth = [None; N_PARAMS];
+    let mut se = vec![None; layout.fixed.len()];
+    let mut bandwidth = vec![None; layout.fixed.len()];
     for (j, id) in free.iter().enumerate() {
         if unc.se[id.index()].is_some() {
             se[id.index()] = Some(reparam::derivative(*id, u[j]).abs() * var[j].sqrt());
@@ -535,11 +530,11 @@ pub fn robust(
 /// The free parameters (`free`, at `u`, robust variances `var` in `u`) that `unc` gives a
 /// standard error and does not flag, whose robust `u +- SE(u)` spans most of their range.
 fn robust_spans_most(
-    free: &[ParamId],
+    free: &[Param],
     u: &DVector<f64>,
     var: &[f64],
     unc: &Uncertainty,
-) -> Vec<ParamId> {
+) -> Vec<Param> {
     free.iter()
         .enumerate()
         .filter(|(_, id)| unc.se[id.index()].is_some())
@@ -625,6 +620,13 @@ fn sweep_robust_var(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::params::ParamId;
+
+    /// The fur model's parameter `id`.
+    #[allow(non_snake_case)]
+    fn P(id: ParamId) -> Param {
+        id.into()
+    }
 
     #[test]
     fn residual_variance_counts_the_exposure_as_an_unknown() {
@@ -692,11 +694,11 @@ mod tests {
         let c = &c - &b * (b.dot(&c) / b.dot(&b));
         let mix = |r: f64| (&a + &b).normalize() * r + c.normalize() * (1.0 - r * r).sqrt();
         let free = vec![
-            ParamId::SigmaCA,
-            ParamId::SigmaMA,
-            ParamId::Eta,
-            ParamId::L,
-            ParamId::Kappa,
+            P(ParamId::SigmaCA),
+            P(ParamId::SigmaMA),
+            P(ParamId::Eta),
+            P(ParamId::L),
+            P(ParamId::Kappa),
         ];
         let jac = DMatrix::from_columns(&[
             mix(0.995),
@@ -706,8 +708,8 @@ mod tests {
             DVector::zeros(n),
         ]);
         let mut unc = Uncertainty {
-            se: [None; N_PARAMS],
-            unconstrained: vec![(ParamId::Kappa, Why::Bound)],
+            se: vec![None; 10],
+            unconstrained: vec![(P(ParamId::Kappa), Why::Bound)],
             free,
             correlation: DMatrix::zeros(5, 5),
             s2: 1.0,
@@ -717,13 +719,16 @@ mod tests {
         flag_coupled(
             &mut unc,
             &jac,
-            &[(ParamId::Kappa, a.clone()), (ParamId::L, b.clone() * 3.0)],
+            &[
+                (P(ParamId::Kappa), a.clone()),
+                (P(ParamId::L), b.clone() * 3.0),
+            ],
         );
         assert_eq!(
             unc.unconstrained,
             vec![
-                (ParamId::Kappa, Why::Bound),
-                (ParamId::SigmaCA, Why::Coupled)
+                (P(ParamId::Kappa), Why::Bound),
+                (P(ParamId::SigmaCA), Why::Coupled)
             ]
         );
     }
@@ -872,10 +877,10 @@ mod tests {
     #[test]
     fn robust_and_plain_errors_agree_in_file_units_under_independent_noise() {
         use rand::SeedableRng;
-        let mut layout = ParamLayout::all_free();
-        let free = [ParamId::SigmaCA, ParamId::Eta, ParamId::Alpha];
+        let mut layout = ParamLayout::all_free(crate::models::default_model());
+        let free = [P(ParamId::SigmaCA), P(ParamId::Eta), P(ParamId::Alpha)];
         for id in ParamId::ALL {
-            if !free.contains(&id) {
+            if !free.contains(&P(id)) {
                 layout.fixed[id.index()] = Some(0.5);
             }
         }
@@ -905,14 +910,14 @@ mod tests {
     #[test]
     fn robust_spans_most_names_only_unflagged_wide_parameters() {
         let free = vec![
-            ParamId::SigmaCA,
-            ParamId::SigmaMS,
-            ParamId::SigmaMA,
-            ParamId::Eta,
+            P(ParamId::SigmaCA),
+            P(ParamId::SigmaMS),
+            P(ParamId::SigmaMA),
+            P(ParamId::Eta),
         ];
         let mut unc = Uncertainty {
-            se: [None; N_PARAMS],
-            unconstrained: vec![(ParamId::SigmaMA, Why::Wide)],
+            se: vec![None; 10],
+            unconstrained: vec![(P(ParamId::SigmaMA), Why::Wide)],
             free: free.clone(),
             correlation: DMatrix::zeros(4, 4),
             s2: 1.0,
@@ -922,14 +927,14 @@ mod tests {
         for id in &free {
             unc.se[id.index()] = Some(0.1);
         }
-        unc.se[ParamId::Eta.index()] = None;
+        unc.se[P(ParamId::Eta).index()] = None;
         let u = DVector::zeros(4);
         // Exp maps span most above SE(u) = 2: sigma_c_a at 3 does, sigma_m_s at 1 does
         // not, sigma_m_a at 3 is flagged already, eta has no standard error.
         let var = [9.0, 1.0, 9.0, 100.0];
         assert_eq!(
             robust_spans_most(&free, &u, &var, &unc),
-            vec![ParamId::SigmaCA]
+            vec![P(ParamId::SigmaCA)]
         );
     }
 }

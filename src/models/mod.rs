@@ -29,7 +29,7 @@ mod params;
 mod points;
 pub mod yan2017;
 
-pub use params::ModelParams;
+pub use params::{fit_channels, select_channel, Channel, ModelParams};
 pub use points::Points;
 
 use crate::model::far::FarOptions;
@@ -97,6 +97,80 @@ impl std::fmt::Debug for dyn FiberModel {
     }
 }
 
+impl Integral {
+    pub fn name(self) -> &'static str {
+        match self {
+            Integral::Far => "far",
+            Integral::NearQuadrature => "near-quadrature",
+        }
+    }
+
+    /// Parse `far` or `near-quadrature`.
+    pub fn parse(s: &str) -> crate::Result<Integral> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "far" => Ok(Integral::Far),
+            "near-quadrature" | "near_quadrature" | "quadrature" => Ok(Integral::NearQuadrature),
+            other => Err(crate::Error::Invalid(format!(
+                "unknown integral '{other}' (expected far or near-quadrature)"
+            ))),
+        }
+    }
+}
+
+/// One parameter of one model: what the fitter, the reports and the uncertainty hold
+/// instead of a model's own parameter names.
+#[derive(Clone, Copy)]
+pub struct Param {
+    pub model: &'static dyn FiberModel,
+    pub index: usize,
+}
+
+impl Param {
+    /// The parameters of `model`, in vector order.
+    pub fn all(model: &'static dyn FiberModel) -> impl Iterator<Item = Param> {
+        (0..model.specs().len()).map(move |index| Param { model, index })
+    }
+
+    /// The parameter named `name` of `model`.
+    pub fn by_name(model: &'static dyn FiberModel, name: &str) -> Option<Param> {
+        Param::all(model).find(|p| p.spec().name == name)
+    }
+
+    /// Position in the model's parameter vector.
+    pub fn index(self) -> usize {
+        self.index
+    }
+
+    /// Name, unit and hard bounds.
+    pub fn spec(self) -> &'static ParamSpec {
+        &self.model.specs()[self.index]
+    }
+
+    /// The file key (`eta`, `beta_m`, ...).
+    pub fn name(self) -> &'static str {
+        self.spec().name
+    }
+
+    /// The solver's bounded map.
+    pub fn map(self) -> Map {
+        self.model.map(self.index)
+    }
+}
+
+impl PartialEq for Param {
+    fn eq(&self, o: &Self) -> bool {
+        self.index == o.index && self.model.name() == o.model.name()
+    }
+}
+
+impl Eq for Param {}
+
+impl std::fmt::Debug for Param {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// One fiber scattering model (see the module doc). Object safe: the generic code holds
 /// `&'static dyn FiberModel`.
 pub trait FiberModel: Send + Sync + 'static {
@@ -112,6 +186,12 @@ pub trait FiberModel: Send + Sync + 'static {
 
     /// The lobes' names, at most five, in [`LobeValues`] slot order.
     fn lobe_names(&self) -> &'static [&'static str];
+
+    /// Parse a `--lobes` list of this model's lobe names (case-insensitive, each at most
+    /// once) or `all`.
+    fn parse_lobes(&self, s: &str) -> crate::Result<LobeSet> {
+        parse_lobes(self.lobe_names(), s)
+    }
 
     /// The solver's smooth bounded map of parameter `i` (file units).
     fn map(&self, i: usize) -> Map;
@@ -134,6 +214,20 @@ pub trait FiberModel: Send + Sync + 'static {
     /// widths floored. `synth` and `render` print them, fits record them.
     fn notes(&self, _p: &[f64]) -> Vec<String> {
         Vec::new()
+    }
+
+    /// The coordinate of a `(theta_i, theta_r)` pair that the model's far-field set-up is
+    /// shared along (the fur model's slices are per `theta_d`): the fitter's subsample
+    /// keeps whole slices of it, so a subsample is cheap to evaluate.
+    fn slice_of(&self, theta_i: f64, theta_r: f64) -> f64 {
+        crate::model::geometry::theta_d(theta_i, theta_r)
+    }
+
+    /// Free parameters these values (file units) leave without any effect, and why (the
+    /// fur model: the medulla's parameters when `kappa` is ~0). The fitter flags them
+    /// unconstrained whatever their standard errors say.
+    fn inert(&self, _file: &[f64]) -> (Vec<usize>, &'static str) {
+        (Vec::new(), "")
     }
 
     /// The lobes that can be non-zero for these parameters (internal units).
@@ -221,6 +315,43 @@ impl ModelTerms for PlainTerms {
     fn capped_slices(&self) -> (usize, usize) {
         self.capped
     }
+}
+
+/// Parse `s`, a comma list of the names in `names` (case-insensitive, each at most once)
+/// or `all`, into the set of their slots.
+pub fn parse_lobes(names: &[&str], s: &str) -> crate::Result<LobeSet> {
+    let all = LobeSet((1u8 << names.len()) - 1);
+    if s.trim().eq_ignore_ascii_case("all") {
+        return Ok(all);
+    }
+    let mut set = LobeSet::NONE;
+    for part in s.split(',') {
+        if part.trim().eq_ignore_ascii_case("all") {
+            return Err(crate::Error::Invalid(format!(
+                "lobes '{s}': 'all' stands alone (it already includes every lobe)"
+            )));
+        }
+        let i = names
+            .iter()
+            .position(|n| n.eq_ignore_ascii_case(part.trim()))
+            .ok_or_else(|| {
+                crate::Error::Invalid(format!(
+                    "unknown lobe '{}' (expected {} or all)",
+                    part.trim(),
+                    names.join(", ")
+                ))
+            })?;
+        // Refused like a repeated --modes entry: a repeat is most likely a typo for
+        // another lobe.
+        if set.0 & (1 << i) != 0 {
+            return Err(crate::Error::Invalid(format!(
+                "lobes '{s}': {} given twice",
+                names[i]
+            )));
+        }
+        set = LobeSet(set.0 | (1 << i));
+    }
+    Ok(set)
 }
 
 /// Clamp of the solver coordinate for sigmoid and exp maps (sigmoid(30) = 1 - 9.4e-14:

@@ -36,6 +36,15 @@ fn param_error(model: &dyn FiberModel, key: &str, msg: String) -> Error {
     }
 }
 
+impl From<crate::params::FurParams> for ModelParams {
+    fn from(p: crate::params::FurParams) -> Self {
+        ModelParams {
+            model: &super::yan2017::Yan2017,
+            values: p.to_array().to_vec(),
+        }
+    }
+}
+
 impl ModelParams {
     /// From file units (degrees), validated against the hard bounds and the model's own
     /// checks.
@@ -108,6 +117,27 @@ impl ModelParams {
             }
         }
         out
+    }
+
+    /// The fur model's typed parameters, when these are of `yan2017` (the renderer and
+    /// the virtual goniometer are the fur model's own).
+    pub fn fur(&self) -> Option<crate::params::FurParams> {
+        (self.model.name() == "yan2017").then(|| {
+            let mut a = [0.0; crate::params::N_PARAMS];
+            a.copy_from_slice(&self.values);
+            crate::params::FurParams::from_array(a)
+        })
+    }
+
+    /// These of the fur model, with the error a command of the fur model alone gives for
+    /// another model's parameters.
+    pub fn require_fur(&self, what: &str) -> Result<crate::params::FurParams> {
+        self.fur().ok_or_else(|| {
+            Error::Invalid(format!(
+                "{what} supports the yan2017 fur model only; these parameters are of {}",
+                self.model.name()
+            ))
+        })
     }
 
     /// The value of the parameter named `name`, internal units.
@@ -238,6 +268,71 @@ impl ModelParams {
         })?;
         Ok((p, k, Some(v)))
     }
+}
+
+/// One channel of a multi-channel fit file (its `channels` array, `fit::job`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Channel {
+    /// The channel's name (`data.channel`).
+    pub name: String,
+    pub params: ModelParams,
+    pub exposure: f64,
+}
+
+/// The channels of a fit file's JSON (`v` as [`ModelParams::load`] returns it): each of a
+/// multi-channel fit's `channels`, the one channel of a fit of one named channel (its top
+/// level, `data.channel`), and none for a parameter file or a fit of unnamed data. `spec`
+/// names the file in errors.
+pub fn fit_channels(v: &Value, spec: &str) -> Result<Vec<Channel>> {
+    let Some(chs) = v.get("channels").and_then(|c| c.as_array()) else {
+        // A fit of one named channel keeps its name on the way out (`synth` labels the
+        // profile, `--channel` accepts it).
+        return match v["data"]["channel"].as_str().filter(|n| !n.is_empty()) {
+            Some(name) => {
+                let (params, exposure) = ModelParams::from_json_value(v, None)
+                    .map_err(|e| Error::Invalid(format!("{spec}: {e}")))?;
+                Ok(vec![Channel {
+                    name: name.to_string(),
+                    params,
+                    exposure,
+                }])
+            }
+            None => Ok(Vec::new()),
+        };
+    };
+    chs.iter()
+        .enumerate()
+        .map(|(i, ch)| {
+            let name = ch["data"]["channel"]
+                .as_str()
+                .map_or_else(|| format!("{i}"), str::to_string);
+            let (params, exposure) = ModelParams::from_json_value(ch, None).map_err(|e| {
+                Error::Invalid(format!("{spec}: channel '{name}' (channels[{i}]): {e}"))
+            })?;
+            Ok(Channel {
+                name,
+                params,
+                exposure,
+            })
+        })
+        .collect()
+}
+
+/// The channel `name` of a fit's channels ([`fit_channels`]; `spec` names the file), or an
+/// error listing the channels there are.
+pub fn select_channel<'a>(channels: &'a [Channel], name: &str, spec: &str) -> Result<&'a Channel> {
+    if channels.is_empty() {
+        return Err(Error::Invalid(format!(
+            "--channel {name}: {spec} is not a fit of named channels"
+        )));
+    }
+    channels.iter().find(|c| c.name == name).ok_or_else(|| {
+        let names: Vec<&str> = channels.iter().map(|c| c.name.as_str()).collect();
+        Error::Invalid(format!(
+            "--channel {name}: {spec} has channels {}",
+            names.join(", ")
+        ))
+    })
 }
 
 /// The `params` object of `model`: exactly its keys, each a number within its bound.

@@ -9,9 +9,8 @@
 
 use super::nrmse::FitFile;
 use crate::error::{Error, Result};
-use crate::fit::forward::{predict_lobes, Points};
+use crate::fit::forward::Points;
 use crate::model::far::FarOptions;
-use crate::model::Lobe;
 use crate::profile::Profile;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -90,6 +89,8 @@ struct Slice {
     phi: Vec<f64>,
     /// `(theta_r, phi)` -> (measured or NaN, per-lobe fitted incl. exposure).
     cells: BTreeMap<(i64, i64), (f64, [f64; 5])>,
+    /// The fit's model's lobe names, in the slots of `cells`.
+    names: &'static [&'static str],
 }
 
 fn key(x: f64) -> i64 {
@@ -127,7 +128,17 @@ fn slices(profile: &Profile, channel: usize, fit: &FitFile, far: &FarOptions) ->
         let (a, b, c) = s.angles_rad();
         pts.push(a, b, c);
     }
-    let lobes = predict_lobes(&fit.params, &pts, far);
+    let p = &fit.params;
+    let lobes = p
+        .model
+        .predict(
+            &p.values,
+            &pts,
+            far,
+            crate::model::LobeSet::ALL,
+            crate::models::Integral::Far,
+        )
+        .lobes;
     let mut by_ti: BTreeMap<i64, Slice> = BTreeMap::new();
     for (s, l) in samples.iter().zip(&lobes) {
         let sl = by_ti.entry(key(s.theta_i)).or_insert_with(|| Slice {
@@ -135,6 +146,7 @@ fn slices(profile: &Profile, channel: usize, fit: &FitFile, far: &FarOptions) ->
             theta_r: Vec::new(),
             phi: Vec::new(),
             cells: BTreeMap::new(),
+            names: p.model.lobe_names(),
         });
         let meas = if s.is_valid() { s.value } else { f64::NAN };
         let mut v = l.0;
@@ -276,13 +288,13 @@ fn lobe_panel<DB: DrawingBackend>(
         .y_labels(5)
         .draw()?;
     let colors = [RED, BLUE, GREEN, MAGENTA, CYAN];
-    for (li, lobe) in Lobe::ALL.iter().enumerate() {
+    for (li, lobe) in sl.names.iter().enumerate() {
         let runs = visible_runs(row.iter().map(|(p, _, l)| (*p, l[li].log10())), lo);
         let c = colors[li];
         for (k, pts) in runs.into_iter().enumerate() {
             let s = ch.draw_series(LineSeries::new(pts, c.stroke_width(1)))?;
             if k == 0 {
-                s.label(lobe.name())
+                s.label(*lobe)
                     .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 14, y)], c));
             }
         }

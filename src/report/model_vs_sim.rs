@@ -10,10 +10,10 @@
 use super::nrmse::FitFile;
 use super::sig;
 use crate::error::{Error, Result};
-use crate::fit::forward::predict_points;
+
 use crate::fit::problem::nrmse;
 use crate::model::far::FarOptions;
-use crate::model::LobeSet;
+
 use crate::params::{FurParams, ParamId};
 use crate::profile::Profile;
 use std::fmt::Write as _;
@@ -95,7 +95,7 @@ pub struct TruthNrmse {
 /// channel's largest valid value, normalised by their log range); `None` when the
 /// channel has no valid sample.
 pub fn nrmse_at(
-    params: &FurParams,
+    params: &crate::models::ModelParams,
     profile: &Profile,
     channel: usize,
     floor: f64,
@@ -103,7 +103,7 @@ pub fn nrmse_at(
 ) -> Option<TruthNrmse> {
     let data = crate::fit::channel_data(profile, channel, false, floor).ok()?;
     let mut m = vec![0.0; data.ln_y.len()];
-    predict_points(params, &data.points, far, LobeSet::ALL, &mut m);
+    crate::fit::forward::predict_model(params, &data.points, far, &mut m);
     let (nrmse, exposure) = nrmse(&m, &data.ln_y, data.range);
     Some(TruthNrmse {
         nrmse,
@@ -334,6 +334,8 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::forward::predict_points;
+    use crate::model::LobeSet;
 
     fn coverage_line_of(md: &str) -> &str {
         md.lines()
@@ -546,19 +548,19 @@ mod tests {
                 .push(crate::profile::Sample::new(ti, tr, ph, v));
         }
         let n = prof.n_valid();
-        let t = nrmse_at(&truth, &prof, 0, 1e-8, &fixed).unwrap();
+        let t = nrmse_at(&truth.into(), &prof, 0, 1e-8, &fixed).unwrap();
         assert_eq!((t.n_used, t.n_below_floor), (n - 5, 5));
         // The model's own values: only the rounding of ln and of the closed-form exposure
         // is left (~1e-16); 1e-12 is far below any model difference.
         assert!(t.nrmse < 1e-12, "{}", t.nrmse);
         assert!((t.exposure - 1.0).abs() < 1e-12, "{}", t.exposure);
         // Without the floor the five outliers, 27 nats off, dominate.
-        let all = nrmse_at(&truth, &prof, 0, 0.0, &fixed).unwrap();
+        let all = nrmse_at(&truth.into(), &prof, 0, 0.0, &fixed).unwrap();
         assert_eq!((all.n_used, all.n_below_floor), (n, 0));
         assert!(all.nrmse > 0.05, "{}", all.nrmse);
         // Another far field is another model: the tolerance mode is 1.5e-3 off the fixed
         // segmentation's values here; 1e-6 tells it from rounding with room either side.
-        let tol = nrmse_at(&truth, &prof, 0, 1e-8, &FarOptions::default()).unwrap();
+        let tol = nrmse_at(&truth.into(), &prof, 0, 1e-8, &FarOptions::default()).unwrap();
         assert!(tol.nrmse > 1e-6, "{}", tol.nrmse);
     }
 

@@ -15,8 +15,9 @@ use crate::fit::problem::{FitData, LogResidualProblem};
 use crate::fit::{channel_data, fit_data, reparam, FitOptions, FitOutcome};
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
+use crate::models::Integral;
 use crate::params::{FurParams, ParamId, N_PARAMS};
-use crate::synth::{synthesize, ModelKind};
+use crate::synth::synthesize;
 // Standard normal variates: the virtual goniometer's Box-Muller sampler.
 use crate::simulate::trace::gauss as normal;
 use nalgebra::DVector;
@@ -177,7 +178,7 @@ fn noise_fed_robust(
     data: &FitData,
     fit: &FitOutcome,
     noise: &HashMap<[u64; 3], f64>,
-) -> Option<[Option<f64>; N_PARAMS]> {
+) -> Option<Vec<Option<f64>>> {
     let opts = FitOptions::default();
     let r = noise_residuals(data, noise)?;
     let free = opts.layout.free();
@@ -217,11 +218,11 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
     let t = truth.to_file_units();
     let (ti, tr, phi) = grid();
     let base = synthesize(
-        &truth,
+        &truth.into(),
         &ti,
         &tr,
         &phi,
-        ModelKind::Far,
+        Integral::Far,
         LobeSet::ALL,
         1.0,
         &FarOptions::default(),
@@ -252,17 +253,17 @@ pub fn study(reps: usize, log: &mut dyn FnMut(&str)) -> Result<Study> {
             };
             let f = fit.params.to_file_units();
             let unc = &fit.uncertainty;
-            let rb = unc.robust.as_ref().map(|r| r.se);
+            let rb = unc.robust.as_ref().map(|r| r.se.clone());
             let fed = noise_fed_robust(&data, &fit, &noise);
             let mut run = [(0.0, None, None, None); N_PARAMS];
             for id in ParamId::ALL {
                 let k = id.index();
-                let flagged = unc.unconstrained.iter().any(|(p, _)| *p == id);
+                let flagged = unc.unconstrained.iter().any(|(p, _)| *p == id.into());
                 run[k] = (
                     f[k],
                     unc.se[k].filter(|_| !flagged),
-                    rb.and_then(|r| r[k]).filter(|_| !flagged),
-                    fed.and_then(|r| r[k]).filter(|_| !flagged),
+                    rb.as_ref().and_then(|r| r[k]).filter(|_| !flagged),
+                    fed.as_ref().and_then(|r| r[k]).filter(|_| !flagged),
                 );
             }
             log(&format!(
@@ -504,11 +505,11 @@ mod tests {
         // cancel in ln m - ln(m e^noise) to a few ulps of the logs (|ln m| < ~30).
         let truth = FurParams::preset("red-fox").expect("preset");
         let mut prof = synthesize(
-            &truth,
+            &truth.into(),
             &[0.0, 30.0],
             &[-40.0, 0.0, 20.0],
             &[-170.0, -60.0, 0.0, 90.0],
-            ModelKind::Far,
+            Integral::Far,
             LobeSet::ALL,
             1.0,
             &FarOptions::default(),
