@@ -422,6 +422,17 @@ impl FurParams {
             key: "<file>".into(),
             msg: "a parameter file must be a JSON object".into(),
         })?;
+        // A parameter or fit file of another model (`crate::models`): the fur model's own
+        // commands (render, simulate) cannot read it.
+        if let Some(m) = obj.get("model").filter(|m| m.as_str() != Some("yan2017")) {
+            return Err(Error::Param {
+                key: "model".into(),
+                msg: format!(
+                    "these parameters are of model {m}; this command reads the yan2017 fur \
+                     model's only"
+                ),
+            });
+        }
         // A fit file: take its `params` object (and its exposure).
         if let Some(inner) = obj.get("params") {
             let (p, _) = FurParams::from_json_value(inner)?;
@@ -448,7 +459,7 @@ impl FurParams {
         let mut seen = [false; N_PARAMS];
         let mut exposure = 1.0;
         for (key, val) in obj {
-            if key == "exposure" {
+            if key == "exposure" || key == "model" {
                 exposure = parse_exposure(val)?;
                 continue;
             }

@@ -4,7 +4,8 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Folder of fit files (`<species>.json`).
+    /// Folder of fit files (`<species>.json`, the fur model's); the other models' fits in
+    /// its subfolders `<model>/` (as `fit --model` writes them) make the model comparison.
     #[arg(long, default_value = "fits")]
     pub fits: PathBuf,
     /// Folder of species folders (profiles + metadata.json): the species of
@@ -26,8 +27,26 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     // The fits first: a refused run leaves no empty --out folder behind.
     let (fits, unread) = crate::report::nrmse::read_fits(&a.fits)?;
     super::prepare_out_dir(&a.out)?;
-    let sum =
+    let mut sum =
         crate::report::nrmse::write_fit_reports(&fits, &unread, &a.measurements, &a.out, a.force)?;
+    // The model comparison, when fits of more than one model are there.
+    let (by_model, not_compared) = crate::report::compare::read_all(&a.fits);
+    if by_model.len() > 1 {
+        let species: Vec<String> = by_model
+            .iter()
+            .flat_map(|(_, f)| f.iter().map(|f| f.label()))
+            .collect();
+        crate::io::check_replaceable(&crate::report::compare::outputs(&species, &a.out), a.force)?;
+        let (written, skipped) =
+            crate::report::compare::write(&by_model, &a.fits, &a.measurements, &a.out)?;
+        sum.written.extend(written);
+        sum.skipped.extend(skipped);
+        sum.notes.extend(
+            not_compared
+                .into_iter()
+                .map(|(f, why)| format!("{f}: {why}")),
+        );
+    }
     for p in &sum.written {
         outln!("wrote {}", p.display());
     }

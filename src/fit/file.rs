@@ -82,6 +82,10 @@ pub struct FitFile {
     /// (`data.n_below_floor`).
     pub n_below_floor: Option<u64>,
     pub wall_time_s: f64,
+    /// Model evaluations of the solve (`solver.evaluations`).
+    pub evaluations: Option<u64>,
+    /// Samples the fit used (`data.n_used`).
+    pub n_used: Option<u64>,
     pub unconstrained: Vec<String>,
     /// Standard errors (file units) per parameter, `None` if fixed/infinite.
     pub se: Vec<Option<f64>>,
@@ -313,6 +317,8 @@ impl FitFile {
             n_valid: v["data"]["n_valid"].as_u64(),
             n_below_floor: v["data"]["n_below_floor"].as_u64(),
             wall_time_s: v["solver"]["wall_time_s"].as_f64().unwrap_or(f64::NAN),
+            evaluations: v["solver"]["evaluations"].as_u64(),
+            n_used: v["data"]["n_used"].as_u64(),
             unconstrained,
             se,
             se_robust,

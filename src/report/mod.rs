@@ -1,5 +1,6 @@
 //! Reports: tables and plots written under `reports/`.
 
+pub mod compare;
 pub mod far_error;
 pub mod fig11;
 pub mod fit_time;
@@ -8,6 +9,7 @@ pub mod nrmse;
 pub mod plot;
 pub mod se_calibration;
 pub mod stability;
+pub mod stability_models;
 
 /// `x` to `digits` significant digits (at least 1): plain decimals for magnitudes in
 /// [1e-4, 1e6), else exponent form as [`crate::error::Num`] writes them. Standard errors

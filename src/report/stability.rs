@@ -654,9 +654,17 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
                 .join("\n")
         }
     );
+    let (zoo_md, zoo_csv, zoo) = super::stability_models::run(log)?;
+    md.push('\n');
+    md.push_str(&zoo_md);
+    sum.n_evaluations += zoo.evaluations;
+    sum.n_nonfinite += zoo.nonfinite;
+    sum.n_negative += zoo.negative;
+    sum.n_negative_raw += zoo.negative;
     std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
     crate::io::write_outputs(&[
         (out.join("stability.csv"), csv.into_bytes()),
+        (out.join("stability_models.csv"), zoo_csv.into_bytes()),
         (out.join("stability.md"), md.into_bytes()),
     ])?;
     log(&format!(
