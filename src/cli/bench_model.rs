@@ -11,12 +11,24 @@ pub struct Args {
     /// (writes nothing: --out and --force do not apply).
     #[arg(long, conflicts_with_all = ["out", "force"])]
     pub synth_only: bool,
+    /// Every registered model side by side: far-field throughput on the same grid, then a
+    /// blind fit of each on --species (writes nothing).
+    #[arg(long, conflicts_with_all = ["out", "force", "synth_only"])]
+    pub models: bool,
+    /// With --models: the species folder the fits run on.
+    #[arg(long, default_value = "measurements/red-fox", requires = "models")]
+    pub species: PathBuf,
     /// Replace existing output files that furfit did not write (or that changed since).
     #[arg(long)]
     pub force: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
+    if a.models {
+        crate::report::zoo_bench::throughput(&mut |line| outln!("{line}"));
+        crate::report::zoo_bench::fits(&a.species, &mut |line| outln!("{line}"))?;
+        return Ok(());
+    }
     if a.synth_only {
         crate::report::far_error::synth_throughput(&mut |line| outln!("{line}"));
         return Ok(());

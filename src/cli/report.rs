@@ -25,7 +25,29 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     // The fits first: a refused run leaves no empty --out folder behind.
-    let (fits, unread) = crate::report::nrmse::read_fits(&a.fits)?;
+    let (fits, mut unread) = crate::report::nrmse::read_fits(&a.fits)?;
+    // The Table-4 report is the fur model's: another model's fit in its folder is listed,
+    // not tabled (its place is <fits>/<model>/, which the model comparison reads).
+    let default = crate::models::default_model().name();
+    let (fits, others): (Vec<_>, Vec<_>) = fits
+        .into_iter()
+        .partition(|f| f.params.model.name() == default);
+    for f in others {
+        unread.push((
+            f.path
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_default(),
+            format!(
+                "a fit of {}: the Table-4 report is of {default} fits; move it to {}",
+                f.params.model.name(),
+                crate::fit::batch::model_dir(&a.fits, f.params.model).display()
+            ),
+        ));
+    }
+    if fits.is_empty() {
+        anyhow::bail!("{}: no {default} fit file", a.fits.display());
+    }
     super::prepare_out_dir(&a.out)?;
     let mut sum =
         crate::report::nrmse::write_fit_reports(&fits, &unread, &a.measurements, &a.out, a.force)?;

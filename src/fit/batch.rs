@@ -305,7 +305,7 @@ fn convergence_lines(o: &super::FitOutcome, opts: &FitOptions) -> Vec<String> {
 /// The standard errors as the fit prints them: independent-residual and, when there are
 /// enough rows, sweep-robust, per free parameter with one.
 fn se_lines(unc: &super::uncertainty::Uncertainty, opts: &FitOptions) -> Vec<String> {
-    let sig = |x: f64| crate::report::sig(x, 2);
+    let sig = |x: f64| crate::error::sig(x, 2);
     let mut out = Vec::new();
     let rb = unc.robust.as_ref();
     let cells: Vec<String> = opts

@@ -346,9 +346,8 @@ impl FitFile {
             None if data.channels.len() <= 1 => 0,
             None => return,
         };
-        let (floor, far) = crate::report::model_vs_sim::truth_settings(Some(self));
-        let Some(now) = crate::report::model_vs_sim::nrmse_at(&self.params, data, ch, floor, &far)
-        else {
+        let (floor, far) = truth_settings(Some(self));
+        let Some(now) = nrmse_at(&self.params, data, ch, floor, &far) else {
             return;
         };
         let slack = NRMSE_MATCH * self.nrmse.max(now.nrmse) + NRMSE_FLOOR;
@@ -550,6 +549,54 @@ pub fn read_fits(dir: &Path) -> Result<(Vec<FitFile>, Vec<Skipped>)> {
         ));
     }
     Ok((out, bad))
+}
+
+/// The sample floor and far field of "NRMSE at truth": those the fit recorded
+/// (`data.floor`, `solver.tol` / `.segments` / `.scattered_step`), so it covers the same
+/// samples with the same model as the fit's NRMSE; `furfit fit`'s defaults without a fit.
+/// A fit file without `data.floor` was made before the floor existed, with every valid
+/// sample.
+pub fn truth_settings(fit: Option<&FitFile>) -> (f64, FarOptions) {
+    match fit {
+        Some(f) => (f.floor.unwrap_or(0.0), f.far),
+        None => (super::DEFAULT_FLOOR, FarOptions::default()),
+    }
+}
+
+/// NRMSE at the true parameters, and what it covers.
+#[derive(Clone, Copy, Debug)]
+pub struct TruthNrmse {
+    /// NRMSE (MODEL.md) with the optimal exposure.
+    pub nrmse: f64,
+    pub exposure: f64,
+    /// Samples used: valid and at least the floor x the channel's peak.
+    pub n_used: usize,
+    /// Valid samples left out below the floor.
+    pub n_below_floor: usize,
+}
+
+/// NRMSE (MODEL.md, optimal exposure) of the far field `far` at `params` on channel
+/// `channel` of `profile`, over the samples a fit with relative floor `floor` uses (the
+/// fitter's own selection, [`super::channel_data`]: valid, at least `floor` x the
+/// channel's largest valid value, normalised by their log range); `None` when the
+/// channel has no valid sample.
+pub fn nrmse_at(
+    params: &crate::models::ModelParams,
+    profile: &crate::Profile,
+    channel: usize,
+    floor: f64,
+    far: &FarOptions,
+) -> Option<TruthNrmse> {
+    let data = super::channel_data(profile, channel, false, floor).ok()?;
+    let mut m = vec![0.0; data.ln_y.len()];
+    crate::fit::forward::predict_model(params, &data.points, far, &mut m);
+    let (nrmse, exposure) = super::problem::nrmse(&m, &data.ln_y, data.range);
+    Some(TruthNrmse {
+        nrmse,
+        exposure,
+        n_used: data.ln_y.len(),
+        n_below_floor: data.n_below_floor,
+    })
 }
 
 #[cfg(test)]

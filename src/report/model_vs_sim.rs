@@ -11,11 +11,8 @@ use super::nrmse::FitFile;
 use super::sig;
 use crate::error::{Error, Result};
 
-use crate::fit::problem::nrmse;
-use crate::model::far::FarOptions;
-
 use crate::params::{FurParams, ParamId};
-use crate::profile::Profile;
+
 use std::fmt::Write as _;
 use std::path::Path;
 
@@ -65,53 +62,7 @@ pub fn true_params(species_dir: &Path) -> Result<Option<(FurParams, Option<Strin
     Ok(Some((truth, what)))
 }
 
-/// The sample floor and far field of "NRMSE at truth": those the fit recorded
-/// (`data.floor`, `solver.tol` / `.segments` / `.scattered_step`), so it covers the same
-/// samples with the same model as the fit's NRMSE; `furfit fit`'s defaults without a fit.
-/// A fit file without `data.floor` was made before the floor existed, with every valid
-/// sample.
-pub fn truth_settings(fit: Option<&FitFile>) -> (f64, FarOptions) {
-    match fit {
-        Some(f) => (f.floor.unwrap_or(0.0), f.far),
-        None => (crate::fit::DEFAULT_FLOOR, FarOptions::default()),
-    }
-}
-
-/// NRMSE at the true parameters, and what it covers.
-#[derive(Clone, Copy, Debug)]
-pub struct TruthNrmse {
-    /// NRMSE (MODEL.md) with the optimal exposure.
-    pub nrmse: f64,
-    pub exposure: f64,
-    /// Samples used: valid and at least the floor x the channel's peak.
-    pub n_used: usize,
-    /// Valid samples left out below the floor.
-    pub n_below_floor: usize,
-}
-
-/// NRMSE (MODEL.md, optimal exposure) of the far field `far` at `params` on channel
-/// `channel` of `profile`, over the samples a fit with relative floor `floor` uses (the
-/// fitter's own selection, [`crate::fit::channel_data`]: valid, at least `floor` x the
-/// channel's largest valid value, normalised by their log range); `None` when the
-/// channel has no valid sample.
-pub fn nrmse_at(
-    params: &crate::models::ModelParams,
-    profile: &Profile,
-    channel: usize,
-    floor: f64,
-    far: &FarOptions,
-) -> Option<TruthNrmse> {
-    let data = crate::fit::channel_data(profile, channel, false, floor).ok()?;
-    let mut m = vec![0.0; data.ln_y.len()];
-    crate::fit::forward::predict_model(params, &data.points, far, &mut m);
-    let (nrmse, exposure) = nrmse(&m, &data.ln_y, data.range);
-    Some(TruthNrmse {
-        nrmse,
-        exposure,
-        n_used: data.ln_y.len(),
-        n_below_floor: data.n_below_floor,
-    })
-}
+pub use crate::fit::file::{nrmse_at, truth_settings, TruthNrmse};
 
 /// One species' entry.
 pub struct Entry {
@@ -335,6 +286,7 @@ pub fn markdown(entries: &[Entry], unusable: &[(String, String)]) -> String {
 mod tests {
     use super::*;
     use crate::fit::forward::predict_points;
+    use crate::model::far::FarOptions;
     use crate::model::LobeSet;
 
     fn coverage_line_of(md: &str) -> &str {
@@ -540,7 +492,7 @@ mod tests {
         let mut m = vec![0.0; pts.len()];
         predict_points(&truth, &pts, &fixed, LobeSet::ALL, &mut m);
         let peak = m.iter().copied().fold(0.0, f64::max);
-        let mut prof = Profile::default();
+        let mut prof = crate::Profile::default();
         for (k, (&(ti, tr, ph), &v)) in angles.iter().zip(&m).enumerate() {
             // Five samples twelve decades below the peak: under the default floor.
             let v = if k % 67 == 1 { 1e-12 * peak } else { v };
