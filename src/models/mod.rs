@@ -25,6 +25,7 @@
 //! (degrees for angles) at the boundary, *internal units* (radians) inside, as
 //! [`ParamSpec::to_internal`] converts.
 
+pub mod chiang2016;
 mod params;
 mod points;
 pub mod yan2017;
@@ -37,7 +38,7 @@ use crate::model::{LobeSet, LobeValues};
 pub use crate::params::ParamSpec;
 
 /// The registered models, default first.
-pub static MODELS: [&'static dyn FiberModel; 1] = [&yan2017::Yan2017];
+pub static MODELS: [&'static dyn FiberModel; 2] = [&yan2017::Yan2017, &chiang2016::Chiang2016];
 
 /// The default model (`yan2017`).
 pub fn default_model() -> &'static dyn FiberModel {
