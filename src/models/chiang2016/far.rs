@@ -188,10 +188,12 @@ impl Plan {
                 phis.push(a);
                 (phis.len() - 1) as u32
             });
-            let pr = *pair_of.entry((ti.to_bits(), tr.to_bits())).or_insert_with(|| {
-                plan.pairs.push((ti, tr));
-                (plan.pairs.len() - 1) as u32
-            });
+            let pr = *pair_of
+                .entry((ti.to_bits(), tr.to_bits()))
+                .or_insert_with(|| {
+                    plan.pairs.push((ti, tr));
+                    (plan.pairs.len() - 1) as u32
+                });
             plan.index.push((s, f, pr));
         }
         plan

@@ -55,7 +55,13 @@ const fn spec(
 /// pbrt-v4's and Mitsuba 3's parameters and their ranges (`alpha` bounded as the fur
 /// model's: TRT's tilt `4 alpha` is then at most 80 deg).
 static SPECS: [ParamSpec; 5] = [
-    spec("eta", "index of refraction", "-", (1.0, true, 3.0, false), false),
+    spec(
+        "eta",
+        "index of refraction",
+        "-",
+        (1.0, true, 3.0, false),
+        false,
+    ),
     spec(
         "beta_m",
         "longitudinal roughness",

@@ -75,7 +75,10 @@ fn attenuations_sum_to_one_without_absorption() {
             for g in [-1.5, -0.3, 0.0, 0.9, 1.57] {
                 let a = sl.attenuation(g);
                 // The residual is the closed geometric series: rounding only.
-                assert!((a.iter().sum::<f64>() - 1.0).abs() < 1e-14, "{eta} {to} {g}");
+                assert!(
+                    (a.iter().sum::<f64>() - 1.0).abs() < 1e-14,
+                    "{eta} {to} {g}"
+                );
             }
         }
     }
@@ -179,7 +182,10 @@ fn white_furnace_holds_without_absorption() {
             )
             .value;
             // The furnace bound is 1 %; quadrature gives ~1e-8.
-            assert!((total - 1.0).abs() < 1e-4, "{beta_m} {beta_n} {alpha} {to}: {total}");
+            assert!(
+                (total - 1.0).abs() < 1e-4,
+                "{beta_m} {beta_n} {alpha} {to}: {total}"
+            );
         }
     }
 }
@@ -187,7 +193,11 @@ fn white_furnace_holds_without_absorption() {
 #[test]
 fn terms_reuse_what_a_step_cannot_change() {
     let model: &'static dyn FiberModel = &Chiang2016;
-    let pts = Points::grid_degrees(&[0.0, 30.0], &[-60.0, 0.0, 45.0], &[-180.0, -30.0, 0.0, 90.0]);
+    let pts = Points::grid_degrees(
+        &[0.0, 30.0],
+        &[-60.0, 0.0, 45.0],
+        &[-180.0, -30.0, 0.0, 90.0],
+    );
     let far = FarOptions::default();
     let p0 = [1.55, 0.3, 0.3, 0.035, 0.4];
     let base = model.terms(&p0, &pts, &far);
