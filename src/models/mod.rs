@@ -26,19 +26,24 @@
 //! [`ParamSpec::to_internal`] converts.
 
 pub mod chiang2016;
+pub mod marschner2003;
 mod params;
 mod points;
 pub mod yan2017;
 
 pub use params::{fit_channels, select_channel, Channel, ModelParams};
-pub use points::Points;
+pub use points::{Points, SlicePlan};
 
 use crate::model::far::FarOptions;
 use crate::model::{LobeSet, LobeValues};
 pub use crate::params::ParamSpec;
 
 /// The registered models, default first.
-pub static MODELS: [&'static dyn FiberModel; 2] = [&yan2017::Yan2017, &chiang2016::Chiang2016];
+pub static MODELS: [&'static dyn FiberModel; 3] = [
+    &yan2017::Yan2017,
+    &marschner2003::Marschner2003,
+    &chiang2016::Chiang2016,
+];
 
 /// The default model (`yan2017`).
 pub fn default_model() -> &'static dyn FiberModel {
@@ -353,6 +358,27 @@ pub fn parse_lobes(names: &[&str], s: &str) -> crate::Result<LobeSet> {
         set = LobeSet(set.0 | (1 << i));
     }
     Ok(set)
+}
+
+/// A parameter's spec in a model's static table: `bounds` is `(lower, lower_open, upper,
+/// upper_open)` in file units.
+pub(crate) const fn spec(
+    name: &'static str,
+    meaning: &'static str,
+    unit: &'static str,
+    bounds: (f64, bool, f64, bool),
+    is_angle: bool,
+) -> ParamSpec {
+    ParamSpec {
+        name,
+        meaning,
+        unit,
+        lower: bounds.0,
+        lower_open: bounds.1,
+        upper: bounds.2,
+        upper_open: bounds.3,
+        is_angle,
+    }
 }
 
 /// Clamp of the solver coordinate for sigmoid and exp maps (sigmoid(30) = 1 - 9.4e-14:

@@ -3,6 +3,7 @@
 
 use crate::synth::GridPlan;
 use std::any::Any;
+use std::collections::HashMap;
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// A model's grid structure of a point list, type-erased so each model keeps its own.
@@ -99,6 +100,54 @@ impl Points {
         plans.retain(|(k, _)| *k != key);
         plans.push((key, t.clone()));
         t
+    }
+}
+
+/// A point list's structure for a model whose prediction factors into an azimuthal term per
+/// `(slice, |phi|)` and a longitudinal term per `(theta_i, theta_r)` pair: the distinct
+/// slice coordinates (the model's `key(theta_i, theta_r)`: Chiang's `theta_o`, Marschner's
+/// `|theta_d|`), each slice's distinct `|phi|` (both far fields are even in `phi`), the
+/// distinct pairs, and each point's indices into them.
+#[derive(Debug, Default)]
+pub struct SlicePlan {
+    pub slices: Vec<f64>,
+    pub phis: Vec<Vec<f64>>,
+    pub pairs: Vec<(f64, f64)>,
+    /// Per point: (slice, phi within the slice, pair).
+    pub index: Vec<(u32, u32, u32)>,
+}
+
+impl SlicePlan {
+    /// The plan of `pts` (radians) with slices keyed by `key(theta_i, theta_r)`; keys are
+    /// compared bit for bit (a rounding twin only costs one more slice).
+    pub fn new(pts: &[(f64, f64, f64)], key: impl Fn(f64, f64) -> f64) -> SlicePlan {
+        let mut plan = SlicePlan::default();
+        let mut slice_of: HashMap<u64, u32> = HashMap::new();
+        let mut phi_of: Vec<HashMap<u64, u32>> = Vec::new();
+        let mut pair_of: HashMap<(u64, u64), u32> = HashMap::new();
+        for &(ti, tr, ph) in pts {
+            let k = key(ti, tr);
+            let s = *slice_of.entry(k.to_bits()).or_insert_with(|| {
+                plan.slices.push(k);
+                plan.phis.push(Vec::new());
+                phi_of.push(HashMap::new());
+                (plan.slices.len() - 1) as u32
+            });
+            let a = ph.abs();
+            let phis = &mut plan.phis[s as usize];
+            let f = *phi_of[s as usize].entry(a.to_bits()).or_insert_with(|| {
+                phis.push(a);
+                (phis.len() - 1) as u32
+            });
+            let pr = *pair_of
+                .entry((ti.to_bits(), tr.to_bits()))
+                .or_insert_with(|| {
+                    plan.pairs.push((ti, tr));
+                    (plan.pairs.len() - 1) as u32
+                });
+            plan.index.push((s, f, pr));
+        }
+        plan
     }
 }
 

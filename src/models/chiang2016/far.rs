@@ -16,7 +16,7 @@
 
 use super::lobes::{self, Slice, P_MAX};
 use crate::model::quadrature::{adaptive_gk, GaussLegendre};
-use std::collections::HashMap;
+use crate::models::SlicePlan as Plan;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Largest change of `Phi` over one panel, in logistic scales `s`.
@@ -155,49 +155,6 @@ pub fn near_quadrature(slice: &Slice, p: usize, phi: f64, s: f64, rel: f64) -> f
         20_000,
     )
     .value
-}
-
-/// A goniometer point list's structure for this model: the distinct `theta_o` slices,
-/// each slice's distinct `|phi|`, the distinct `(theta_i, theta_o)` pairs, and each
-/// point's indices into them.
-#[derive(Debug, Default)]
-pub struct Plan {
-    pub slices: Vec<f64>,
-    pub phis: Vec<Vec<f64>>,
-    pub pairs: Vec<(f64, f64)>,
-    /// Per point: (slice, phi within the slice, pair).
-    pub index: Vec<(u32, u32, u32)>,
-}
-
-impl Plan {
-    pub fn new(pts: &[(f64, f64, f64)]) -> Plan {
-        let mut plan = Plan::default();
-        let mut slice_of: HashMap<u64, u32> = HashMap::new();
-        let mut phi_of: Vec<HashMap<u64, u32>> = Vec::new();
-        let mut pair_of: HashMap<(u64, u64), u32> = HashMap::new();
-        for &(ti, tr, ph) in pts {
-            let s = *slice_of.entry(tr.to_bits()).or_insert_with(|| {
-                plan.slices.push(tr);
-                plan.phis.push(Vec::new());
-                phi_of.push(HashMap::new());
-                (plan.slices.len() - 1) as u32
-            });
-            let a = ph.abs();
-            let phis = &mut plan.phis[s as usize];
-            let f = *phi_of[s as usize].entry(a.to_bits()).or_insert_with(|| {
-                phis.push(a);
-                (phis.len() - 1) as u32
-            });
-            let pr = *pair_of
-                .entry((ti.to_bits(), tr.to_bits()))
-                .or_insert_with(|| {
-                    plan.pairs.push((ti, tr));
-                    (plan.pairs.len() - 1) as u32
-                });
-            plan.index.push((s, f, pr));
-        }
-        plan
-    }
 }
 
 /// The far field's two factors at one parameter set: `N̄_p` per `(theta_o, |phi|)` and

@@ -16,11 +16,12 @@ pub mod lobes;
 #[cfg(test)]
 mod tests;
 
-use super::{FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset};
+use super::SlicePlan as Plan;
+use super::{spec, FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset};
 use crate::model::far::FarOptions;
 use crate::model::{LobeSet, LobeValues};
 use crate::params::ParamSpec;
-use far::{Chiang, Factors, Plan};
+use far::{Chiang, Factors};
 use std::sync::Arc;
 
 /// The model (its state lives in [`far::Chiang`], built per parameter set).
@@ -32,25 +33,6 @@ pub const BETA_M: usize = 1;
 pub const BETA_N: usize = 2;
 pub const ALPHA: usize = 3;
 pub const SIGMA_A: usize = 4;
-
-const fn spec(
-    name: &'static str,
-    meaning: &'static str,
-    unit: &'static str,
-    bounds: (f64, bool, f64, bool),
-    is_angle: bool,
-) -> ParamSpec {
-    ParamSpec {
-        name,
-        meaning,
-        unit,
-        lower: bounds.0,
-        lower_open: bounds.1,
-        upper: bounds.2,
-        upper_open: bounds.3,
-        is_angle,
-    }
-}
 
 /// pbrt-v4's and Mitsuba 3's parameters and their ranges (`alpha` bounded as the fur
 /// model's: TRT's tilt `4 alpha` is then at most 80 deg).
@@ -135,7 +117,7 @@ fn chiang(p: &[f64]) -> Chiang {
 }
 
 fn plan(points: &Points) -> Arc<Plan> {
-    points.cached("chiang2016", Plan::new)
+    points.cached("chiang2016", |pts| Plan::new(pts, |_, tr| tr))
 }
 
 fn to_lobes(v: [f64; lobes::P_MAX + 1], set: LobeSet) -> LobeValues {

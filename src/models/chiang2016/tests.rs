@@ -1,7 +1,8 @@
-use super::far::{near_quadrature, Chiang, Plan, SliceNodes};
+use super::far::{near_quadrature, Chiang, SliceNodes};
 use super::lobes::*;
 use super::*;
 use crate::model::quadrature::adaptive_gk;
+use crate::models::SlicePlan as Plan;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// I0 by its power series summed in f64, for moderate x (exact to rounding there).
@@ -161,7 +162,7 @@ fn white_furnace_holds_without_absorption() {
             let pts: Vec<(f64, f64, f64)> = (0..n_phi)
                 .map(|k| (0.0, to, -PI + 2.0 * PI * k as f64 / n_phi as f64))
                 .collect();
-            let plan = Plan::new(&pts);
+            let plan = Plan::new(&pts, |_, tr| tr);
             let n = m.azimuthal_terms(&plan);
             let mut n_int = [0.0; P_MAX + 1];
             for &(_, f, _) in &plan.index {
