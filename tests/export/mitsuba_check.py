@@ -76,22 +76,24 @@ def fit_samples(fit, root):
     return prof[prof[:, 3] >= floor * prof[:, 3].max()], data_path
 
 
-def furfit_prediction(furfit, fit_path, samples, work):
-    """furfit synth of the fit on the grid spanned by the samples, read back at them."""
-    out = work / (fit_path.stem + "-synth.csv")
+def furfit_prediction(furfit, fit_path, samples, work, channel=None):
+    """furfit synth of the fit (its channel `channel`) on the grid spanned by the
+    samples, read back at them."""
+    out = work / (fit_path.stem + f"-{channel or 'all'}-synth.csv")
     cmd = [
         furfit, "synth", "--model", "chiang2016", "--params", str(fit_path),
         "--theta-i", grid_list(samples[:, 0]), "--theta-r", grid_list(samples[:, 1]),
         "--phi", grid_list(samples[:, 2]), "--out", str(out), "--force",
-    ]
+    ] + (["--channel", channel] if channel else [])
     subprocess.run(cmd, check=True, capture_output=True)
     syn = read_profile(out)
     table = {(round(a, 9), round(b, 9), round(c, 9)): v for a, b, c, v in syn}
-    return np.array([table[(round(a, 9), round(b, 9), round(c, 9))] for a, b, c, _ in samples])
+    return np.array([table[(round(s[0], 9), round(s[1], 9), round(s[2], 9))] for s in samples])
 
 
 def mitsuba_far_field(mi, dr, bsdf, samples, nodes, chunk=2_000_000):
-    """The h-averaged, cos(theta_i)-weighted value of the BSDF at every sample."""
+    """The h-averaged, cos(theta_i)-weighted value of the BSDF at every sample, r, g, b:
+    shape (3, samples)."""
     x, w = np.polynomial.legendre.leggauss(nodes)
     gamma = 0.5 * math.pi * x
     # (1/2) int_{-1}^{1} f dh = (1/2) int f cos(gamma) dgamma, dgamma = (pi/2) dx.
@@ -100,7 +102,7 @@ def mitsuba_far_field(mi, dr, bsdf, samples, nodes, chunk=2_000_000):
     tr = np.radians(samples[:, 1])
     ph = np.radians(samples[:, 2])
     n, g = len(samples), len(gamma)
-    total = np.zeros(n)
+    total = np.zeros((3, n))
     per = max(1, chunk // g)
     ctx = mi.BSDFContext()
     for start in range(0, n, per):
@@ -115,10 +117,65 @@ def mitsuba_far_field(mi, dr, bsdf, samples, nodes, chunk=2_000_000):
         si = dr.zeros(mi.SurfaceInteraction3f, m * g)
         si.wi = mi.Vector3f(np.cos(T_r) * np.cos(phi_cam), np.sin(T_r), np.cos(T_r) * np.sin(phi_cam))
         wo = mi.Vector3f(np.cos(T_i) * np.cos(phi_light), np.sin(T_i), np.cos(T_i) * np.sin(phi_light))
-        # Color3f of width m * g: shape (3, m * g); a grey material, so the green channel.
-        f = np.array(bsdf.eval(ctx, si, wo))[1]
-        total[sl] = (f.reshape(m, g) * weight[None, :]).sum(axis=1)
-    return total * np.cos(ti)
+        # Color3f of width m * g: shape (3, m * g).
+        f = np.array(bsdf.eval(ctx, si, wo))
+        total[:, sl] = (f.reshape(3, m, g) * weight[None, None, :]).sum(axis=2)
+    return total * np.cos(ti)[None, :]
+
+
+# The goniometer grid of the shipped profiles (degrees).
+GRID = np.array(
+    [(ti, tr, ph) for ti in (0, 15, 30, 45) for tr in range(-80, 81, 2) for ph in range(-176, 181, 4)],
+    dtype=np.float64,
+)
+
+# Hand-made materials: sleek brown hair (pbrt-v4's defaults with eumelanin 1.3), a glossy
+# tilted-the-other-way fiber, a rough pale one.
+CASES = {
+    "sleek-brown": dict(eta=1.55, beta_m=0.3, beta_n=0.3, alpha=2.0, sigma_a=[1.3 * 0.419, 1.3 * 0.697, 1.3 * 1.37]),
+    "glossy-tilted": dict(eta=1.6, beta_m=0.15, beta_n=0.25, alpha=-3.0, sigma_a=[0.2, 0.5, 2.0]),
+    "rough-pale": dict(eta=1.4, beta_m=0.6, beta_n=0.7, alpha=5.0, sigma_a=[0.05, 0.08, 0.15]),
+}
+
+
+def synthetic_cases(work):
+    """(name, fit file) of each of CASES: a chiang2016 fit of channels r, g, b."""
+    for name, p in CASES.items():
+        chans = []
+        for c, sig in zip("rgb", p["sigma_a"]):
+            params = dict(eta=p["eta"], beta_m=p["beta_m"], beta_n=p["beta_n"], alpha=p["alpha"], sigma_a=sig)
+            chans.append({"model": "chiang2016", "params": params, "exposure": 1.0, "nrmse": 0.0,
+                          "data": {"channel": c}})
+        top = dict(chans[1], species=name, channels=chans)
+        path = work / f"{name}.json"
+        path.write_text(json.dumps(top))
+        yield name, path
+
+
+def check_case(mi, dr, a, work, fit_path, name, samples, channels):
+    """Export `fit_path`, evaluate it with Mitsuba at `samples`, compare each channel of
+    `channels` (None: a grey fit, compared on green) with furfit synth. None on failure."""
+    xml = work / f"{fit_path.stem}.xml"
+    subprocess.run([a.furfit, "export", "--params", str(fit_path), "--to", "mitsuba",
+                    "--out", str(xml), "--force"], check=True, capture_output=True)
+    bsdf = mi.load_file(str(xml))
+    theirs = mitsuba_far_field(mi, dr, bsdf, samples, a.nodes)
+    if not (np.all(np.isfinite(theirs)) and np.all(theirs > 0)):
+        print(f"{name}: Mitsuba gave non-positive or non-finite values", file=sys.stderr)
+        return None
+    worst, rms = 0.0, 0.0
+    for c in channels:
+        ours = furfit_prediction(a.furfit, fit_path, samples, work, c)
+        k = {"r": 0, "g": 1, "b": 2, None: 1}[c]
+        w, r = compare(theirs[k], ours)
+        worst, rms = max(worst, w), max(rms, r)
+    fit = json.loads(fit_path.read_text())
+    params = dict(fit["params"])
+    if "channels" in fit:
+        params["sigma_a"] = [ch["params"]["sigma_a"] for ch in fit["channels"]]
+    return {"species": name, "fit": str(fit_path), "samples": int(len(samples)), "params": params,
+            "max_log_error": worst, "rms_log_error": rms, "ok": worst <= a.tol,
+            "theirs": theirs[[1]]}
 
 
 def compare(a, b):
@@ -138,7 +195,7 @@ def nrmse(model, data):
     return float(np.sqrt(np.mean(d * d)) / (ly.max() - ly.min()))
 
 
-def report(results, a, version):
+def report(results, extra, a, version):
     """reports/export.md: per species the fit's NRMSE, Mitsuba's, their difference, and
     Mitsuba against furfit."""
     worst = max(results, key=lambda r: r["max_log_error"])
@@ -166,6 +223,22 @@ def report(results, a, version):
             f"| {r['species']} | {r['samples']} | {100 * r['max_log_error']:.4f} % | "
             f"{100 * r['rms_log_error']:.4f} % | {100 * r['fit_nrmse']:.4f} % | "
             f"{100 * r['mitsuba_nrmse']:.4f} % | {100 * (r['mitsuba_nrmse'] - r['fit_nrmse']):+.1e} % |"
+        )
+    lines += [
+        "",
+        "Beyond the shipped fits (all very rough, `alpha` at -20 deg, `eta` near 1 or no",
+        "absorption), hand-made r, g, b materials are checked the same way on the goniometer's",
+        "grid (each channel against `furfit synth --channel`):",
+        "",
+        "| material | eta | beta_m | beta_n | alpha | sigma_a (r, g, b) | max | RMS |",
+        "|---|---:|---:|---:|---:|---|---:|---:|",
+    ]
+    for r in extra:
+        p = r["params"]
+        lines.append(
+            f"| {r['species']} | {p['eta']} | {p['beta_m']} | {p['beta_n']} | {p['alpha']} | "
+            f"{', '.join(f'{x:.4g}' for x in p['sigma_a'])} | {100 * r['max_log_error']:.4f} % | "
+            f"{100 * r['rms_log_error']:.4f} % |"
         )
     lines += [
         "",
@@ -200,48 +273,44 @@ def main():
 
     mi.set_variant(a.variant)
     root = Path(a.root)
-    results = []
+    results, extra = [], []
     failed = False
     with tempfile.TemporaryDirectory() as tmp:
         work = Path(tmp)
         for fit_path in sorted(Path(a.fits).glob("*.json")):
             fit = json.loads(fit_path.read_text())
-            species = fit.get("species", fit_path.stem)
-            xml = work / f"{fit_path.stem}.xml"
-            subprocess.run([a.furfit, "export", "--params", str(fit_path), "--to", "mitsuba",
-                            "--out", str(xml)], check=True, capture_output=True)
-            bsdf = mi.load_file(str(xml))
-            samples, data_path = fit_samples(fit, root)
-            ours = furfit_prediction(a.furfit, fit_path, samples, work)
-            theirs = mitsuba_far_field(mi, dr, bsdf, samples, a.nodes)
-            if not (np.all(np.isfinite(theirs)) and np.all(theirs > 0)):
-                print(f"{species}: Mitsuba gave non-positive or non-finite values", file=sys.stderr)
+            samples, _ = fit_samples(fit, root)
+            r = check_case(mi, dr, a, work, fit_path, fit.get("species", fit_path.stem), samples, [None])
+            if r is None:
                 failed = True
                 continue
-            worst, rms = compare(theirs, ours)
-            r = {
-                "species": species,
-                "fit": str(fit_path),
-                "samples": int(len(samples)),
-                "max_log_error": worst,
-                "rms_log_error": rms,
-                "fit_nrmse": float(fit["nrmse"]),
-                "furfit_nrmse": nrmse(ours, samples[:, 3]),
-                "mitsuba_nrmse": nrmse(theirs, samples[:, 3]),
-            }
-            ok = worst <= a.tol
-            failed |= not ok
+            r["fit_nrmse"] = float(fit["nrmse"])
+            r["mitsuba_nrmse"] = nrmse(r.pop("theirs")[0], samples[:, 3])
             results.append(r)
+            failed |= not r["ok"]
             print(
-                f"{species}: Mitsuba vs furfit max {100 * worst:.4f}% rms {100 * rms:.4f}% of the log range "
-                f"({len(samples)} samples, {a.variant}, {a.nodes} nodes in h); NRMSE vs data: "
-                f"fit {100 * r['fit_nrmse']:.4f}%, Mitsuba {100 * r['mitsuba_nrmse']:.4f}% "
-                f"{'ok' if ok else 'FAIL'}"
+                f"{r['species']}: Mitsuba vs furfit max {100 * r['max_log_error']:.4f}% rms "
+                f"{100 * r['rms_log_error']:.4f}% of the log range ({len(samples)} samples, {a.variant}, "
+                f"{a.nodes} nodes in h); NRMSE vs data: fit {100 * r['fit_nrmse']:.4f}%, "
+                f"Mitsuba {100 * r['mitsuba_nrmse']:.4f}% {'ok' if r['ok'] else 'FAIL'}"
+            )
+        for name, fit_path in synthetic_cases(work):
+            r = check_case(mi, dr, a, work, fit_path, name, GRID, ["r", "g", "b"])
+            if r is None:
+                failed = True
+                continue
+            r.pop("theirs")
+            failed |= not r["ok"]
+            extra.append(r)
+            print(
+                f"{name} (synthetic, r g b): Mitsuba vs furfit max {100 * r['max_log_error']:.4f}% rms "
+                f"{100 * r['rms_log_error']:.4f}% of the log range ({len(GRID)} angles, {a.nodes} nodes in h) "
+                f"{'ok' if r['ok'] else 'FAIL'}"
             )
     if a.json:
         Path(a.json).write_text(json.dumps(results, indent=2) + "\n")
     if a.report:
-        Path(a.report).write_text(report(results, a, mi.__version__))
+        Path(a.report).write_text(report(results, extra, a, mi.__version__))
     if not results:
         print("no fit checked", file=sys.stderr)
         return 1
