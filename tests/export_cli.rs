@@ -287,3 +287,88 @@ fn yan_fit_export_states_its_cost() {
     );
     assert!(xml.contains("<bsdf version=\"3.0.0\" type=\"hair\""));
 }
+
+/// `--scene`: pbrt-v4 gets one file with the material (every value the fit's), the
+/// camera, both lights and one curve per fiber of the preview's lock; Mitsuba gets the
+/// scene and its curve file (which `--force` replaces only when it reads as one); the
+/// material-only formats refuse it.
+#[test]
+fn scenes_hold_the_material_and_the_lock() {
+    let dir = tempfile::tempdir().unwrap();
+    let fit = chiang_fit(dir.path(), "fox", 1.55, 0.5);
+    let o = furfit(dir.path())
+        .args([
+            "export", "--params", &fit, "--to", "pbrt", "--scene", "--out", "fox.pbrt",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let scene = std::fs::read_to_string(dir.path().join("fox.pbrt")).unwrap();
+    let m = furfit::export::pbrt::parse_params(&scene, "Material").unwrap();
+    let get = |name: &str| -> Vec<f64> {
+        m.iter()
+            .find(|(_, n, _)| n == name)
+            .map(|(_, _, v)| v.iter().map(|x| x.parse().unwrap()).collect())
+            .unwrap_or_else(|| panic!("{name}"))
+    };
+    assert_eq!(get("eta"), vec![1.55]);
+    assert_eq!(get("beta_m"), vec![0.3]);
+    assert_eq!(get("beta_n"), vec![0.4]);
+    assert_eq!(get("alpha"), vec![2.0]);
+    assert_eq!(get("sigma_a"), vec![0.5; 3]);
+    let fibers = furfit::render::scene::StrandSpec::default().fibers;
+    assert_eq!(scene.matches("Shape \"curve\"").count(), fibers);
+    for d in [
+        "LookAt",
+        "Camera \"perspective\"",
+        "LightSource \"distant\"",
+        "LightSource \"infinite\"",
+        "WorldBegin",
+    ] {
+        assert!(scene.contains(d), "{d}");
+    }
+    let o = furfit(dir.path())
+        .args([
+            "export", "--params", &fit, "--to", "mitsuba", "--scene", "--out", "fox.xml",
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", text(&o.stderr));
+    let xml = std::fs::read_to_string(dir.path().join("fox.xml")).unwrap();
+    assert!(
+        xml.contains("<shape type=\"bsplinecurve\">") && xml.contains("value=\"fox.curves.txt\"")
+    );
+    assert!(
+        xml.contains("<bsdf type=\"hair\" id=\"furfit_fox\">")
+            && xml.contains("<ref id=\"furfit_fox\"/>")
+    );
+    let curves = std::fs::read_to_string(dir.path().join("fox.curves.txt")).unwrap();
+    assert_eq!(curves.split("\n\n").count(), fibers);
+    // The curve file in the way: refused without --force; a foreign one even with it.
+    std::fs::remove_file(dir.path().join("fox.xml")).unwrap();
+    let again = |force: bool| {
+        let mut c = furfit(dir.path());
+        c.args([
+            "export", "--params", &fit, "--to", "mitsuba", "--scene", "--out", "fox.xml",
+        ]);
+        if force {
+            c.arg("--force");
+        }
+        c.output().unwrap()
+    };
+    assert!(!again(false).status.success());
+    assert!(again(true).status.success());
+    std::fs::write(dir.path().join("fox.curves.txt"), "my notes\n").unwrap();
+    let o = again(true);
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains("not a curve file written by furfit export"));
+    let o = furfit(dir.path())
+        .args([
+            "export", "--params", &fit, "--to", "cycles", "--scene", "--out", "fox.py",
+        ])
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(text(&o.stderr).contains("--scene writes Mitsuba 3 and pbrt-v4 scenes"));
+    assert!(!dir.path().join("fox.py").exists());
+}

@@ -28,6 +28,7 @@ pub mod cycles;
 pub mod materialx;
 pub mod mitsuba;
 pub mod pbrt;
+pub mod scene;
 
 use crate::error::{Error, Num, Result};
 use crate::fit::file::FitFile;
@@ -447,6 +448,36 @@ pub fn check_out(out: &Path, force: bool) -> Result<()> {
         return Err(Error::file(
             out,
             "exists and is not a file written by furfit export: not replaced, even with --force (move it away first)",
+        ));
+    }
+    Ok(())
+}
+
+/// [`check_out`] for the control-point file beside a Mitsuba scene: `--force` replaces
+/// it only when it reads as one (lines of four numbers, blank lines between fibers), the
+/// format allowing no marker.
+pub fn check_out_curves(out: &Path, force: bool) -> Result<()> {
+    crate::io::check_out_file(out)?;
+    if out.symlink_metadata().is_err() {
+        return Ok(());
+    }
+    if !force {
+        return Err(Error::file(
+            out,
+            "exists; export --scene would replace it (give --force to replace an earlier export)",
+        ));
+    }
+    let text = std::fs::read_to_string(out).unwrap_or_default();
+    let curves = !text.trim().is_empty()
+        && text.lines().all(|l| {
+            l.trim().is_empty()
+                || (l.split_whitespace().count() == 4
+                    && l.split_whitespace().all(|x| x.parse::<f64>().is_ok()))
+        });
+    if !curves {
+        return Err(Error::file(
+            out,
+            "exists and is not a curve file written by furfit export: not replaced, even with --force (move it away first)",
         ));
     }
     Ok(())
