@@ -15,6 +15,7 @@
 
 pub mod cli;
 pub mod error;
+pub mod export;
 pub mod fit;
 pub mod grid;
 pub mod io;

@@ -384,6 +384,7 @@ mod quote_tests {
 }
 
 pub mod bench_model;
+pub mod export;
 pub mod fit;
 pub mod inspect;
 pub mod render;
@@ -427,6 +428,8 @@ pub enum Command {
     Simulate(Box<simulate::Args>),
     /// Standard-error calibration: replicated noisy fits against their standard errors; writes reports/se_calibration.{md,csv}.
     SeCalibration(se_calibration::Args),
+    /// Export a fit as a Mitsuba 3, pbrt-v4, Blender Cycles or MaterialX hair material.
+    Export(export::Args),
 }
 
 /// The smallest `--tol`: at 1e-9 the cat preset's refinement already hits its split limit
@@ -449,6 +452,7 @@ pub fn main() -> std::process::ExitCode {
         Command::Render(a) => render::run(*a),
         Command::RenderConvergence(a) => render_convergence::run(a),
         Command::SeCalibration(a) => se_calibration::run(a),
+        Command::Export(a) => export::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -1,0 +1,47 @@
+# written by furfit export (furfit 0.1.0 (git 78d86591a5cd)) for Blender Cycles
+# from the chiang2016 fit fits/chiang2016/red-fox.json (NRMSE 4.456% against its data), parameters mapped exactly
+# chiang2016: eta=1.0003146388881052 beta_m=0.9357651453332078 beta_n=0.9248270285000417 alpha=-19.999999999999932 deg sigma_a=1.545714713886922, 1.545714713886922, 1.545714713886922 per unit fiber radius (r, g, b)
+# the fit's exposure 4.781139023493521 is the goniometer's scale, not part of the material
+#
+# Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
+# module: it creates the material "furfit_red_fox" and returns it from build_material().
+import math
+
+import bpy
+
+PARAMS = {
+    "beta_m": 0.9357651453332078,
+    "beta_n": 0.9248270285000417,
+    "eta": 1.0003146388881052,
+    "alpha_deg": -19.999999999999932,
+    "sigma_a": (1.545714713886922, 1.545714713886922, 1.545714713886922),
+}
+
+
+def build_material(name="furfit_red_fox"):
+    """The Principled Hair BSDF (Chiang model, absorption coefficient) of the fit."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    for node in list(nodes):
+        nodes.remove(node)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    hair = nodes.new("ShaderNodeBsdfHairPrincipled")
+    if hasattr(hair, "model"):
+        hair.model = "CHIANG"
+    hair.parametrization = "ABSORPTION"
+    inputs = hair.inputs
+    inputs["Absorption Coefficient"].default_value = PARAMS["sigma_a"]
+    inputs["Roughness"].default_value = PARAMS["beta_m"]
+    inputs["Radial Roughness"].default_value = PARAMS["beta_n"]
+    inputs["Coat"].default_value = 0.0
+    inputs["IOR"].default_value = PARAMS["eta"]
+    inputs["Offset"].default_value = math.radians(PARAMS["alpha_deg"])
+    inputs["Random Color"].default_value = 0.0
+    inputs["Random Roughness"].default_value = 0.0
+    mat.node_tree.links.new(hair.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+if __name__ == "__main__":
+    build_material()

@@ -1,0 +1,47 @@
+# written by furfit export (furfit 0.1.0 (git 78d86591a5cd)) for Blender Cycles
+# from the chiang2016 fit fits/chiang2016/springbok.json (NRMSE 15.111% against its data), parameters mapped exactly
+# chiang2016: eta=2.8669856174409585 beta_m=0.6946163706507127 beta_n=0.9997562613583456 alpha=-19.9999909575592 deg sigma_a=3.536153326408623e-13, 3.536153326408623e-13, 3.536153326408623e-13 per unit fiber radius (r, g, b)
+# the fit's exposure 0.23433247688673217 is the goniometer's scale, not part of the material
+#
+# Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
+# module: it creates the material "furfit_springbok" and returns it from build_material().
+import math
+
+import bpy
+
+PARAMS = {
+    "beta_m": 0.6946163706507127,
+    "beta_n": 0.9997562613583456,
+    "eta": 2.8669856174409585,
+    "alpha_deg": -19.9999909575592,
+    "sigma_a": (3.536153326408623e-13, 3.536153326408623e-13, 3.536153326408623e-13),
+}
+
+
+def build_material(name="furfit_springbok"):
+    """The Principled Hair BSDF (Chiang model, absorption coefficient) of the fit."""
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    nodes = mat.node_tree.nodes
+    for node in list(nodes):
+        nodes.remove(node)
+    out = nodes.new("ShaderNodeOutputMaterial")
+    hair = nodes.new("ShaderNodeBsdfHairPrincipled")
+    if hasattr(hair, "model"):
+        hair.model = "CHIANG"
+    hair.parametrization = "ABSORPTION"
+    inputs = hair.inputs
+    inputs["Absorption Coefficient"].default_value = PARAMS["sigma_a"]
+    inputs["Roughness"].default_value = PARAMS["beta_m"]
+    inputs["Radial Roughness"].default_value = PARAMS["beta_n"]
+    inputs["Coat"].default_value = 0.0
+    inputs["IOR"].default_value = PARAMS["eta"]
+    inputs["Offset"].default_value = math.radians(PARAMS["alpha_deg"])
+    inputs["Random Color"].default_value = 0.0
+    inputs["Random Roughness"].default_value = 0.0
+    mat.node_tree.links.new(hair.outputs["BSDF"], out.inputs["Surface"])
+    return mat
+
+
+if __name__ == "__main__":
+    build_material()
