@@ -40,6 +40,9 @@ pub enum Error {
     /// Invalid option or argument that is not tied to a file.
     #[error("{0}")]
     Invalid(String),
+    /// The caller cancelled the call ([`crate::cancel::Cancel`]); nothing was returned.
+    #[error("interrupted")]
+    Interrupted,
 }
 
 impl Error {

@@ -107,6 +107,28 @@ pub fn parse_theta_grid(what: &str, text: &str) -> Result<Vec<f64>> {
         .collect())
 }
 
+/// Check the angles `values` (degrees) of the grid `what`: at least one, each finite and
+/// within `[-lim, lim]`. The grids [`parse_grid`] returns are never empty nor hold a
+/// non-finite value; angles handed over as numbers (the Python module's arrays) may.
+pub fn check_angles(what: &str, values: &[f64], lim: f64) -> Result<()> {
+    if values.is_empty() {
+        return Err(Error::Invalid(format!("{what}: no angles (an empty grid)")));
+    }
+    if let Some(v) = values.iter().find(|v| !v.is_finite()) {
+        return Err(Error::Invalid(format!(
+            "{what}: angle {} is not a finite number of degrees",
+            crate::error::Num(*v)
+        )));
+    }
+    if let Some(v) = values.iter().find(|v| v.abs() > lim) {
+        return Err(Error::Invalid(format!(
+            "{what}: angle {} is outside [-{lim}, {lim}] degrees",
+            crate::error::Num(*v)
+        )));
+    }
+    Ok(())
+}
+
 /// Most samples a grid command (`synth`, `simulate`) will hold in memory: `simulate`
 /// peaks at ~165 bytes per sample (1.07 GB measured for 6.5 M), so ~1.7 GB here; a 1 deg
 /// grid over every angle is 5.9 M. Beyond, it refuses instead of failing an allocation

@@ -13,6 +13,7 @@
 //! `cargo doc --document-private-items`, so public items may link to private ones.
 #![allow(rustdoc::private_intra_doc_links)]
 
+pub mod cancel;
 pub mod cli;
 pub mod error;
 pub mod export;

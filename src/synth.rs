@@ -454,6 +454,118 @@ pub fn synthesize_channels(
     out
 }
 
+/// The output channels of a synthesis from parameters `params` with the exposure
+/// `file_k` of their file, whose fit channels are `fitted` ([`crate::models::fit_channels`]
+/// of the file `spec`): `(name, parameters, exposure)` each. `channel` `None` or `all`
+/// gives every fitted channel (one unnamed set for a preset, a parameter file or a fit of
+/// unnamed data; the one channel, named, of a single-channel fit); a name gives that
+/// channel, or an error listing those there are.
+pub fn output_channels(
+    params: ModelParams,
+    file_k: f64,
+    fitted: &[crate::models::Channel],
+    channel: Option<&str>,
+    spec: &str,
+) -> crate::Result<Vec<(String, ModelParams, f64)>> {
+    let of = |f: &crate::models::Channel| (f.name.clone(), f.params.clone(), f.exposure);
+    Ok(match channel {
+        None | Some("all") if fitted.len() > 1 => fitted.iter().map(of).collect(),
+        // `all` of a single set of parameters is that set (named if its fit's channel was).
+        None | Some("all") => match fitted {
+            [f] => vec![of(f)],
+            _ => vec![(String::new(), params, file_k)],
+        },
+        Some(c) => vec![of(crate::models::select_channel(fitted, c, spec)?)],
+    })
+}
+
+/// Check an exposure scale given to option `what` (e.g. `--exposure`): finite, > 0 and
+/// normal (a subnormal exposure scales every value to 0 or to a few bits of precision).
+pub fn check_exposure(what: &str, k: f64) -> crate::Result<()> {
+    if !(k.is_finite() && k > 0.0) {
+        return Err(crate::Error::Invalid(format!(
+            "{what} must be a finite number > 0, got {}",
+            crate::error::Num(k)
+        )));
+    }
+    if k < f64::MIN_POSITIVE {
+        return Err(crate::Error::Invalid(format!(
+            "{what} {} is below {:e}: the values would underflow to 0",
+            crate::error::Num(k),
+            f64::MIN_POSITIVE
+        )));
+    }
+    Ok(())
+}
+
+/// Share of a channel's peak below which a value the exposure pushes under the normal
+/// f64 range is a deep tail: kept (with a note), not refused ([`check_values`]).
+pub const UNDERFLOW_TAIL: f64 = 1e-12;
+
+/// Check the values of a synthesized profile whose channel `c` was scaled by
+/// `exposure(c)` (named `source` in errors: `--exposure`, or the parameter file's),
+/// before it is handed out. Returns how many values in a deep tail (below
+/// [`UNDERFLOW_TAIL`] of their channel's peak) the exposure pushed below the normal f64
+/// range, for a note.
+///
+/// The model is finite (the stability report checks it): only the exposure can push a
+/// value past the f64 range, to inf (which would not load back), or from the normal range
+/// below it (a few bits at most). A value the model itself gives below the normal range
+/// (a far tail under heavy absorption, 1e-310) is kept as it is. An exposure that pushes
+/// values into that range costs them bits: refused where the value is at least
+/// [`UNDERFLOW_TAIL`] of its channel's peak (the data), counted for a deep tail (a whole
+/// grid refused over one grazing sample at 1e-300 of the peak was the black-box audit's
+/// finding). NaN is the model's failure, refused naming where.
+pub fn check_values(
+    prof: &Profile,
+    exposure: &dyn Fn(usize) -> f64,
+    source: &str,
+) -> crate::Result<usize> {
+    let mut peak = vec![0.0f64; prof.channels.len().max(1)];
+    for s in &prof.samples {
+        if let Some(p) = peak.get_mut(s.channel) {
+            *p = p.max(s.value);
+        }
+    }
+    let exposure_underflow = |s: &Sample| {
+        s.value > 0.0
+            && s.value < f64::MIN_POSITIVE
+            && s.value / exposure(s.channel) >= f64::MIN_POSITIVE
+    };
+    let in_tail =
+        |s: &Sample| s.value < UNDERFLOW_TAIL * peak.get(s.channel).copied().unwrap_or(0.0);
+    let tail_underflows = prof
+        .samples
+        .iter()
+        .filter(|s| exposure_underflow(s) && in_tail(s))
+        .count();
+    if let Some(s) = prof
+        .samples
+        .iter()
+        .find(|s| !s.value.is_finite() || (exposure_underflow(s) && !in_tail(s)))
+    {
+        // NaN is no exposure's doing: the model failed there (the stability report
+        // checks for this; say where, so it can be reported).
+        if s.value.is_nan() {
+            return Err(crate::Error::Invalid(format!(
+                "the model gave NaN at theta_i {}, theta_r {}, phi {}: a furfit bug for these \
+                 parameters; nothing was written",
+                s.theta_i, s.theta_r, s.phi
+            )));
+        }
+        let (what, fix) = if s.value.is_finite() {
+            ("underflows", "larger")
+        } else {
+            ("overflows", "smaller")
+        };
+        return Err(crate::Error::Invalid(format!(
+            "{source}: the value at theta_i {}, theta_r {}, phi {} {what} ({:e}); use a {fix} exposure",
+            s.theta_i, s.theta_r, s.phi, s.value
+        )));
+    }
+    Ok(tail_underflows)
+}
+
 /// Save a synthesized profile (`.csv` or `.npz`, atomically) with the shared profile
 /// writers.
 pub fn save(path: &Path, prof: &Profile) -> crate::Result<()> {

@@ -1,8 +1,7 @@
 //! `furfit synth`: synthesize a profile from parameters on an angle grid.
 
 use crate::grid::{check_grid_size, parse_phi_grid, parse_theta_grid};
-use crate::models::{Integral, ModelParams};
-use crate::profile::Sample;
+use crate::models::Integral;
 use crate::synth;
 use anyhow::{bail, Context};
 use std::path::{Path, PathBuf};
@@ -80,10 +79,6 @@ fn check_out(out: &Path, force: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Share of a channel's peak below which a value the exposure pushes under the normal
-/// f64 range is a deep tail: written (with a note), not refused ([`run`]).
-const UNDERFLOW_TAIL: f64 = 1e-12;
-
 pub fn run(a: Args) -> anyhow::Result<()> {
     check_out(&a.out, a.force).context("--out")?;
     let want = a.model.as_deref().map(crate::models::by_name).transpose()?;
@@ -93,31 +88,17 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         Some(v) => crate::models::fit_channels(v, &a.params)?,
         None => Vec::new(),
     };
-    let names: Vec<&str> = fitted.iter().map(|c| c.name.as_str()).collect();
-    // (name, parameters, exposure) per output channel; an unnamed single one for a preset,
-    // a parameter file or a single-channel fit.
-    let channels: Vec<(String, ModelParams, f64)> = match a.channel.as_deref() {
-        None | Some("all") if fitted.len() > 1 => {
-            eprintln!(
-                "note: {} has channels {}: one output channel each (--channel NAME for one)",
-                a.params,
-                names.join(", ")
-            );
-            fitted
-                .iter()
-                .map(|c| (c.name.clone(), c.params.clone(), c.exposure))
-                .collect()
-        }
-        // `all` of a single set of parameters is that set (named if its fit's channel was).
-        None | Some("all") => match fitted.as_slice() {
-            [f] => vec![(f.name.clone(), f.params.clone(), f.exposure)],
-            _ => vec![(String::new(), params, file_k)],
-        },
-        Some(c) => {
-            let f = crate::models::select_channel(&fitted, c, &a.params)?;
-            vec![(f.name.clone(), f.params.clone(), f.exposure)]
-        }
-    };
+    // (name, parameters, exposure) per output channel.
+    let channels =
+        synth::output_channels(params, file_k, &fitted, a.channel.as_deref(), &a.params)?;
+    if channels.len() > 1 {
+        let names: Vec<&str> = fitted.iter().map(|c| c.name.as_str()).collect();
+        eprintln!(
+            "note: {} has channels {}: one output channel each (--channel NAME for one)",
+            a.params,
+            names.join(", ")
+        );
+    }
     for (_, p, _) in &channels {
         for n in model.notes(&p.values) {
             eprintln!("note: {n}");
@@ -133,28 +114,12 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ("--theta-r", &tr, 90.0),
         ("--phi", &phi, 180.0),
     ] {
-        if let Some(v) = g.iter().find(|v| v.abs() > lim) {
-            anyhow::bail!(
-                "{what}: angle {} is outside [-{lim}, {lim}] degrees",
-                crate::error::Num(*v)
-            );
-        }
+        crate::grid::check_angles(what, g, lim)?;
     }
     let kind = Integral::parse(&a.integral).context("--integral")?;
     let lobes = model.parse_lobes(&a.lobes).context("--lobes")?;
-    if let Some(k) = a.exposure.filter(|k| !(k.is_finite() && *k > 0.0)) {
-        anyhow::bail!(
-            "--exposure must be a finite number > 0, got {}",
-            crate::error::Num(k)
-        );
-    }
-    // A subnormal exposure scales every value to 0 or to a few bits of precision.
-    if let Some(k) = a.exposure.filter(|k| *k < f64::MIN_POSITIVE) {
-        anyhow::bail!(
-            "--exposure {} is below {:e}: the values would underflow to 0",
-            crate::error::Num(k),
-            f64::MIN_POSITIVE
-        );
+    if let Some(k) = a.exposure {
+        synth::check_exposure("--exposure", k)?;
     }
     let opts = a.far.options()?;
     let unused = (kind != Integral::Far).then(|| format!("--integral {}", kind.name()));
@@ -182,72 +147,18 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         many => synth::synthesize_channels(many, &ti, &tr, &phi, kind, lobes, a.exposure, &opts),
     };
     let dt = t0.elapsed().as_secs_f64();
-    // The model is finite (the stability report checks it): only the exposure can push a
-    // value past the f64 range, to inf (which would not load back), or from the normal
-    // range below it (a few bits at most). A value the model itself gives below the normal
-    // range (a far tail under heavy absorption, 1e-310) is written as it is.
-    //
-    // An exposure that pushes values into that range costs them bits: refused where the
-    // value is at least [`UNDERFLOW_TAIL`] of its channel's peak (the data), noted and
-    // written for a deep tail (a whole grid refused over one grazing sample at 1e-300 of
-    // the peak was the black-box audit's finding).
-    let exposure = |c: usize| a.exposure.unwrap_or(channels[c.min(channels.len() - 1)].2);
-    let mut peak = vec![0.0f64; prof.channels.len().max(1)];
-    for s in &prof.samples {
-        if let Some(p) = peak.get_mut(s.channel) {
-            *p = p.max(s.value);
-        }
-    }
-    let exposure_underflow = |s: &Sample| {
-        s.value > 0.0
-            && s.value < f64::MIN_POSITIVE
-            && s.value / exposure(s.channel) >= f64::MIN_POSITIVE
+    // Name where the exposure came from: the option, or the parameter file's key.
+    let source = if a.exposure.is_some() {
+        "--exposure".to_string()
+    } else {
+        format!("the exposure of {}", a.params)
     };
-    let in_tail =
-        |s: &Sample| s.value < UNDERFLOW_TAIL * peak.get(s.channel).copied().unwrap_or(0.0);
-    let tail_underflows = prof
-        .samples
-        .iter()
-        .filter(|s| exposure_underflow(s) && in_tail(s))
-        .count();
-    if let Some(s) = prof
-        .samples
-        .iter()
-        .find(|s| !s.value.is_finite() || (exposure_underflow(s) && !in_tail(s)))
-    {
-        // NaN is no exposure's doing: the model failed there (the stability report
-        // checks for this; say where, so it can be reported).
-        if s.value.is_nan() {
-            bail!(
-                "the model gave NaN at theta_i {}, theta_r {}, phi {}: a furfit bug for these \
-                 parameters; nothing was written",
-                s.theta_i,
-                s.theta_r,
-                s.phi
-            );
-        }
-        let (what, fix) = if s.value.is_finite() {
-            ("underflows", "larger")
-        } else {
-            ("overflows", "smaller")
-        };
-        // Name where the exposure came from: the option, or the parameter file's key.
-        let source = if a.exposure.is_some() {
-            "--exposure".to_string()
-        } else {
-            format!("the exposure of {}", a.params)
-        };
-        bail!(
-            "{source}: the value at theta_i {}, theta_r {}, phi {} {what} ({:e}); use a {fix} exposure",
-            s.theta_i,
-            s.theta_r,
-            s.phi,
-            s.value
-        );
-    }
+    let exposure = |c: usize| a.exposure.unwrap_or(channels[c.min(channels.len() - 1)].2);
+    let tail_underflows = synth::check_values(&prof, &exposure, &source)?;
     if tail_underflows > 0 {
         eprintln!(
-            "note: at this exposure {tail_underflows} value(s) below {UNDERFLOW_TAIL:e} of their channel's peak fall below the normal f64 range ({:e}) and keep fewer significant bits",
+            "note: at this exposure {tail_underflows} value(s) below {:e} of their channel's peak fall below the normal f64 range ({:e}) and keep fewer significant bits",
+            synth::UNDERFLOW_TAIL,
             f64::MIN_POSITIVE
         );
     }

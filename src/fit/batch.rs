@@ -90,7 +90,7 @@ impl Batch {
 /// The notes on the samples of `inputs` a fit leaves out, and the reason it cannot be
 /// fitted (a channel without any valid sample: no option can fit it). Any other error of
 /// the fit data (e.g. `--weighted` without sigmas) is the batch's error.
-fn data_notes(
+pub fn data_notes(
     job: &Job,
     inputs: &LoadedInputs,
     opts: &FitOptions,

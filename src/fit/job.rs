@@ -306,32 +306,68 @@ pub fn fit_loaded(
     progress: Option<Progress>,
 ) -> Result<(Value, Vec<ChannelSummary>)> {
     check_out(&job.out)?;
+    let fit = fit_species(&job.species, inputs, opts, load, progress)?;
+    let top = fit.to_json(&job.out);
+    let text = fit_text(&top)?;
+    // Again: a user's file, or another run's fit of other data, may have appeared there
+    // during the fit (audit, 2026-11-28). Refused, the finished fit is kept beside it.
+    if let Err(e) =
+        check_out(&job.out).and_then(|()| check_replace_fit(&job.out, &inputs.files, job.force))
+    {
+        let kept = keep_refused(&job.out, text.as_bytes())
+            .map(|k| format!("; the fit is written to {} instead", k.display()))
+            .unwrap_or_default();
+        return Err(Error::Invalid(format!(
+            "{} can no longer be written (it changed while fitting): {e}{kept}",
+            job.out.display()
+        )));
+    }
+    crate::io::write_atomic(&job.out, text.as_bytes())
+        .map_err(|e| Error::Invalid(format!("the fit finished but was not written: {e}")))?;
+    Ok((top, fit.summaries()))
+}
+
+/// The text of a fit file: its JSON, pretty-printed, and a final newline.
+fn fit_text(top: &Value) -> Result<String> {
+    Ok(serde_json::to_string_pretty(top).map_err(|e| Error::Invalid(format!("JSON: {e}")))? + "\n")
+}
+
+/// One species fitted, every channel, before its fit file is written ([`fit_species`]):
+/// what [`fit_loaded`] writes, for a caller that decides later where (or whether) it goes.
+#[derive(Clone, Debug)]
+pub struct SpeciesFit {
+    pub species: String,
+    /// Per channel, in the profile's order: the outcome and the provenance of its data
+    /// (without the files, which [`SpeciesFit::to_json`] records relative to the fit file).
+    pub channels: Vec<(ChannelSummary, DataInfo)>,
+    /// The channel of the fit file's top level: the one named `y` if any, else the first.
+    pub primary: usize,
+    /// The files fitted.
+    pub files: Vec<ReadFile>,
+    /// The options of the fit (the fit file records them).
+    pub opts: FitOptions,
+}
+
+/// Fit every channel of `inputs` (loaded with `load`, see [`fit_loaded`]) as species
+/// `species`; nothing is written.
+pub fn fit_species(
+    species: &str,
+    inputs: &LoadedInputs,
+    opts: &FitOptions,
+    load: &LoadOptions,
+    progress: Option<Progress>,
+) -> Result<SpeciesFit> {
     let prof = &inputs.profile;
-    let fit_dir = crate::io::resolve_path(&crate::io::parent_dir(&job.out));
-    let file_info: Vec<(String, String, String, String)> = inputs
-        .files
-        .iter()
-        .map(|f| {
-            let rel = crate::io::relative_path(&fit_dir, &crate::io::resolve_path(&f.path));
-            (
-                f.path.display().to_string(),
-                f.sha256.clone(),
-                rel.display().to_string(),
-                f.samples_sha256.clone(),
-            )
-        })
-        .collect();
     let n_ch = prof.n_channels();
     let name_of = |c: usize| prof.channels.get(c).cloned().unwrap_or_default();
     let primary = (0..n_ch)
         .find(|&c| name_of(c).eq_ignore_ascii_case("y"))
         .unwrap_or(0);
     let load_json = load_options_json(load);
-    let mut objs = Vec::new();
-    let mut sums = Vec::new();
+    let mut channels = Vec::new();
     for c in 0..n_ch {
         let data = channel_data(prof, c, opts.weighted, opts.floor).map_err(|e| match e {
-            Error::Invalid(m) => Error::Invalid(format!("{}: {m}", job.species)),
+            Error::Invalid(m) => Error::Invalid(format!("{species}: {m}")),
             other => other,
         })?;
         let n_valid = prof
@@ -348,7 +384,7 @@ pub fn fit_loaded(
             other => other,
         })?;
         let info = DataInfo {
-            files: file_info.clone(),
+            files: Vec::new(),
             n_valid,
             n_invalid: n_all - n_valid,
             n_below_floor: data.n_below_floor,
@@ -357,38 +393,75 @@ pub fn fit_loaded(
             load: load_json.clone(),
             notes: inputs.notes.clone(),
         };
-        objs.push(fit_json(&out, opts, &info));
-        sums.push(ChannelSummary {
+        let sum = ChannelSummary {
             channel: name_of(c),
             outcome: out,
-        });
+        };
+        channels.push((sum, info));
     }
-    let mut top = objs[primary].clone();
-    if let Value::Object(m) = &mut top {
-        m.insert("species".into(), Value::from(job.species.clone()));
-        if n_ch > 1 {
-            m.insert("channels".into(), Value::Array(objs));
+    Ok(SpeciesFit {
+        species: species.to_string(),
+        channels,
+        primary,
+        files: inputs.files.clone(),
+        opts: opts.clone(),
+    })
+}
+
+impl SpeciesFit {
+    /// The fit file's JSON as it is written to `out`: each file fitted is recorded with
+    /// its path relative to `out`'s folder (see [`DataInfo::files`]).
+    pub fn to_json(&self, out: &Path) -> Value {
+        let fit_dir = crate::io::resolve_path(&crate::io::parent_dir(out));
+        let file_info: Vec<(String, String, String, String)> = self
+            .files
+            .iter()
+            .map(|f| {
+                let rel = crate::io::relative_path(&fit_dir, &crate::io::resolve_path(&f.path));
+                (
+                    f.path.display().to_string(),
+                    f.sha256.clone(),
+                    rel.display().to_string(),
+                    f.samples_sha256.clone(),
+                )
+            })
+            .collect();
+        let objs: Vec<Value> = self
+            .channels
+            .iter()
+            .map(|(sum, info)| {
+                let info = DataInfo {
+                    files: file_info.clone(),
+                    ..info.clone()
+                };
+                fit_json(&sum.outcome, &self.opts, &info)
+            })
+            .collect();
+        let mut top = objs[self.primary].clone();
+        if let Value::Object(m) = &mut top {
+            m.insert("species".into(), Value::from(self.species.clone()));
+            if objs.len() > 1 {
+                m.insert("channels".into(), Value::Array(objs));
+            }
         }
+        top
     }
-    let text = serde_json::to_string_pretty(&top)
-        .map_err(|e| Error::Invalid(format!("JSON: {e}")))?
-        + "\n";
-    // Again: a user's file, or another run's fit of other data, may have appeared there
-    // during the fit (audit, 2026-11-28). Refused, the finished fit is kept beside it.
-    if let Err(e) =
-        check_out(&job.out).and_then(|()| check_replace_fit(&job.out, &inputs.files, job.force))
-    {
-        let kept = keep_refused(&job.out, text.as_bytes())
-            .map(|k| format!("; the fit is written to {} instead", k.display()))
-            .unwrap_or_default();
-        return Err(Error::Invalid(format!(
-            "{} can no longer be written (it changed while fitting): {e}{kept}",
-            job.out.display()
-        )));
+
+    /// The per-channel summaries, for printing.
+    pub fn summaries(&self) -> Vec<ChannelSummary> {
+        self.channels.iter().map(|(s, _)| s.clone()).collect()
     }
-    crate::io::write_atomic(&job.out, text.as_bytes())
-        .map_err(|e| Error::Invalid(format!("the fit finished but was not written: {e}")))?;
-    Ok((top, sums))
+
+    /// Write the fit file to `out` (atomically), as `furfit fit --out` would: only over an
+    /// earlier fit of the same data, or of other data with `force` ([`check_out`],
+    /// [`check_replace_fit`]). Returns the JSON written.
+    pub fn save(&self, out: &Path, force: bool) -> Result<Value> {
+        check_out(out)?;
+        check_replace_fit(out, &self.files, force)?;
+        let top = self.to_json(out);
+        crate::io::write_atomic(out, fit_text(&top)?.as_bytes())?;
+        Ok(top)
+    }
 }
 
 #[cfg(test)]

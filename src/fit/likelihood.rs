@@ -317,7 +317,8 @@ pub fn intervals(
         let mut resolve = |uj: f64, start: &DVector<f64>| {
             let mut layout = full.layout.clone();
             layout.fixed[id.index()] = Some(reparam::to_value(id, uj));
-            let sub = LogResidualProblem::new(full.data, layout, full.far);
+            let sub = LogResidualProblem::new(full.data, layout, full.far)
+                .with_cancel(full.cancel.clone());
             if start.is_empty() {
                 // Nothing left to re-solve.
                 return (sub.residuals(&[]).norm_squared(), start.clone());

@@ -39,6 +39,7 @@ pub mod reparam;
 pub mod starts;
 pub mod uncertainty;
 
+use crate::cancel::Cancel;
 use crate::error::{Error, Num, Result};
 use crate::model::far::FarOptions;
 use crate::models::{FiberModel, ModelParams, Param};
@@ -95,6 +96,9 @@ pub struct FitOptions {
     pub profile: Vec<Param>,
     /// Relative floor of the data used ([`channel_data`], [`DEFAULT_FLOOR`]).
     pub floor: f64,
+    /// Set from another thread, ends the fit with [`Error::Interrupted`] within about one
+    /// model evaluation (the default token is never set: the binary ends on a signal).
+    pub cancel: Cancel,
 }
 
 impl Default for FitOptions {
@@ -114,6 +118,7 @@ impl Default for FitOptions {
             broyden: true,
             profile: Vec::new(),
             floor: DEFAULT_FLOOR,
+            cancel: Cancel::default(),
         }
     }
 }
@@ -322,7 +327,8 @@ fn run_lm(
     broyden: bool,
     clock: Instant,
 ) -> Result<RunResult> {
-    let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far);
+    let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far)
+        .with_cancel(shared.cancel.clone());
     let mut lm = LevenbergMarquardt::new(clock);
     lm.ftol = ftol;
     lm.step_se = step_se;
@@ -331,7 +337,14 @@ fn run_lm(
     let res = Executor::new(&prob, lm)
         .configure(|s| s.param(u0).max_iters(max_iters))
         .run()
-        .map_err(|e| Error::Invalid(format!("solver failed: {e}")))?;
+        .map_err(|e| {
+            // A cancelled run fails at its next evaluation; that is no solver failure.
+            if shared.cancel.is_cancelled() {
+                Error::Interrupted
+            } else {
+                Error::Invalid(format!("solver failed: {e}"))
+            }
+        })?;
     let state = &res.state;
     let u = state
         .get_best_param()
@@ -407,7 +420,8 @@ pub fn fit_data(
             data.len()
         )));
     }
-    let full = LogResidualProblem::new(data, layout.clone(), opts.far);
+    let full =
+        LogResidualProblem::new(data, layout.clone(), opts.far).with_cancel(opts.cancel.clone());
     if n_free == 0 {
         return finish(
             data,
@@ -445,7 +459,8 @@ pub fn fit_data(
     } else {
         opts.far
     };
-    let sub = LogResidualProblem::new(&sub_data, layout.clone(), sub_far);
+    let sub = LogResidualProblem::new(&sub_data, layout.clone(), sub_far)
+        .with_cancel(opts.cancel.clone());
 
     // 1. Global stage.
     let mut cands: Vec<Vec<f64>> = Vec::new();
@@ -475,7 +490,12 @@ pub fn fit_data(
         .enumerate()
         .map(|(i, c)| {
             let u = DVector::from_vec(layout.to_u(c));
-            let cost = sub.cost(u.as_slice());
+            // Once cancelled, the remaining starts are not evaluated (checked below).
+            let cost = if opts.cancel.is_cancelled() {
+                f64::INFINITY
+            } else {
+                sub.cost(u.as_slice())
+            };
             (
                 i,
                 if cost.is_finite() {
@@ -487,6 +507,7 @@ pub fn fit_data(
             )
         })
         .collect();
+    opts.cancel.check()?;
     let mut order: Vec<usize> = (0..scored.len()).collect();
     order.sort_by(|&a, &b| scored[a].1.total_cmp(&scored[b].1).then(a.cmp(&b)));
     let mut chosen: Vec<usize> = order.iter().copied().take(opts.n_best.max(1)).collect();
@@ -677,6 +698,8 @@ pub fn fit_data(
         }
         out.profile_time_s = t.elapsed().as_secs_f64();
         out.profile_failed = failed.get();
+        // A cancelled re-solve counts as failed above; the intervals are then unfinished.
+        opts.cancel.check()?;
     }
     Ok(out)
 }
@@ -695,6 +718,7 @@ fn finish(
     starts_lm: usize,
     clock: Instant,
 ) -> Result<FitOutcome> {
+    opts.cancel.check()?;
     // The solve's evaluations; those below (residuals, Jacobian for the uncertainty,
     // timing) are not part of it.
     let counts = |p: &LogResidualProblem| {

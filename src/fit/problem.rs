@@ -14,6 +14,7 @@
 //! underflows to zero gives a large but finite residual instead of `-inf`.
 
 use super::reparam;
+use crate::cancel::Cancel;
 use crate::model::far::FarOptions;
 use crate::models::{FiberModel, ModelParams, ModelTerms, Param, Points};
 use argmin::core::{Error as ArgminError, Jacobian, Operator};
@@ -233,6 +234,9 @@ pub struct LogResidualProblem<'a> {
     /// Last `(u, r, terms)` computed, so the Jacobian reuses the residuals and model terms
     /// of its base point.
     last: Mutex<Option<Cached>>,
+    /// Once set, the solver's evaluations fail (ending its run) instead of evaluating
+    /// ([`FitOptions::cancel`](super::FitOptions::cancel)).
+    pub cancel: Cancel,
 }
 
 /// Residuals and model terms at one point `u`.
@@ -250,7 +254,22 @@ impl<'a> LogResidualProblem<'a> {
             evals: AtomicU64::new(0),
             fd_columns: AtomicU64::new(0),
             last: Mutex::new(None),
+            cancel: Cancel::default(),
         }
+    }
+
+    /// This problem, its solver runs ended by `cancel` once it is set.
+    pub fn with_cancel(mut self, cancel: Cancel) -> Self {
+        self.cancel = cancel;
+        self
+    }
+
+    /// The solver's error once cancelled: its run ends at the next evaluation.
+    fn stop_if_cancelled(&self) -> Result<(), ArgminError> {
+        if self.cancel.is_cancelled() {
+            return Err(ArgminError::msg("interrupted"));
+        }
+        Ok(())
     }
 
     /// Number of free parameters.
@@ -379,6 +398,7 @@ impl Operator for LogResidualProblem<'_> {
     type Output = DVector<f64>;
 
     fn apply(&self, u: &DVector<f64>) -> Result<DVector<f64>, ArgminError> {
+        self.stop_if_cancelled()?;
         Ok(self.evaluate(u).0)
     }
 }
@@ -388,6 +408,7 @@ impl Jacobian for LogResidualProblem<'_> {
     type Jacobian = DMatrix<f64>;
 
     fn jacobian(&self, u: &DVector<f64>) -> Result<DMatrix<f64>, ArgminError> {
+        self.stop_if_cancelled()?;
         Ok(self.jacobian_at(u))
     }
 }

@@ -151,6 +151,9 @@ pub struct RenderSettings {
     pub env_nee: bool,
     /// How the scattered lobes' `M_s` is read ([`bsdf::MedullaEnergy`]).
     pub medulla_energy: bsdf::MedullaEnergy,
+    /// Set from another thread, ends the render with [`crate::Error::Interrupted`] after
+    /// the image rows in progress (the default token is never set).
+    pub cancel: crate::cancel::Cancel,
 }
 
 impl Default for RenderSettings {
@@ -183,6 +186,7 @@ impl Default for RenderSettings {
             far_table: true,
             env_nee: false,
             medulla_energy: bsdf::MedullaEnergy::Fit,
+            cancel: Default::default(),
         }
     }
 }
@@ -366,6 +370,10 @@ fn render_in_pool(
             .map(|j| {
                 let mut row = Vec::with_capacity(w);
                 let mut rays = 0u64;
+                // Once cancelled, the rows not started yet stay empty (refused below).
+                if s.cancel.is_cancelled() {
+                    return (row, rays);
+                }
                 for i in 0..w {
                     let (px, py) = (x0 + i, y0 + j);
                     let idx = (py * s.width + px) as u64;
@@ -395,6 +403,7 @@ fn render_in_pool(
             .collect::<Vec<_>>()
     };
     let rows = work();
+    s.cancel.check()?;
     let seconds = start.elapsed().as_secs_f64();
     let mut beauty = Image::new(w, h);
     let mut lobes = std::array::from_fn(|_| Image::new(w, h));
