@@ -90,6 +90,7 @@ def main():
     work = ROOT / "target" / "fit_speed"
     work.mkdir(parents=True, exist_ok=True)
     profiles = make_profiles(work)
+    args.load_start = os.getloadavg()
     rows = []
     for rep in range(args.repeats):
         for name, prof in profiles.items():
@@ -103,6 +104,7 @@ def main():
                 rows.append((name, rep, tool, wall, nrmse, ev))
                 print(f"{name} rep {rep} {tool}: {wall:.2f} s, NRMSE {100 * nrmse:.3f}%, {ev} evaluations",
                       flush=True)
+    args.load_end = os.getloadavg()
     write_report(rows, profiles, args)
 
 
@@ -118,7 +120,10 @@ def write_report(rows, profiles, args):
              "Written by `bench/fit_speed/run.sh` (" + time.strftime("%Y-%m-%d %H:%M UTC", time.gmtime()) + ").", "",
              "Data: SYNTHETIC kappa = 0 hair profiles: `furfit synth` of three parameter sets (R, TT, TRT;"
              " `bench/fit_speed/run.py` lists them) with 2 % log-normal noise, seed 1.",
-             f"Machine: {platform.machine()}, {os.cpu_count()} logical CPUs, {platform.platform()}.", "",
+             f"Machine: {platform.machine()}, {os.cpu_count()} logical CPUs, {platform.platform()};"
+             f" load average (1, 5, 15 min) {args.load_start} at the start, {args.load_end} at the end"
+             " (above the CPU count, other work shared the cores: furfit, on both cores, loses more"
+             " to it than the one-threaded numpy).", "",
              "- furfit: `furfit fit PROFILE --out F --force`, blind (no start values), default options.",
              f"- scipy: `python bench/fit_speed/scipy_fit.py PROFILE --nodes {args.nodes}`: numpy far field"
              " of MODEL.md's unscattered lobes with Gauss-Legendre over h, `least_squares(method='trf')`"
