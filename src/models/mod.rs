@@ -32,7 +32,7 @@ mod points;
 pub mod yan2017;
 
 pub use params::{fit_channels, select_channel, Channel, ModelParams};
-pub use points::{Points, SlicePlan};
+pub use points::{Factored, FactoredTerms, Factors, Points, SlicePlan};
 
 use crate::model::far::FarOptions;
 use crate::model::{LobeSet, LobeValues};

@@ -1,9 +1,12 @@
 //! Goniometer points with the grid structures models find in them, kept between
 //! evaluations (a fit evaluates the same points hundreds of times).
 
+use super::{LobeSet, LobeValues, ModelTerms};
+use crate::model::far::FarOptions;
 use crate::synth::GridPlan;
 use std::any::Any;
 use std::collections::HashMap;
+use std::marker::PhantomData;
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// A model's grid structure of a point list, type-erased so each model keeps its own.
@@ -148,6 +151,119 @@ impl SlicePlan {
             plan.index.push((s, f, pr));
         }
         plan
+    }
+}
+
+/// A far field that factors over a [`SlicePlan`]: `L` lobes, each the product of an
+/// azimuthal term per `(slice, |phi|)` and a longitudinal term per pair (Chiang,
+/// Marschner). [`FactoredTerms`] keeps both for the fitter.
+pub trait Factored<const L: usize>: Sized + Send + Sync + 'static {
+    /// The model at a parameter vector (internal units, validated).
+    fn from_params(p: &[f64]) -> Self;
+    /// Parameters that only the longitudinal terms read.
+    const LONGITUDINAL: &'static [usize];
+    /// The azimuthal term of every slice and `|phi|` of `plan`.
+    fn azimuthal_terms(&self, plan: &SlicePlan) -> Vec<Vec<[f64; L]>>;
+    /// The longitudinal term of every pair of `plan`.
+    fn longitudinal_terms(&self, plan: &SlicePlan) -> Vec<[f64; L]>;
+
+    fn factors(&self, plan: &SlicePlan) -> Factors<L> {
+        Factors {
+            n: self.azimuthal_terms(plan),
+            m: self.longitudinal_terms(plan),
+        }
+    }
+}
+
+/// The two factors of a [`Factored`] far field at one parameter set.
+#[derive(Clone, Debug)]
+pub struct Factors<const L: usize> {
+    pub n: Vec<Vec<[f64; L]>>,
+    pub m: Vec<[f64; L]>,
+}
+
+impl<const L: usize> Factors<L> {
+    /// Per-lobe values at every point of `plan`.
+    pub fn lobes<'a>(&'a self, plan: &'a SlicePlan) -> impl Iterator<Item = [f64; L]> + 'a {
+        plan.index.iter().map(move |&(s, f, pr)| {
+            let n = &self.n[s as usize][f as usize];
+            let m = &self.m[pr as usize];
+            std::array::from_fn(|p| m[p] * n[p])
+        })
+    }
+
+    /// Per-lobe values as [`LobeValues`], the lobes outside `set` zero.
+    pub fn lobe_values<'a>(
+        &'a self,
+        plan: &'a SlicePlan,
+        set: LobeSet,
+    ) -> impl Iterator<Item = LobeValues> + 'a {
+        self.lobes(plan).map(move |v| {
+            let mut out = LobeValues::default();
+            for (i, x) in v.into_iter().enumerate() {
+                if set.0 & (1 << i) != 0 {
+                    out.0[i] = x;
+                }
+            }
+            out
+        })
+    }
+}
+
+/// [`ModelTerms`] of a [`Factored`] model: a step in one of its `LONGITUDINAL`
+/// parameters recomputes only the longitudinal terms, any other only the azimuthal ones.
+pub struct FactoredTerms<M, const L: usize> {
+    pub plan: Arc<SlicePlan>,
+    pub factors: Factors<L>,
+    model: PhantomData<fn() -> M>,
+}
+
+impl<M: Factored<L>, const L: usize> FactoredTerms<M, L> {
+    pub fn new(p: &[f64], plan: Arc<SlicePlan>) -> FactoredTerms<M, L> {
+        let factors = M::from_params(p).factors(&plan);
+        FactoredTerms {
+            plan,
+            factors,
+            model: PhantomData,
+        }
+    }
+}
+
+impl<M: Factored<L>, const L: usize> ModelTerms for FactoredTerms<M, L> {
+    fn values(&self, _points: &Points, out: &mut [f64]) {
+        for (o, v) in out.iter_mut().zip(self.factors.lobes(&self.plan)) {
+            *o = v.iter().sum();
+        }
+    }
+
+    fn with_change(
+        &self,
+        p: &[f64],
+        changed: usize,
+        _points: &Points,
+        _far: &FarOptions,
+    ) -> Box<dyn ModelTerms> {
+        let model = M::from_params(p);
+        let factors = if M::LONGITUDINAL.contains(&changed) {
+            Factors {
+                n: self.factors.n.clone(),
+                m: model.longitudinal_terms(&self.plan),
+            }
+        } else {
+            Factors {
+                n: model.azimuthal_terms(&self.plan),
+                m: self.factors.m.clone(),
+            }
+        };
+        Box::new(FactoredTerms::<M, L> {
+            plan: self.plan.clone(),
+            factors,
+            model: PhantomData,
+        })
+    }
+
+    fn capped_slices(&self) -> (usize, usize) {
+        (0, self.plan.slices.len())
     }
 }
 

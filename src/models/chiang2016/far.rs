@@ -16,7 +16,7 @@
 
 use super::lobes::{self, Slice, P_MAX};
 use crate::model::quadrature::{adaptive_gk, GaussLegendre};
-use crate::models::SlicePlan as Plan;
+use crate::models::{Factored, SlicePlan as Plan};
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Largest change of `Phi` over one panel, in logistic scales `s`.
@@ -157,14 +157,6 @@ pub fn near_quadrature(slice: &Slice, p: usize, phi: f64, s: f64, rel: f64) -> f
     .value
 }
 
-/// The far field's two factors at one parameter set: `N̄_p` per `(theta_o, |phi|)` and
-/// `cos(theta_i) M_p` per `(theta_i, theta_o)` pair.
-#[derive(Clone, Debug)]
-pub struct Factors {
-    pub n: Vec<Vec<[f64; P_MAX + 1]>>,
-    pub m: Vec<[f64; P_MAX + 1]>,
-}
-
 /// Parameters as the far field reads them (internal units, validated at the boundary).
 #[derive(Clone, Copy, Debug)]
 pub struct Chiang {
@@ -175,9 +167,23 @@ pub struct Chiang {
     pub sigma_a: f64,
 }
 
-impl Chiang {
-    /// `N̄_p` of every slice and `|phi|` of `plan`.
-    pub fn azimuthal_terms(&self, plan: &Plan) -> Vec<Vec<[f64; P_MAX + 1]>> {
+impl Factored<{ P_MAX + 1 }> for Chiang {
+    fn from_params(p: &[f64]) -> Chiang {
+        use super::{ALPHA, BETA_M, BETA_N, ETA, SIGMA_A};
+        Chiang {
+            eta: p[ETA],
+            beta_m: p[BETA_M],
+            beta_n: p[BETA_N],
+            alpha: p[ALPHA],
+            sigma_a: p[SIGMA_A],
+        }
+    }
+
+    /// `beta_m` and `alpha` reach only `M_p`.
+    const LONGITUDINAL: &'static [usize] = &[super::BETA_M, super::ALPHA];
+
+    /// `N̄_p` of every slice (`theta_o`) and `|phi|` of `plan`.
+    fn azimuthal_terms(&self, plan: &Plan) -> Vec<Vec<[f64; P_MAX + 1]>> {
         use rayon::prelude::*;
         let s = lobes::logistic_scale(self.beta_n);
         plan.slices
@@ -191,7 +197,7 @@ impl Chiang {
     }
 
     /// `cos(theta_i) M_p(theta_i, theta_o)` of every pair of `plan`.
-    pub fn longitudinal_terms(&self, plan: &Plan) -> Vec<[f64; P_MAX + 1]> {
+    fn longitudinal_terms(&self, plan: &Plan) -> Vec<[f64; P_MAX + 1]> {
         let v = lobes::variances(self.beta_m);
         plan.pairs
             .iter()
@@ -200,23 +206,5 @@ impl Chiang {
                 m.map(|x| x * ti.cos())
             })
             .collect()
-    }
-
-    pub fn factors(&self, plan: &Plan) -> Factors {
-        Factors {
-            n: self.azimuthal_terms(plan),
-            m: self.longitudinal_terms(plan),
-        }
-    }
-}
-
-impl Factors {
-    /// Per-lobe values at every point of `plan`.
-    pub fn lobes<'a>(&'a self, plan: &'a Plan) -> impl Iterator<Item = [f64; P_MAX + 1]> + 'a {
-        plan.index.iter().map(move |&(s, f, pr)| {
-            let n = &self.n[s as usize][f as usize];
-            let m = &self.m[pr as usize];
-            std::array::from_fn(|p| m[p] * n[p])
-        })
     }
 }

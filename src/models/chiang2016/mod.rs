@@ -18,10 +18,11 @@ mod tests;
 
 use super::SlicePlan as Plan;
 use super::{spec, FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset};
+use super::{Factored, FactoredTerms, Factors};
 use crate::model::far::FarOptions;
-use crate::model::{LobeSet, LobeValues};
+use crate::model::LobeSet;
 use crate::params::ParamSpec;
-use far::{Chiang, Factors};
+use far::Chiang;
 use std::sync::Arc;
 
 /// The model (its state lives in [`far::Chiang`], built per parameter set).
@@ -106,28 +107,8 @@ pub const BETA_M_FLOOR: f64 = 1e-3;
 /// down dearer for no difference any sample can show.
 pub const BETA_N_FLOOR: f64 = 0.02;
 
-fn chiang(p: &[f64]) -> Chiang {
-    Chiang {
-        eta: p[ETA],
-        beta_m: p[BETA_M],
-        beta_n: p[BETA_N],
-        alpha: p[ALPHA],
-        sigma_a: p[SIGMA_A],
-    }
-}
-
 fn plan(points: &Points) -> Arc<Plan> {
     points.cached("chiang2016", |pts| Plan::new(pts, |_, tr| tr))
-}
-
-fn to_lobes(v: [f64; lobes::P_MAX + 1], set: LobeSet) -> LobeValues {
-    let mut out = LobeValues::default();
-    for (i, x) in v.into_iter().enumerate() {
-        if set.0 & (1 << i) != 0 {
-            out.0[i] = x;
-        }
-    }
-    out
 }
 
 impl FiberModel for Chiang2016 {
@@ -194,7 +175,7 @@ impl FiberModel for Chiang2016 {
         integral: Integral,
     ) -> Prediction {
         let plan = plan(points);
-        let model = chiang(p);
+        let model = Chiang::from_params(p);
         let factors = match integral {
             Integral::Far => model.factors(&plan),
             Integral::NearQuadrature => Factors {
@@ -203,15 +184,14 @@ impl FiberModel for Chiang2016 {
             },
         };
         Prediction {
-            lobes: factors.lobes(&plan).map(|v| to_lobes(v, lobes)).collect(),
+            lobes: factors.lobe_values(&plan, lobes).collect(),
             capped: (0, plan.slices.len()),
         }
     }
 
     fn terms(&self, p: &[f64], points: &Points, _far: &FarOptions) -> Box<dyn ModelTerms> {
         let plan = plan(points);
-        let factors = chiang(p).factors(&plan);
-        Box::new(ChiangTerms { plan, factors })
+        Box::new(FactoredTerms::<Chiang, { lobes::P_MAX + 1 }>::new(p, plan))
     }
 }
 
@@ -229,48 +209,4 @@ fn near_terms(model: &Chiang, plan: &Plan) -> Vec<Vec<[f64; lobes::P_MAX + 1]>> 
                 .collect()
         })
         .collect()
-}
-
-/// The far field's factors kept by the fitter: a step in `beta_m` or `alpha` recomputes
-/// only the longitudinal terms, one in `eta`, `beta_n` or `sigma_a` only the azimuthal.
-struct ChiangTerms {
-    plan: Arc<Plan>,
-    factors: Factors,
-}
-
-impl ModelTerms for ChiangTerms {
-    fn values(&self, _points: &Points, out: &mut [f64]) {
-        for (o, v) in out.iter_mut().zip(self.factors.lobes(&self.plan)) {
-            *o = v.iter().sum();
-        }
-    }
-
-    fn with_change(
-        &self,
-        p: &[f64],
-        changed: usize,
-        _points: &Points,
-        _far: &FarOptions,
-    ) -> Box<dyn ModelTerms> {
-        let model = chiang(p);
-        let factors = if changed == BETA_M || changed == ALPHA {
-            Factors {
-                n: self.factors.n.clone(),
-                m: model.longitudinal_terms(&self.plan),
-            }
-        } else {
-            Factors {
-                n: model.azimuthal_terms(&self.plan),
-                m: self.factors.m.clone(),
-            }
-        };
-        Box::new(ChiangTerms {
-            plan: self.plan.clone(),
-            factors,
-        })
-    }
-
-    fn capped_slices(&self) -> (usize, usize) {
-        (0, self.plan.slices.len())
-    }
 }

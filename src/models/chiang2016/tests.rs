@@ -2,7 +2,7 @@ use super::far::{near_quadrature, Chiang, SliceNodes};
 use super::lobes::*;
 use super::*;
 use crate::model::quadrature::adaptive_gk;
-use crate::models::SlicePlan as Plan;
+use crate::models::{Factored, SlicePlan as Plan};
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// I0 by its power series summed in f64, for moderate x (exact to rounding there).

@@ -21,10 +21,10 @@ pub mod lobes;
 #[cfg(test)]
 mod tests;
 
-use super::SlicePlan as Plan;
 use super::{spec, FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset};
+use super::{Factored, FactoredTerms, Factors, SlicePlan as Plan};
 use crate::model::far::FarOptions;
-use crate::model::{LobeSet, LobeValues};
+use crate::model::LobeSet;
 use crate::params::ParamSpec;
 use lobes::{Glints, Section, LOBES};
 use std::sync::Arc;
@@ -154,8 +154,8 @@ pub struct Marschner {
     pub eccentricity: f64,
 }
 
-impl Marschner {
-    pub fn new(p: &[f64]) -> Marschner {
+impl Factored<LOBES> for Marschner {
+    fn from_params(p: &[f64]) -> Marschner {
         Marschner {
             eta: p[ETA],
             sigma_a: p[SIGMA_A],
@@ -171,6 +171,28 @@ impl Marschner {
         }
     }
 
+    /// `alpha_r` and `beta_r` reach only `M_p`.
+    const LONGITUDINAL: &'static [usize] = &[ALPHA_R, BETA_R];
+
+    fn azimuthal_terms(&self, plan: &Plan) -> Vec<Vec<[f64; LOBES]>> {
+        self.azimuthal_terms_by(plan, false)
+    }
+
+    /// `cos^2(theta_i) M_p(theta_h) / cos^2(theta_d)` of every pair of `plan`.
+    fn longitudinal_terms(&self, plan: &Plan) -> Vec<[f64; LOBES]> {
+        let sw = lobes::shifts_widths(self.alpha_r, self.beta_r);
+        plan.pairs
+            .iter()
+            .map(|&(ti, tr)| {
+                let (th, td) = (0.5 * (ti + tr), 0.5 * (tr - ti));
+                let c = ti.cos() / td.cos();
+                lobes::longitudinal(th, &sw).map(|m| m * c * c)
+            })
+            .collect()
+    }
+}
+
+impl Marschner {
     /// `N_R`, `N_TT`, `N_TRT` at `theta_d` and `phi`; `scan` picks the reference root
     /// finder.
     pub fn azimuthal(&self, theta_d: f64, phi: f64, scan: bool) -> [f64; LOBES] {
@@ -205,7 +227,7 @@ impl Marschner {
     }
 
     /// `N_p` of every slice (`|theta_d|`) and `|phi|` of `plan`.
-    pub fn azimuthal_terms(&self, plan: &Plan, scan: bool) -> Vec<Vec<[f64; LOBES]>> {
+    pub fn azimuthal_terms_by(&self, plan: &Plan, scan: bool) -> Vec<Vec<[f64; LOBES]>> {
         use rayon::prelude::*;
         plan.slices
             .par_iter()
@@ -219,54 +241,12 @@ impl Marschner {
             })
             .collect()
     }
-
-    /// `cos^2(theta_i) M_p(theta_h) / cos^2(theta_d)` of every pair of `plan`.
-    pub fn longitudinal_terms(&self, plan: &Plan) -> Vec<[f64; LOBES]> {
-        let sw = lobes::shifts_widths(self.alpha_r, self.beta_r);
-        plan.pairs
-            .iter()
-            .map(|&(ti, tr)| {
-                let (th, td) = (0.5 * (ti + tr), 0.5 * (tr - ti));
-                let c = ti.cos() / td.cos();
-                lobes::longitudinal(th, &sw).map(|m| m * c * c)
-            })
-            .collect()
-    }
-}
-
-/// The two factors at one parameter set: `N_p` per `(|theta_d|, |phi|)`, the
-/// longitudinal term per pair.
-#[derive(Clone, Debug)]
-pub struct Factors {
-    pub n: Vec<Vec<[f64; LOBES]>>,
-    pub m: Vec<[f64; LOBES]>,
-}
-
-impl Factors {
-    /// Per-lobe values at every point of `plan`.
-    pub fn lobes<'a>(&'a self, plan: &'a Plan) -> impl Iterator<Item = [f64; LOBES]> + 'a {
-        plan.index.iter().map(move |&(s, f, pr)| {
-            let n = &self.n[s as usize][f as usize];
-            let m = &self.m[pr as usize];
-            std::array::from_fn(|p| m[p] * n[p])
-        })
-    }
 }
 
 fn plan(points: &Points) -> Arc<Plan> {
     points.cached("marschner2003", |pts| {
         Plan::new(pts, |ti, tr| crate::model::geometry::theta_d(ti, tr).abs())
     })
-}
-
-fn to_lobes(v: [f64; LOBES], set: LobeSet) -> LobeValues {
-    let mut out = LobeValues::default();
-    for (i, x) in v.into_iter().enumerate() {
-        if set.0 & (1 << i) != 0 {
-            out.0[i] = x;
-        }
-    }
-    out
 }
 
 impl FiberModel for Marschner2003 {
@@ -351,68 +331,18 @@ impl FiberModel for Marschner2003 {
         integral: Integral,
     ) -> Prediction {
         let plan = plan(points);
-        let model = Marschner::new(p);
+        let model = Marschner::from_params(p);
         let factors = Factors {
-            n: model.azimuthal_terms(&plan, integral == Integral::NearQuadrature),
+            n: model.azimuthal_terms_by(&plan, integral == Integral::NearQuadrature),
             m: model.longitudinal_terms(&plan),
         };
         Prediction {
-            lobes: factors.lobes(&plan).map(|v| to_lobes(v, lobes)).collect(),
+            lobes: factors.lobe_values(&plan, lobes).collect(),
             capped: (0, plan.slices.len()),
         }
     }
 
     fn terms(&self, p: &[f64], points: &Points, _far: &FarOptions) -> Box<dyn ModelTerms> {
-        let plan = plan(points);
-        let model = Marschner::new(p);
-        let factors = Factors {
-            n: model.azimuthal_terms(&plan, false),
-            m: model.longitudinal_terms(&plan),
-        };
-        Box::new(MarschnerTerms { plan, factors })
-    }
-}
-
-/// The factors kept by the fitter: a step in `alpha_r` or `beta_r` recomputes only the
-/// longitudinal terms, any other only the azimuthal ones.
-struct MarschnerTerms {
-    plan: Arc<Plan>,
-    factors: Factors,
-}
-
-impl ModelTerms for MarschnerTerms {
-    fn values(&self, _points: &Points, out: &mut [f64]) {
-        for (o, v) in out.iter_mut().zip(self.factors.lobes(&self.plan)) {
-            *o = v.iter().sum();
-        }
-    }
-
-    fn with_change(
-        &self,
-        p: &[f64],
-        changed: usize,
-        _points: &Points,
-        _far: &FarOptions,
-    ) -> Box<dyn ModelTerms> {
-        let model = Marschner::new(p);
-        let factors = if changed == ALPHA_R || changed == BETA_R {
-            Factors {
-                n: self.factors.n.clone(),
-                m: model.longitudinal_terms(&self.plan),
-            }
-        } else {
-            Factors {
-                n: model.azimuthal_terms(&self.plan, false),
-                m: self.factors.m.clone(),
-            }
-        };
-        Box::new(MarschnerTerms {
-            plan: self.plan.clone(),
-            factors,
-        })
-    }
-
-    fn capped_slices(&self) -> (usize, usize) {
-        (0, self.plan.slices.len())
+        Box::new(FactoredTerms::<Marschner, LOBES>::new(p, plan(points)))
     }
 }
