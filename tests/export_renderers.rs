@@ -107,3 +107,36 @@ fn mitsuba_reproduces_furfit_for_every_species() {
 fn materialx_loads_and_validates_every_export() {
     run_check("materialx_check.py", false);
 }
+
+/// Opt-in (the `bpy` wheel is 374 MB; not installed by `.ci/run`): with
+/// `target/bpy-venv` (or `FURFIT_BLENDER_PYTHON`) Blender runs the exported Cycles script,
+/// the material must hold the fit's values, and Cycles renders a small frame of the lock
+/// (`tests/export/blender_check.py`).
+#[test]
+fn blender_builds_and_renders_the_cycles_export() {
+    let py = match std::env::var_os("FURFIT_BLENDER_PYTHON") {
+        Some(p) => PathBuf::from(p),
+        None => root().join("target/bpy-venv/bin/python"),
+    };
+    if !py.is_file() {
+        eprintln!(
+            "skipped blender_check.py (opt-in): no {} (python3.11 -m venv target/bpy-venv && \
+             target/bpy-venv/bin/pip install bpy==5.0.1 numpy)",
+            py.display()
+        );
+        return;
+    }
+    let o = Command::new(py)
+        .current_dir(root())
+        .arg("tests/export/blender_check.py")
+        .args(["--furfit", env!("CARGO_BIN_EXE_furfit")])
+        .output()
+        .unwrap();
+    let out = String::from_utf8_lossy(&o.stdout);
+    eprintln!("{out}");
+    assert!(
+        o.status.success(),
+        "blender_check.py failed:\n{out}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+}

@@ -1,4 +1,4 @@
-# written by furfit export (furfit 0.1.0 (git 78d86591a5cd)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/dog.json (NRMSE 3.912% against its data), parameters mapped exactly
 # chiang2016: eta=1.0000978669742366 beta_m=0.9963002800947547 beta_n=0.9999999924612496 alpha=-19.999999967971533 deg sigma_a=1.697220178001083, 1.697220178001083, 1.697220178001083 per unit fiber radius (r, g, b)
 # the fit's exposure 13.403780692350733 is the goniometer's scale, not part of the material
@@ -37,8 +37,10 @@ def build_material(name="furfit_dog"):
     inputs["Coat"].default_value = 0.0
     inputs["IOR"].default_value = PARAMS["eta"]
     inputs["Offset"].default_value = math.radians(PARAMS["alpha_deg"])
-    inputs["Random Color"].default_value = 0.0
-    inputs["Random Roughness"].default_value = 0.0
+    # No per-strand variation (Random Color only exists for the melanin parametrization).
+    for socket in ("Random Color", "Random Roughness"):
+        if inputs.get(socket) is not None:
+            inputs[socket].default_value = 0.0
     mat.node_tree.links.new(hair.outputs["BSDF"], out.inputs["Surface"])
     return mat
 

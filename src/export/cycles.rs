@@ -93,8 +93,10 @@ def build_material(name="{name}"):
     inputs["Coat"].default_value = 0.0
     inputs["IOR"].default_value = PARAMS["eta"]
     inputs["Offset"].default_value = math.radians(PARAMS["alpha_deg"])
-    inputs["Random Color"].default_value = 0.0
-    inputs["Random Roughness"].default_value = 0.0
+    # No per-strand variation (Random Color only exists for the melanin parametrization).
+    for socket in ("Random Color", "Random Roughness"):
+        if inputs.get(socket) is not None:
+            inputs[socket].default_value = 0.0
     mat.node_tree.links.new(hair.outputs["BSDF"], out.inputs["Surface"])
     return mat
 
