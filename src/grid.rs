@@ -184,6 +184,31 @@ pub fn wrap_deg(v: f64) -> f64 {
 mod tests {
     use super::*;
 
+    #[test]
+    fn check_angles_refuses_empty_non_finite_and_out_of_range() {
+        assert!(check_angles("theta_i", &[-90.0, 0.0, 90.0], 90.0).is_ok());
+        for (v, want) in [
+            (&[][..], "theta_i: no angles (an empty grid)"),
+            (
+                &[0.0, f64::NAN][..],
+                "theta_i: angle NaN is not a finite number of degrees",
+            ),
+            (
+                &[f64::NEG_INFINITY][..],
+                "theta_i: angle -inf is not a finite number of degrees",
+            ),
+            (
+                &[90.5][..],
+                "theta_i: angle 90.5 is outside [-90, 90] degrees",
+            ),
+        ] {
+            assert_eq!(
+                check_angles("theta_i", v, 90.0).unwrap_err().to_string(),
+                want
+            );
+        }
+    }
+
     /// A value below the f64 range is refused as in a file, not read as 0; a zero spelled
     /// with an exponent is still 0.
     #[test]

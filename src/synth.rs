@@ -642,6 +642,87 @@ mod tests {
         assert!(n > 0 && of == 5, "{n} of {of}");
     }
 
+    /// The output channels of each kind of parameter source: one unnamed set (a preset),
+    /// every channel of a multi-channel fit or the one asked for, and an error naming
+    /// the channels there are for another name.
+    #[test]
+    fn output_channels_follow_the_fit_channels() {
+        let p: ModelParams = FurParams::preset("cat").unwrap().into();
+        let one = output_channels(p.clone(), 2.0, &[], None, "cat").unwrap();
+        assert_eq!(one, vec![(String::new(), p.clone(), 2.0)]);
+        let ch = |name: &str, k: f64| crate::models::Channel {
+            name: name.into(),
+            params: p.clone(),
+            exposure: k,
+        };
+        let rgb = [ch("r", 1.0), ch("g", 2.0), ch("b", 3.0)];
+        for all in [None, Some("all")] {
+            let v = output_channels(p.clone(), 9.0, &rgb, all, "f.json").unwrap();
+            let names: Vec<&str> = v.iter().map(|c| c.0.as_str()).collect();
+            assert_eq!(names, ["r", "g", "b"]);
+            assert_eq!(v[2].2, 3.0);
+        }
+        let g = output_channels(p.clone(), 9.0, &rgb, Some("g"), "f.json").unwrap();
+        assert_eq!(g, vec![("g".to_string(), p.clone(), 2.0)]);
+        // A fit of one named channel keeps its name and its exposure.
+        let y = output_channels(p.clone(), 9.0, &rgb[..1], None, "f.json").unwrap();
+        assert_eq!(y, vec![("r".to_string(), p.clone(), 1.0)]);
+        let e = output_channels(p, 9.0, &rgb, Some("y"), "f.json").unwrap_err();
+        assert!(e.to_string().contains("has channels r, g, b"), "{e}");
+    }
+
+    #[test]
+    fn exposure_checks_name_the_option() {
+        assert!(check_exposure("--exposure", 2.5).is_ok());
+        for (k, want) in [
+            (0.0, "--exposure must be a finite number > 0, got 0"),
+            (f64::NAN, "--exposure must be a finite number > 0, got NaN"),
+            (1e-310, "--exposure 1e-310 is below"),
+        ] {
+            let e = check_exposure("--exposure", k).unwrap_err().to_string();
+            assert!(e.starts_with(want), "{e}");
+        }
+    }
+
+    /// Values the exposure pushed past the f64 range are refused (naming the sample and
+    /// the exposure's source), a deep tail below the normal range is only counted, and
+    /// NaN is the model's failure.
+    #[test]
+    fn check_values_refuses_overflow_counts_deep_tails() {
+        let prof = |values: &[f64]| Profile {
+            samples: values
+                .iter()
+                .enumerate()
+                .map(|(i, &v)| Sample::new(0.0, i as f64, 0.0, v))
+                .collect(),
+            ..Default::default()
+        };
+        let one = |_: usize| 1.0;
+        assert_eq!(check_values(&prof(&[1.0, 0.5]), &one, "x").unwrap(), 0);
+        let e = check_values(&prof(&[1.0, f64::INFINITY]), &one, "--exposure")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("--exposure: the value at theta_i 0, theta_r 1, phi 0 overflows"),
+            "{e}"
+        );
+        let e = check_values(&prof(&[f64::NAN]), &one, "x")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("the model gave NaN"), "{e}");
+        // 1e-310 scaled from 1e-10 by an exposure of 1e-300: far below the peak (1), a
+        // tail; the same underflow at the peak's own scale is refused.
+        let tiny = |_: usize| 1e-300;
+        assert_eq!(check_values(&prof(&[1.0, 1e-310]), &tiny, "x").unwrap(), 1);
+        let e = check_values(&prof(&[2e-310, 1e-310]), &tiny, "k")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("underflows") && e.contains("use a larger exposure"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn plan_merges_rounding_twins_of_theta_d() {
         // The throughput grid's 99 distinct theta_d (whole and half degrees, 0..52.5)

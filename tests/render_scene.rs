@@ -554,3 +554,23 @@ fn later_vertices_light_goes_to_the_first_vertex_lobe() {
         );
     }
 }
+
+/// A set cancel token ends the render with `Interrupted` (no image), an unset one renders
+/// as usual: the token changes nothing else.
+#[test]
+fn cancelled_render_is_interrupted() {
+    let p = fur();
+    let mut s = small(Mode::Near);
+    s.spp = 1;
+    let cancel = furfit::cancel::Cancel::new();
+    s.cancel = cancel.clone();
+    let scene = furfit::render::Scene::build(&s.strand);
+    let plain = render_scene(&scene, &p, &s).unwrap();
+    cancel.cancel();
+    assert!(matches!(
+        render_scene(&scene, &p, &s),
+        Err(furfit::Error::Interrupted)
+    ));
+    s.cancel = Default::default();
+    assert_eq!(render_scene(&scene, &p, &s).unwrap().beauty, plain.beauty);
+}

@@ -468,6 +468,75 @@ impl SpeciesFit {
 mod tests {
     use super::*;
 
+    /// A species fitted in memory: its fit file records the data relative to wherever it
+    /// is saved, `fit_loaded` writes the same file, and `save` refuses a file that is no
+    /// fit, as `furfit fit --out` does.
+    #[test]
+    fn species_fit_saves_the_file_fit_loaded_writes() {
+        let dir = tempfile::tempdir().unwrap();
+        let data = dir.path().join("data").join("fox.csv");
+        std::fs::create_dir_all(data.parent().unwrap()).unwrap();
+        let p: crate::models::ModelParams = crate::FurParams::preset("red-fox").unwrap().into();
+        let prof = crate::synth::synthesize(
+            &p,
+            &[0.0, 30.0],
+            &[-40.0, 0.0, 40.0],
+            &[0.0, 90.0, 180.0],
+            crate::models::Integral::Far,
+            crate::model::LobeSet::ALL,
+            2.0,
+            &Default::default(),
+        );
+        crate::synth::save(&data, &prof).unwrap();
+        // Every parameter fixed: the fit is the exposure alone (milliseconds).
+        let mut opts = FitOptions::default();
+        for (s, v) in p.model.specs().iter().zip(p.typed_file_units()) {
+            opts.fix(s.name, v).unwrap();
+        }
+        let load = LoadOptions::default();
+        let inputs = load_inputs_full(std::slice::from_ref(&data), &load).unwrap();
+        let fit = fit_species("fox", &inputs, &opts, &load, None).unwrap();
+        let near = dir.path().join("data").join("fit.json");
+        let far = dir.path().join("fits").join("deep").join("fit.json");
+        let rel = |v: &Value| {
+            v["data"]["files"][0]["from_fit"]
+                .as_str()
+                .unwrap()
+                .to_string()
+        };
+        assert_eq!(rel(&fit.to_json(&near)), "fox.csv");
+        assert_eq!(rel(&fit.to_json(&far)), "../../data/fox.csv");
+        let saved = fit.save(&far, false).unwrap();
+        let text = std::fs::read_to_string(&far).unwrap();
+        assert_eq!(serde_json::from_str::<Value>(&text).unwrap(), saved);
+        assert_eq!(saved["species"], "fox");
+        assert!((saved["exposure"].as_f64().unwrap() - 2.0).abs() < 1e-12);
+        // The CLI's path: the same file but for the wall-clock fields.
+        let job = Job {
+            species: "fox".into(),
+            inputs: vec![data.clone()],
+            out: far.clone(),
+            force: false,
+        };
+        let (top, _) = fit_loaded(&job, &inputs, &opts, &load, None).unwrap();
+        let strip = |v: &Value| {
+            let mut v = v.clone();
+            for k in ["wall_time_s", "model_time_s", "model_time_share"] {
+                v["solver"][k] = Value::Null;
+            }
+            for t in v["trace"].as_array_mut().unwrap() {
+                t["time_s"] = Value::Null;
+            }
+            v
+        };
+        assert_eq!(strip(&top), strip(&saved));
+        let other = dir.path().join("notes.json");
+        std::fs::write(&other, "{}").unwrap();
+        let e = fit.save(&other, true).unwrap_err().to_string();
+        assert!(e.contains("is not a furfit fit file"), "{e}");
+        assert_eq!(std::fs::read_to_string(&other).unwrap(), "{}");
+    }
+
     /// A refused fit is kept under a name no file holds (a user's file of the first name
     /// stays as it was; review, 2026-11-28: `<stem>.<pid>.json` was overwritten, and pids
     /// repeat, e.g. 1 in containers), and not as `*.json`, which reports take for a fit.

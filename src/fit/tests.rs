@@ -332,3 +332,57 @@ fn nrmse_exposure_is_the_unweighted_optimum() {
     assert!((weighted.nrmse_exposure - plain.exposure).abs() <= 1e-12 * plain.exposure);
     assert!((weighted.exposure / weighted.nrmse_exposure - 1.0).abs() > 1e-3);
 }
+
+/// A cancelled token ends the fit with `Interrupted` before its first evaluation, and an
+/// LM run on a problem whose token is set fails as interrupted, not as a solver failure.
+#[test]
+fn cancelled_fit_ends_interrupted_without_evaluating() {
+    let pts = small_points();
+    let y = synth(&FurParams::preset("mouse").unwrap(), &pts, 2.0);
+    let data = FitData::new(pts, &y, None);
+    let cancel = crate::cancel::Cancel::new();
+    cancel.cancel();
+    let o = FitOptions {
+        cancel: cancel.clone(),
+        ..FitOptions::default()
+    };
+    let t = std::time::Instant::now();
+    assert!(matches!(fit_data(&data, &o, None), Err(Error::Interrupted)));
+    // The 138 starts are skipped, not scored (one score costs milliseconds).
+    assert!(t.elapsed().as_secs_f64() < 1.0);
+    let prob =
+        LogResidualProblem::new(&data, o.layout.clone(), FarOptions::paper()).with_cancel(cancel);
+    let u0 = nalgebra::DVector::from_vec(
+        o.layout
+            .to_u(&FurParams::preset("dog").unwrap().to_file_units()),
+    );
+    let r = run_lm(&prob, u0, 5, 1e-6, None, true, std::time::Instant::now());
+    assert!(matches!(r, Err(Error::Interrupted)));
+    assert_eq!(prob.evals.load(Ordering::Relaxed), 0);
+}
+
+/// A token set from another thread during the fit stops it early; the same fit with a
+/// token nobody sets runs to its end (the token changes nothing else).
+#[test]
+fn cancel_from_another_thread_stops_a_running_fit() {
+    let pts = small_points();
+    let y = synth(&FurParams::preset("mouse").unwrap(), &pts, 2.0);
+    let data = FitData::new(pts, &y, None);
+    let cancel = crate::cancel::Cancel::new();
+    let o = FitOptions {
+        n_global: 100_000,
+        cancel: cancel.clone(),
+        ..FitOptions::default()
+    };
+    let c = cancel.clone();
+    let t = std::time::Instant::now();
+    let stopper = std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_millis(200));
+        c.cancel();
+    });
+    // 100000 starts take minutes to score; cancelled after 0.2 s, the fit ends at once.
+    let r = fit_data(&data, &o, None);
+    stopper.join().unwrap();
+    assert!(matches!(r, Err(Error::Interrupted)), "{r:?}");
+    assert!(t.elapsed().as_secs_f64() < 20.0, "{:?}", t.elapsed());
+}
