@@ -521,6 +521,12 @@ pub fn check_values(
     exposure: &dyn Fn(usize) -> f64,
     source: &str,
 ) -> crate::Result<usize> {
+    // Only a non-finite value or one below the normal range can fail or count: one pass
+    // finds there is none, the common case (the peaks are needed only otherwise).
+    let suspect = |v: f64| !v.is_finite() || (v > 0.0 && v < f64::MIN_POSITIVE);
+    if !prof.samples.iter().any(|s| suspect(s.value)) {
+        return Ok(0);
+    }
     let mut peak = vec![0.0f64; prof.channels.len().max(1)];
     for s in &prof.samples {
         if let Some(p) = peak.get_mut(s.channel) {

@@ -1,14 +1,18 @@
 """Binding overhead of ``furfit.synth`` (issue 63): the Python call on the 4 x 61 x 181
-grid against the library call it wraps (``furfit::synth::synthesize``, timed alone by the
-Rust example ``bench_synth`` of the binding crate on the same grid and preset).
+grid against the library call it wraps, ``furfit::synth::synthesize`` on the same grid
+and preset, timed alone (a) in this process (``furfit._furfit._library_synth_seconds``,
+the bare call without the GIL) and (b) in the Rust example ``bench_synth`` of the binding
+crate (its ``--serve`` process, idle while Python runs).
 
 Run from the repository root, in an environment with ``furfit`` installed::
 
-    python python/bench/bench_synth.py [--repeats 50] [--rust-json FILE]
+    python python/bench/bench_synth.py [--calls 200]
 
-Without ``--rust-json`` it runs ``cargo run --release -p furfit-python --example
-bench_synth``. The two runs alternate in rounds (Python, Rust, Python, ...) so a busy
-machine slows both alike; the figure is the ratio of the medians. Prints one JSON line.
+The calls alternate in blocks of ``--block`` (Python, in-process library, Rust process),
+so a busy machine's drift slows all alike (one by one, each call inherited the previous
+one's freed memory or still-running frees, which favoured neither consistently). The Python time is the whole call as a user sees it (argument
+conversion, the checks, the synthesis without the GIL, the one copy into the result
+array). Prints one JSON line: medians, minima and the ratios to each library timing.
 """
 
 import argparse
@@ -27,52 +31,60 @@ THETA_R = -60.0 + 2.0 * np.arange(61)
 PHI = -180.0 + 2.0 * np.arange(181)
 
 
-def python_times(repeats):
-    """Seconds of each ``furfit.synth`` call (after a warm-up), values checked."""
-    for _ in range(3):
-        furfit.synth("red-fox", THETA_I, THETA_R, PHI)
-    out = []
-    for _ in range(repeats):
-        t = time.perf_counter()
-        a = furfit.synth("red-fox", THETA_I, THETA_R, PHI)
-        out.append(time.perf_counter() - t)
-        assert a.shape == (4, 61, 181)
-    return out
-
-
-def rust_times(repeats):
-    """Seconds of each library call, from the Rust example."""
-    cmd = ["cargo", "run", "--quiet", "--release", "-p", "furfit-python",
-           "--example", "bench_synth", "--", str(repeats)]
-    res = subprocess.run(cmd, check=True, capture_output=True, text=True)
-    return json.loads(res.stdout.strip().splitlines()[-1])["times_s"]
+def python_call():
+    t = time.perf_counter()
+    a = furfit.synth("red-fox", THETA_I, THETA_R, PHI)
+    dt = time.perf_counter() - t
+    assert a.shape == (4, 61, 181)
+    return dt
 
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--repeats", type=int, default=50, help="calls per round")
-    ap.add_argument("--rounds", type=int, default=3, help="alternating rounds")
-    ap.add_argument("--rust-json", help="a saved output line of the Rust example")
+    ap.add_argument("--calls", type=int, default=300, help="calls of each (after warm-up)")
+    ap.add_argument("--block", type=int, default=10, help="calls of one kind in a row")
     a = ap.parse_args()
-    py, rs = [], []
-    for _ in range(a.rounds):
-        py += python_times(a.repeats)
-        if a.rust_json:
-            with open(a.rust_json) as f:
-                rs = json.load(f)["times_s"]
-        else:
-            rs += rust_times(a.repeats)
-    mp, mr = statistics.median(py), statistics.median(rs)
+    subprocess.run(["cargo", "build", "--quiet", "--release", "-p", "furfit-python",
+                    "--example", "bench_synth"], check=True)
+    lib = subprocess.Popen(["target/release/examples/bench_synth", "--serve"],
+                           stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    assert lib.stdout.readline().strip() == "ready"
+
+    def library_call():
+        lib.stdin.write("\n")
+        lib.stdin.flush()
+        return float(lib.stdout.readline())
+
+    def inproc_call():
+        return furfit._furfit._library_synth_seconds(
+            "red-fox", THETA_I, list(THETA_R), list(PHI))
+
+    for _ in range(5):  # warm-up: thread pools, tables, allocator
+        python_call()
+        inproc_call()
+        library_call()
+    py, ip, rs = [], [], []
+    for _ in range(a.calls // a.block):
+        py += [python_call() for _ in range(a.block)]
+        ip += [inproc_call() for _ in range(a.block)]
+        rs += [library_call() for _ in range(a.block)]
+    lib.stdin.close()
+    lib.wait()
+    med = statistics.median
     print(json.dumps({
         "grid": "4 x 61 x 181",
         "samples": 4 * 61 * 181,
-        "python_median_s": mp,
+        "calls": a.calls,
+        "python_median_s": med(py),
+        "library_in_process_median_s": med(ip),
+        "library_rust_process_median_s": med(rs),
+        "ratio_median_in_process": med(py) / med(ip),
+        "ratio_median_rust_process": med(py) / med(rs),
         "python_min_s": min(py),
-        "library_median_s": mr,
-        "library_min_s": min(rs),
-        "ratio_median": mp / mr,
-        "ratio_min": min(py) / min(rs),
-        "calls": [len(py), len(rs)],
+        "library_in_process_min_s": min(ip),
+        "library_rust_process_min_s": min(rs),
+        "ratio_min_in_process": min(py) / min(ip),
+        "python_samples_per_s": 4 * 61 * 181 / med(py),
     }))
     return 0
 

@@ -3,17 +3,18 @@
 //! -180:180:2), as `python/bench/bench_synth.py` times the Python call on the same grid.
 //!
 //! `cargo run --release -p furfit-python --example bench_synth [REPEATS]` prints one line
-//! of JSON: the seconds of every call after a warm-up, their median and minimum.
+//! of JSON: the seconds of every call after a warm-up, their median and minimum. With
+//! `--serve` it makes one call per line read from stdin and prints its seconds, so the
+//! Python script can alternate call by call (both see the same machine load).
 
 use furfit::model::far::FarOptions;
 use furfit::model::LobeSet;
 use furfit::models::{Integral, ModelParams};
 
 fn main() {
-    let repeats: usize = std::env::args()
-        .nth(1)
-        .and_then(|a| a.parse().ok())
-        .unwrap_or(50);
+    let arg = std::env::args().nth(1);
+    let serve = arg.as_deref() == Some("--serve");
+    let repeats: usize = arg.and_then(|a| a.parse().ok()).unwrap_or(50);
     let model = furfit::models::default_model();
     let p = ModelParams::preset(model, "red-fox").expect("a preset");
     let ti = [0.0, 15.0, 30.0, 45.0];
@@ -31,6 +32,23 @@ fn main() {
     // Warm-up: the thread pool and the medulla tables.
     for _ in 0..3 {
         run();
+    }
+    if serve {
+        use std::io::{BufRead, Write};
+        println!("ready");
+        for line in std::io::stdin().lock().lines() {
+            if line.is_err() {
+                break;
+            }
+            let mut out = std::io::stdout().lock();
+            if writeln!(out, "{:e}", run())
+                .and_then(|()| out.flush())
+                .is_err()
+            {
+                break;
+            }
+        }
+        return;
     }
     let mut times: Vec<f64> = (0..repeats).map(|_| run()).collect();
     let raw = times.clone();

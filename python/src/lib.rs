@@ -3,10 +3,12 @@
 //! makes (`src/cli/synth.rs`, `src/cli/fit.rs`, `src/cli/render.rs`), so `furfit.synth`
 //! returns the values `furfit synth` writes and `furfit.fit` the fit `furfit fit` writes.
 //!
-//! Long calls run on a worker thread with the GIL released ([`run_interruptible`]); the
-//! calling thread polls Python's signal handlers, and Ctrl-C sets the call's
-//! [`Cancel`](furfit::cancel::Cancel) token and raises `KeyboardInterrupt` once the work
-//! has stopped, so the interpreter stays usable.
+//! Long calls (fit, render, loading) run on a worker thread with the GIL released
+//! ([`run_interruptible`]); the calling thread polls Python's signal handlers, and Ctrl-C
+//! sets the call's [`Cancel`](furfit::cancel::Cancel) token and raises
+//! `KeyboardInterrupt` once the work has stopped, so the interpreter stays usable. A
+//! synthesis, which has no cancellation point, runs on the calling thread without the
+//! GIL.
 
 mod convert;
 mod fit;
@@ -111,6 +113,7 @@ fn _furfit(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("TOOL_VERSION", furfit::TOOL_VERSION)?;
     m.add("MAX_GRID_SAMPLES", furfit::grid::MAX_GRID_SAMPLES)?;
     m.add_function(wrap_pyfunction!(synth::synth, m)?)?;
+    m.add_function(wrap_pyfunction!(synth::library_synth_seconds, m)?)?;
     m.add_function(wrap_pyfunction!(profile::load_profile, m)?)?;
     m.add_function(wrap_pyfunction!(fit::fit, m)?)?;
     m.add_function(wrap_pyfunction!(render::render, m)?)?;

@@ -3,8 +3,7 @@
 //! `furfit::synth::synthesize`), returned as a float64 array instead of a file.
 
 use crate::convert::{angles, far_options, lobes_text, model_of, ParamsIn};
-use crate::{py_err, run_interruptible, warn};
-use furfit::cancel::Cancel;
+use crate::{py_err, warn};
 use furfit::models::Integral;
 use numpy::ndarray::{ArrayD, IxDyn};
 use numpy::{IntoPyArray, PyArrayDyn};
@@ -29,7 +28,8 @@ use pyo3::prelude::*;
 ///
 /// Raises ValueError for bad parameters, angles (empty, NaN, out of range) or a grid over
 /// ``MAX_GRID_SAMPLES``; OSError for unreadable files. Runs without the GIL; Ctrl-C
-/// raises KeyboardInterrupt once the synthesis ends (it has no cancellation point).
+/// raises KeyboardInterrupt once the synthesis ends (it has no cancellation point; the
+/// largest grid takes seconds).
 #[pyfunction]
 #[pyo3(signature = (params, theta_i, theta_r, phi, *, model=None, tol=Some(1e-4), lobes=None, channel=None, exposure=None, integral="far"))]
 #[allow(clippy::too_many_arguments)]
@@ -95,10 +95,12 @@ pub(crate) fn synth<'py>(
     let opts = far_options(tol)?;
     let (ni, nr, np) = (ti.len(), tr.len(), ph.len());
     let several = channels.len() > 1;
-    // The synthesis and its checks off the GIL (the checks read every value too).
-    let cancel = Cancel::new();
-    let out = run_interruptible(py, &cancel, || {
-        let prof = match channels.as_slice() {
+    // The synthesis and its checks off the GIL (the checks read every value too), on
+    // this thread: a synthesis has no cancellation point, so a worker thread polling for
+    // Ctrl-C could not end it sooner (Python raises KeyboardInterrupt when it returns),
+    // and its two thread wake-ups cost milliseconds on a busy machine.
+    let out = py.detach(|| {
+        let mut prof = match channels.as_slice() {
             [(_, p, k)] => furfit::synth::synthesize(
                 p,
                 &ti,
@@ -123,8 +125,13 @@ pub(crate) fn synth<'py>(
         // The one copy of the output: values in grid order (phi fastest, then theta_r,
         // theta_i, channel), which is the array's C order.
         let values: Vec<f64> = prof.samples.iter().map(|s| s.value).collect();
-        Ok::<_, furfit::Error>((values, tails, prof.metadata))
-    })?;
+        let metadata = std::mem::take(&mut prof.metadata);
+        // The samples (~100 bytes each) are freed on a pool thread: returning their pages
+        // to the system took up to a millisecond, 5 % of this call on the 4 x 61 x 181
+        // grid, which the caller need not wait for.
+        rayon::spawn(move || drop(prof));
+        Ok::<_, furfit::Error>((values, tails, metadata))
+    });
     let (values, tails, metadata) = out.map_err(py_err)?;
     if tails > 0 {
         warn(
@@ -153,4 +160,38 @@ pub(crate) fn synth<'py>(
         .map_err(|e| PyValueError::new_err(format!("internal shape mismatch: {e}")))?;
     // Hands the buffer to numpy: no second copy.
     Ok(arr.into_pyarray(py))
+}
+
+/// Seconds of the bare library call `furfit::synth::synthesize` of the preset `params`
+/// (the default model's) on this grid, exposure 1, default options: what
+/// `python/bench/bench_synth.py` compares `synth` with in the same process. Not API.
+#[pyfunction]
+#[pyo3(name = "_library_synth_seconds")]
+pub(crate) fn library_synth_seconds(
+    py: Python<'_>,
+    params: &str,
+    theta_i: Vec<f64>,
+    theta_r: Vec<f64>,
+    phi: Vec<f64>,
+) -> PyResult<f64> {
+    let model = furfit::models::default_model();
+    let p = furfit::models::ModelParams::preset(model, params)
+        .ok_or_else(|| PyValueError::new_err(format!("no preset {params}")))?;
+    let opts = far_options(Some(1e-4))?;
+    Ok(py.detach(|| {
+        let t = std::time::Instant::now();
+        let prof = furfit::synth::synthesize(
+            &p,
+            &theta_i,
+            &theta_r,
+            &phi,
+            Integral::Far,
+            furfit::model::LobeSet::ALL,
+            1.0,
+            &opts,
+        );
+        let dt = t.elapsed().as_secs_f64();
+        drop(prof);
+        dt
+    }))
 }

@@ -47,3 +47,24 @@ def test_package_ships_stub_and_marker():
     for name in furfit.__all__:
         if not name.startswith("__"):
             assert name in stub, name
+
+
+# The README's example, verbatim: it must run as written from the repository root.
+README_EXAMPLE = '''\
+import furfit
+fit = furfit.fit("measurements/red-fox", seed=1)
+print(fit.params, f"NRMSE {fit.nrmse:.2%}")
+grid = furfit.synth(fit, [0, 30], range(-60, 61, 2), range(-180, 181, 4))
+print(grid.shape)  # (2, 61, 91): theta_i x theta_r x phi
+'''
+
+
+def test_readme_example_runs_as_written(root):
+    import subprocess
+    import sys
+    res = subprocess.run([sys.executable, "-c", README_EXAMPLE], cwd=root,
+                         capture_output=True, text=True, timeout=600)
+    assert res.returncode == 0, res.stderr
+    out = res.stdout.splitlines()
+    assert out[-1] == "(2, 61, 91)"
+    assert "NRMSE 2.2" in out[0] and "'eta'" in out[0]
