@@ -287,30 +287,29 @@ impl Section {
         g
     }
 
-    /// `N_p(p, phi) = sum_r A(p, h_r) |2 dPhi/dh(h_r)|^-1` (Eq. 8), each root's term
-    /// weighted by `weight(h_r)` (the caustic's removal; 1 for the plain sum). A root at a
-    /// fold (`dPhi/dh = 0`) with weight 0 adds 0, its limit.
+    /// `weight * N_p(p, phi)` with `N_p = sum_r A(p, h_r) |2 dPhi/dh(h_r)|^-1` (Eq. 8);
+    /// `weight` is the caustic's damping at `phi` (1 for the plain sum). With weight 0 a
+    /// root at a fold (`dPhi/dh = 0`) adds 0, its limit.
     pub fn azimuthal(
         &self,
         p: usize,
         phi: f64,
         roots: &mut Vec<f64>,
         finder: RootFinder,
-        weight: impl Fn(f64) -> f64,
+        weight: f64,
     ) -> f64 {
         self.roots(p, phi, finder, roots);
+        if weight == 0.0 {
+            return 0.0;
+        }
         roots
             .iter()
             .map(|&h| {
-                let w = weight(h);
-                if w == 0.0 {
-                    return 0.0;
-                }
                 let d = self.dphi(p, h).abs();
                 if d == 0.0 {
                     return f64::INFINITY;
                 }
-                w * self.attenuation(p, h) / (2.0 * d)
+                weight * self.attenuation(p, h) / (2.0 * d)
             })
             .sum()
     }
@@ -352,10 +351,10 @@ pub fn trt(sec: &Section, phi: f64, gl: &Glints, roots: &mut Vec<f64>, finder: R
     };
     let g0 = gaussian(0.0, gl.w_c);
     let damp = |x: f64| 1.0 - t * gaussian(wrap(x), gl.w_c) / g0;
-    // The damping is a function of phi, the same for every root: applied through the
-    // weight so that a root at the fold, where the plain term is infinite, adds 0.
+    // The damping, a function of phi alone, goes in as the weight so that a root at the
+    // fold, where the plain term is infinite, adds 0.
     let d = damp(phi - phi_c) * damp(phi + phi_c);
-    let plain = sec.azimuthal(2, phi, roots, finder, |_| d);
+    let plain = sec.azimuthal(2, phi, roots, finder, d);
     let glint = gaussian(wrap(phi - phi_c), gl.w_c) + gaussian(wrap(phi + phi_c), gl.w_c);
     plain + t * gl.k_g * sec.attenuation(2, h_c) * dh * glint
 }

@@ -26,7 +26,7 @@ use super::{Factored, FactoredTerms, Factors, SlicePlan as Plan};
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::params::ParamSpec;
-use lobes::{Glints, Section, LOBES};
+use lobes::{Glints, RootFinder, Section, LOBES};
 use std::sync::Arc;
 
 /// The model (its state lives in [`Marschner`], built per parameter set).
@@ -175,7 +175,7 @@ impl Factored<LOBES> for Marschner {
     const LONGITUDINAL: &'static [usize] = &[ALPHA_R, BETA_R];
 
     fn azimuthal_terms(&self, plan: &Plan) -> Vec<Vec<[f64; LOBES]>> {
-        self.azimuthal_terms_by(plan, false)
+        self.azimuthal_terms_by(plan, RootFinder::Segments)
     }
 
     /// `cos^2(theta_i) M_p(theta_h) / cos^2(theta_d)` of every pair of `plan`.
@@ -193,19 +193,13 @@ impl Factored<LOBES> for Marschner {
 }
 
 impl Marschner {
-    /// `N_R`, `N_TT`, `N_TRT` at `theta_d` and `phi`; `scan` picks the reference root
-    /// finder.
-    pub fn azimuthal(&self, theta_d: f64, phi: f64, scan: bool) -> [f64; LOBES] {
-        let sec = Section::new(self.eta, self.sigma_a, theta_d);
-        self.azimuthal_at(&sec, theta_d, phi, scan, &mut Vec::new())
-    }
-
+    /// `N_R`, `N_TT`, `N_TRT` at `theta_d` and `phi`, roots by `finder`.
     fn azimuthal_at(
         &self,
         sec: &Section,
         theta_d: f64,
         phi: f64,
-        scan: bool,
+        finder: RootFinder,
         roots: &mut Vec<f64>,
     ) -> [f64; LOBES] {
         let star = if self.eccentricity == 1.0 {
@@ -214,20 +208,15 @@ impl Marschner {
             let e = lobes::eta_star(self.eta, self.eccentricity, 0.5 * phi);
             Section::new(e, self.sigma_a, theta_d)
         };
-        let finder = if scan {
-            lobes::RootFinder::Scan
-        } else {
-            lobes::RootFinder::Segments
-        };
         [
-            sec.azimuthal(0, phi, roots, finder, |_| 1.0),
-            sec.azimuthal(1, phi, roots, finder, |_| 1.0),
+            sec.azimuthal(0, phi, roots, finder, 1.0),
+            sec.azimuthal(1, phi, roots, finder, 1.0),
             lobes::trt(&star, phi, &self.glints, roots, finder),
         ]
     }
 
     /// `N_p` of every slice (`|theta_d|`) and `|phi|` of `plan`.
-    pub fn azimuthal_terms_by(&self, plan: &Plan, scan: bool) -> Vec<Vec<[f64; LOBES]>> {
+    pub fn azimuthal_terms_by(&self, plan: &Plan, finder: RootFinder) -> Vec<Vec<[f64; LOBES]>> {
         use rayon::prelude::*;
         plan.slices
             .par_iter()
@@ -236,7 +225,7 @@ impl Marschner {
                 let sec = Section::new(self.eta, self.sigma_a, td);
                 let mut roots = Vec::with_capacity(8);
                 phis.iter()
-                    .map(|&ph| self.azimuthal_at(&sec, td, ph, scan, &mut roots))
+                    .map(|&ph| self.azimuthal_at(&sec, td, ph, finder, &mut roots))
                     .collect()
             })
             .collect()
@@ -333,7 +322,13 @@ impl FiberModel for Marschner2003 {
         let plan = plan(points);
         let model = Marschner::from_params(p);
         let factors = Factors {
-            n: model.azimuthal_terms_by(&plan, integral == Integral::NearQuadrature),
+            n: model.azimuthal_terms_by(
+                &plan,
+                match integral {
+                    Integral::Far => RootFinder::Segments,
+                    Integral::NearQuadrature => RootFinder::Scan,
+                },
+            ),
             m: model.longitudinal_terms(&plan),
         };
         Prediction {

@@ -57,8 +57,8 @@ fn segment_roots_equal_the_scan() {
                     continue;
                 }
             }
-            let a = sec.azimuthal(p, phi, &mut r1, RootFinder::Segments, |_| 1.0);
-            let b = sec.azimuthal(p, phi, &mut r2, RootFinder::Scan, |_| 1.0);
+            let a = sec.azimuthal(p, phi, &mut r1, RootFinder::Segments, 1.0);
+            let b = sec.azimuthal(p, phi, &mut r2, RootFinder::Scan, 1.0);
             assert_eq!(r1.len(), r2.len(), "{eta} {td} {phi} p={p}: {r1:?} {r2:?}");
             let rel = (a - b).abs() / a.abs().max(1e-300);
             worst = worst.max(rel);
@@ -104,7 +104,7 @@ fn root_sum_matches_brute_force_histogram_of_phi() {
                 });
                 // Midpoints in phi; a bin at a caustic is split there and each piece
                 // graded toward it (x = c + u^2), which takes out the 1/sqrt singularity.
-                let mut f = |x: f64| sec.azimuthal(p, x, &mut roots, RootFinder::Segments, |_| 1.0);
+                let mut f = |x: f64| sec.azimuthal(p, x, &mut roots, RootFinder::Segments, 1.0);
                 let exact: f64 = if near {
                     let mut cuts = vec![lo, lo + width];
                     for c in caustic.iter().flat_map(|&c| [c, -c]) {
@@ -184,7 +184,7 @@ fn trt_glint_is_finite_and_continuous_across_the_merge() {
     // Three paths on the side of phi_c toward 0.
     let plain = |d: f64| {
         let x = phic - phic.signum() * d;
-        sec.azimuthal(2, x, &mut Vec::new(), RootFinder::Segments, |_| 1.0)
+        sec.azimuthal(2, x, &mut Vec::new(), RootFinder::Segments, 1.0)
     };
     // ~1/sqrt(distance): 1e4 times closer is ~100 times brighter.
     assert!(
