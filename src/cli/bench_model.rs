@@ -15,8 +15,12 @@ pub struct Args {
     /// blind fit of each on --species (writes nothing).
     #[arg(long, conflicts_with_all = ["out", "force", "synth_only"])]
     pub models: bool,
-    /// With --models: the species folder the fits run on.
-    #[arg(long, default_value = "measurements/red-fox", requires = "models")]
+    /// Fit wall time against samples and theta_i rows: writes
+    /// fit_scaling.{csv,png,svg,md} into --out (minutes).
+    #[arg(long, conflicts_with_all = ["synth_only", "models"])]
+    pub fit_scaling: bool,
+    /// With --models or --fit-scaling: the species folder the fits run on.
+    #[arg(long, default_value = "measurements/red-fox")]
     pub species: PathBuf,
     /// Replace existing output files that furfit did not write (or that changed since).
     #[arg(long)]
@@ -27,6 +31,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     if a.models {
         crate::report::zoo_bench::throughput(&mut |line| outln!("{line}"));
         crate::report::zoo_bench::fits(&a.species, &mut |line| outln!("{line}"))?;
+        return Ok(());
+    }
+    if a.fit_scaling {
+        super::prepare_out_dir(&a.out)?;
+        let paths = ["csv", "png", "svg", "md"].map(|e| a.out.join(format!("fit_scaling.{e}")));
+        crate::io::check_replaceable(&paths, a.force)?;
+        std::fs::create_dir_all(&a.out).map_err(|e| crate::Error::io(&a.out, e))?;
+        crate::report::fit_scaling::run(&a.out, &a.species, &mut |line| outln!("{line}"))?;
         return Ok(());
     }
     if a.synth_only {

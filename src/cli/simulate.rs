@@ -383,18 +383,6 @@ fn run_profile(a: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Process CPU time (user + system) in seconds from `/proc/self/stat` (Linux; clock ticks
-/// assumed 100 per second, the Linux USER_HZ). `None` elsewhere.
-fn cpu_seconds() -> Option<f64> {
-    let s = std::fs::read_to_string("/proc/self/stat").ok()?;
-    // Fields after the parenthesised command name; utime and stime are fields 14 and 15.
-    let rest = &s[s.rfind(')')? + 2..];
-    let f: Vec<&str> = rest.split_whitespace().collect();
-    let ut: f64 = f.get(11)?.parse().ok()?;
-    let st: f64 = f.get(12)?.parse().ok()?;
-    Some((ut + st) / 100.0)
-}
-
 fn bench() -> anyhow::Result<()> {
     let threads = rayon::current_num_threads();
     let mut human0 = FurParams::preset("human").context("preset")?;
@@ -427,10 +415,10 @@ fn bench() -> anyhow::Result<()> {
             smooth: false,
         };
         let t0 = Instant::now();
-        let c0 = cpu_seconds();
+        let c0 = crate::timing::cpu_seconds();
         let r = simulate::simulate(&s, |_| {})?;
         let dt = t0.elapsed().as_secs_f64();
-        let cpu = match (c0, cpu_seconds()) {
+        let cpu = match (c0, crate::timing::cpu_seconds()) {
             (Some(a), Some(b)) if b > a => format!(
                 "; CPU {:.2} s = {:.3e} paths per CPU-second",
                 b - a,

@@ -34,8 +34,10 @@ pub mod job;
 pub mod likelihood;
 pub mod lm;
 pub mod output;
+mod polish;
 pub mod problem;
 pub mod reparam;
+mod stages;
 pub mod starts;
 pub mod uncertainty;
 
@@ -49,13 +51,19 @@ use forward::Points;
 use lm::{LevenbergMarquardt, TracePoint};
 use nalgebra::DVector;
 use problem::{FitData, LogResidualProblem, ParamLayout};
-use rayon::prelude::*;
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 use uncertainty::Uncertainty;
 
 /// Relative cost change that ends an LM run on the subsample (see [`fit_data`]).
 const SUBSAMPLE_FTOL: f64 = 1e-3;
+
+/// Default [`FitOptions::step_se`]. At 0.1 the red fox's polish crawled for 24 more
+/// iterations (41 % of the fit's CPU time) from 0.16 to 0.09 standard errors: the
+/// tolerance-mode cost jumps by ~5e-7 (chi^2 ~0.002) where a step tips a refinement
+/// decision, about what each of those steps gained. The parameters of the two stops
+/// differ by at most 0.09 of their standard errors (`reports/fit_speed.md`).
+pub const STEP_SE: f64 = 0.25;
 
 /// Settings of one fit.
 #[derive(Clone, Debug)]
@@ -83,10 +91,10 @@ pub struct FitOptions {
     /// `function_tolerance` 1e-6).
     pub ftol: f64,
     /// The final LM run ends when its Gauss-Newton step moves no parameter the data
-    /// determines by more than this many standard errors (default 0.1: refits from other
-    /// starts or after rounding-level changes then agree to a fraction of a standard
-    /// error; the relative-cost test stopped up to ~1.5 standard errors short on flat
-    /// valleys). See [`lm`].
+    /// determines by more than this many standard errors (default [`STEP_SE`]: refits
+    /// from other starts or after rounding-level changes then agree to a fraction of a
+    /// standard error; the relative-cost test stopped up to ~1.5 standard errors short on
+    /// flat valleys). See [`lm`].
     pub step_se: Option<f64>,
     /// Broyden updates of the Jacobian after accepted LM steps ([`lm`]; a run still only
     /// stops on a finite-difference Jacobian).
@@ -114,7 +122,7 @@ impl Default for FitOptions {
             layout: ParamLayout::all_free(crate::models::default_model()),
             weighted: false,
             ftol: 1e-6,
-            step_se: Some(0.1),
+            step_se: Some(STEP_SE),
             broyden: true,
             profile: Vec::new(),
             floor: DEFAULT_FLOOR,
@@ -268,53 +276,6 @@ struct RunResult {
     fd_columns: u64,
 }
 
-/// Starts of second polishes on all samples after the first ended at `u` with `cost` (see
-/// step 4 of [`fit_data`]): the `--init` start `init_u` when it costs less there, and when
-/// `u` has parameters on their bounds ([`reparam::at_bound`]), the best other candidate
-/// with them inside: another start's LM end (by its subsample cost), else the best
-/// scored start.
-#[allow(clippy::too_many_arguments)]
-fn second_polish_starts(
-    full: &LogResidualProblem,
-    u: &DVector<f64>,
-    cost: f64,
-    init_u: Option<DVector<f64>>,
-    runs: &[RunResult],
-    order: &[usize],
-    scored: &[(usize, f64, DVector<f64>)],
-) -> Vec<(&'static str, DVector<f64>)> {
-    let mut out = Vec::new();
-    if let Some(init) = init_u {
-        if full.cost(init.as_slice()) < cost {
-            out.push(("--init", init));
-        }
-    }
-    let free = full.layout.free();
-    let pinned: Vec<usize> = (0..free.len())
-        .filter(|&j| reparam::at_bound(free[j], u[j]))
-        .collect();
-    if pinned.is_empty() {
-        return out;
-    }
-    let inside = |v: &DVector<f64>| pinned.iter().all(|&j| !reparam::at_bound(free[j], v[j]));
-    let cand = runs
-        .iter()
-        .filter(|r| inside(&r.u))
-        .min_by(|a, b| a.cost.total_cmp(&b.cost))
-        .map(|r| r.u.clone())
-        .or_else(|| {
-            order
-                .iter()
-                .map(|&i| &scored[i].2)
-                .find(|v| inside(v))
-                .cloned()
-        });
-    if let Some(c) = cand {
-        out.push(("a start off the bound", c));
-    }
-    out
-}
-
 /// One LM run from `u0` on `shared`'s data. The run gets its own problem instance (its own
 /// residual cache and counter), so concurrent runs cannot change each other's evaluation
 /// counts; the count is added to `shared` afterwards.
@@ -327,8 +288,7 @@ fn run_lm(
     broyden: bool,
     clock: Instant,
 ) -> Result<RunResult> {
-    let prob = LogResidualProblem::new(shared.data, shared.layout.clone(), shared.far)
-        .with_cancel(shared.cancel.clone());
+    let prob = shared.fork();
     let mut lm = LevenbergMarquardt::new(clock);
     lm.ftol = ftol;
     lm.step_se = step_se;
@@ -423,301 +383,105 @@ pub fn fit_data(
     let full =
         LogResidualProblem::new(data, layout.clone(), opts.far).with_cancel(opts.cancel.clone());
     if n_free == 0 {
-        return finish(
-            data,
-            opts,
-            &full,
-            &full,
-            DVector::zeros(0),
-            0,
-            "all parameters fixed".into(),
-            Vec::new(),
-            0,
-            0,
-            clock,
-        );
+        let fixed = Solved {
+            u: DVector::zeros(0),
+            iters: 0,
+            termination: "all parameters fixed".into(),
+            trace: Vec::new(),
+        };
+        return finish(data, opts, &full, &full, fixed, (0, 0), clock);
     }
-    // Direct multi-start on all samples when a subsample would not save much.
-    let use_sub = data.len() > opts.n_sub * 3 / 2;
-    let model = layout.model;
-    let sub_idx = starts::subsample_grouped(&data.points.pts, opts.n_sub, opts.seed, |ti, tr| {
-        model.slice_of(ti, tr)
-    });
-    let sub_data = if use_sub {
-        data.subset(&sub_idx)
+    // The global and multi-start stages only choose the basin (the polish on all samples
+    // settles the optimum), so they run on a subsample of whole far-field slices (all
+    // samples when that would not save much) and on the fixed initial segmentation:
+    // smooth in the parameters and several times cheaper than the tolerance mode.
+    let sub_data = if data.len() > opts.n_sub * 3 / 2 {
+        let model = layout.model;
+        data.subset(&starts::subsample_grouped(
+            &data.points.pts,
+            opts.n_sub,
+            opts.seed,
+            |ti, tr| model.slice_of(ti, tr),
+        ))
     } else {
         data.clone()
     };
-    // The subsample stage only chooses the basin (the polish on all samples settles the
-    // optimum), so it runs on the fixed initial segmentation: smooth in the parameters
-    // and several times cheaper than the tolerance mode the polish uses.
-    let sub_far = if use_sub {
-        FarOptions {
-            tol: None,
-            ..opts.far
-        }
-    } else {
-        opts.far
+    let sub_far = FarOptions {
+        tol: None,
+        ..opts.far
     };
     let sub = LogResidualProblem::new(&sub_data, layout.clone(), sub_far)
         .with_cancel(opts.cancel.clone());
-
-    // 1. Global stage.
-    let mut cands: Vec<Vec<f64>> = Vec::new();
-    if let Some(init) = &opts.init {
-        let mut v = init.clone();
-        for (k, f) in layout.fixed.iter().enumerate() {
-            if let Some(x) = f {
-                v[k] = *x;
-            }
-        }
-        cands.push(v);
-    }
-    let presets = starts::preset_starts(layout);
-    let n_presets = presets.len();
-    cands.extend(presets);
-    cands.extend(starts::halton_starts(layout, opts.n_global, opts.seed));
-    say(&format!(
-        "global stage: scoring {} starts ({} Halton, {} presets{}) on {} samples",
-        cands.len(),
-        opts.n_global,
-        n_presets,
-        if opts.init.is_some() { ", --init" } else { "" },
-        sub_data.len()
-    ));
-    let scored: Vec<(usize, f64, DVector<f64>)> = cands
-        .par_iter()
-        .enumerate()
-        .map(|(i, c)| {
-            let u = DVector::from_vec(layout.to_u(c));
-            // Once cancelled, the remaining starts are not evaluated (checked below).
-            let cost = if opts.cancel.is_cancelled() {
-                f64::INFINITY
-            } else {
-                sub.cost(u.as_slice())
-            };
-            (
-                i,
-                if cost.is_finite() {
-                    cost
-                } else {
-                    f64::INFINITY
-                },
-                u,
-            )
-        })
-        .collect();
-    opts.cancel.check()?;
-    let mut order: Vec<usize> = (0..scored.len()).collect();
-    order.sort_by(|&a, &b| scored[a].1.total_cmp(&scored[b].1).then(a.cmp(&b)));
-    let mut chosen: Vec<usize> = order.iter().copied().take(opts.n_best.max(1)).collect();
-    // The --init start always runs LM, in addition to the best scored ones (replacing one
-    // of them could drop the best start of all).
-    if opts.init.is_some() && !chosen.contains(&0) {
-        chosen.insert(0, 0);
-    }
-    let n_sub = sub_data.len() as f64;
-    let mut trace = vec![TraceEntry {
-        stage: "global",
-        iter: 0,
-        time_s: clock.elapsed().as_secs_f64(),
-        nrmse: (2.0 * scored[order[0]].1 / n_sub).sqrt(),
-    }];
-
-    // 2. Multi-start LM (parallel over starts).
-    say(&format!(
-        "multi-start LM: {} starts on {} samples",
-        chosen.len(),
-        sub_data.len()
-    ));
-    let runs: Vec<Result<RunResult>> = chosen
-        .par_iter()
-        .map(|&i| {
-            // On a subsample the runs only choose the basin (the polish on all samples
-            // converges tightly), so they stop at a looser relative cost change.
-            let (ftol, step_se) = if use_sub {
-                (SUBSAMPLE_FTOL, None)
-            } else {
-                (opts.ftol, opts.step_se)
-            };
-            run_lm(
-                &sub,
-                scored[i].2.clone(),
-                opts.max_iters,
-                ftol,
-                step_se,
-                opts.broyden,
-                clock,
-            )
-        })
-        .collect();
-    let mut runs: Vec<RunResult> = runs.into_iter().collect::<Result<_>>()?;
-    sub.evals
-        .fetch_add(runs.iter().map(|r| r.evals).sum(), Ordering::Relaxed);
-    sub.fd_columns
-        .fetch_add(runs.iter().map(|r| r.fd_columns).sum(), Ordering::Relaxed);
-    let best = (0..runs.len())
-        .min_by(|&a, &b| runs[a].cost.total_cmp(&runs[b].cost).then(a.cmp(&b)))
-        .expect("at least one start");
-    let best_run = runs.swap_remove(best);
-    let stage = if use_sub { "subsample" } else { "full" };
-    trace.extend(best_run.trace.iter().map(|t| TraceEntry {
-        stage,
-        iter: t.iter,
-        time_s: t.time_s,
-        nrmse: (2.0 * t.cost / n_sub).sqrt(),
-    }));
-    let mut iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
-    // An LM run on all samples (its evaluations counted in `full`), and its trace entries
-    // as the `stage` after `offset` iterations.
-    let lm_on = |p: &LogResidualProblem, start: DVector<f64>| {
-        run_lm(
-            p,
-            start,
-            opts.max_iters,
-            opts.ftol,
-            opts.step_se,
-            opts.broyden,
-            clock,
-        )
-    };
-    let polish_from = |start: DVector<f64>| -> Result<RunResult> {
-        let run = lm_on(&full, start)?;
-        full.evals.fetch_add(run.evals, Ordering::Relaxed);
-        full.fd_columns.fetch_add(run.fd_columns, Ordering::Relaxed);
-        Ok(run)
-    };
-    let n_full = data.len() as f64;
-    let entries = |stage: &'static str, offset: u64, run: &RunResult| -> Vec<TraceEntry> {
-        run.trace
-            .iter()
-            .map(|t| TraceEntry {
-                stage,
-                iter: offset + t.iter,
-                time_s: t.time_s,
-                nrmse: (2.0 * t.cost / n_full).sqrt(),
-            })
-            .collect()
-    };
-    // The run's own best cost is the cost at `u` on all samples (without a subsample the
-    // runs were on all samples already).
-    let (u, termination, cost) = if use_sub {
-        say(&format!("polishing on all {} samples", data.len()));
-        let polish = polish_from(best_run.u)?;
-        trace.extend(entries("full", best_run.iters, &polish));
-        iters += polish.iters;
-        (polish.u, polish.termination, polish.cost)
+    let stage = if sub_data.len() < data.len() {
+        "subsample"
     } else {
-        (best_run.u, best_run.termination, best_run.cost)
+        "coarse"
     };
-    // 4. Second polishes on all samples. A bounded map's derivative vanishes at its bound,
-    // so LM cannot leave a bound that the subsample's model led it to, even where all
-    // samples favour an interior value (noise-free data, fitted exactly from another
-    // start, ended on a bound); and a --init start must never end worse than it began.
-    let init_u = opts.init.as_ref().map(|_| scored[0].2.clone());
-    let retries = second_polish_starts(&full, &u, cost, init_u, &runs, &order, &scored);
-    let (mut u, mut termination, mut cost) = (u, termination, cost);
-    for (why, start) in retries {
-        say(&format!("second polish from {why}"));
-        let run = polish_from(start)?;
-        let offset = iters;
-        iters += run.iters;
-        if run.cost < cost {
-            trace.extend(entries("retry", offset, &run));
-            cost = run.cost;
-            u = run.u;
-            termination = format!("{} (second polish from {why})", run.termination);
-        }
-    }
-    let finish_at = |u: &DVector<f64>, iters: u64, termination: String, trace| {
-        finish(
-            data,
-            opts,
-            &full,
-            &sub,
-            u.clone(),
-            iters,
-            termination,
-            trace,
-            cands.len(),
-            chosen.len(),
-            clock,
-        )
+    // 1. Global stage.
+    let starts = stages::global(&sub, opts, clock, &say)?;
+    // 2. Multi-start LM (parallel over starts).
+    let (best_run, runs) = stages::multi_start(&sub, &starts, opts, clock, &say)?;
+    let mut trace = vec![starts.entry(sub_data.len())];
+    trace.extend(stages::entries(stage, 0, &best_run, sub_data.len()));
+    let iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
+    // 3. Polish on all samples; 4. second polishes.
+    say(&format!("polishing on all {} samples", data.len()));
+    let first = polish::polish(&full, best_run.u, opts, clock)?;
+    trace.extend(stages::entries("full", best_run.iters, &first, data.len()));
+    let mut solved = Solved {
+        iters: iters + first.iters,
+        termination: first.termination,
+        u: first.u,
+        trace,
     };
-    let mut out = finish_at(&u, iters, termination, trace.clone())?;
-    if !opts.profile.is_empty() {
-        let t = Instant::now();
-        // A re-solve with one more parameter fixed: its solution and RSS (2 x its cost). One
-        // the solver fails on is scored at its start (an upper bound of its RSS), and counted.
-        let failed = std::cell::Cell::new(0usize);
-        let mut refit = |p: &LogResidualProblem, start: DVector<f64>| match lm_on(p, start.clone())
-        {
-            Ok(run) => (run.u, 2.0 * run.cost),
-            Err(_) => {
-                failed.set(failed.get() + 1);
-                let rss = p.residuals(start.as_slice()).norm_squared();
-                (start, rss)
-            }
-        };
-        let mut profile_at = |u: &DVector<f64>, out: &FitOutcome| {
-            let (r, _) = full.evaluate_at(u);
-            likelihood::intervals(
-                &full,
-                u,
-                &r,
-                &out.uncertainty,
-                &opts.profile,
-                &mut refit,
-                &say,
-            )
-        };
-        out.profile = profile_at(&u, &out);
-        // A profile re-solve that fits better than the optimum by more than the data's
-        // resolution: the fit stopped short (a valley the polish left on a bound). Polish
-        // again from there, and when that wins, the result and its intervals are the new
-        // point's (once).
-        let better = out
-            .profile
-            .iter()
-            .filter_map(|iv| Some((iv.lowest?.0, iv.better.clone()?)))
-            .filter(|(d, _)| *d < likelihood::REPOLISH)
-            .min_by(|a, b| a.0.total_cmp(&b.0));
-        if let Some((d, start)) = better {
-            say("polishing from a better profile point");
-            let run = polish_from(start)?;
-            if run.cost < cost {
-                let mut trace = trace;
-                trace.extend(entries("retry", iters, &run));
-                let termination = format!(
-                    "{} (polished again from a profile re-solve {d:.1} s^2 below the first optimum)",
-                    run.termination
-                );
-                out = finish_at(&run.u, iters + run.iters, termination, trace)?;
-                out.profile = profile_at(&run.u, &out);
-            }
-        }
-        out.profile_time_s = t.elapsed().as_secs_f64();
-        out.profile_failed = failed.get();
-        // A cancelled re-solve counts as failed above; the intervals are then unfinished.
-        opts.cancel.check()?;
+    let cost = polish::second_polishes(
+        &full,
+        &mut solved,
+        first.cost,
+        &runs,
+        &starts,
+        opts,
+        clock,
+        &say,
+    )?;
+    let counts = (starts.scored.len(), starts.chosen.len());
+    let out = finish(data, opts, &full, &sub, solved.clone(), counts, clock)?;
+    if opts.profile.is_empty() {
+        return Ok(out);
     }
-    Ok(out)
+    stages::with_profile(out, &full, solved, cost, opts, clock, &say, |s| {
+        finish(data, opts, &full, &sub, s, counts, clock)
+    })
 }
 
-#[allow(clippy::too_many_arguments)]
+/// Where the solve ended: the point, its LM iterations over all runs, why its last run
+/// stopped, and the convergence trace.
+#[derive(Clone, Debug)]
+struct Solved {
+    u: DVector<f64>,
+    iters: u64,
+    termination: String,
+    trace: Vec<TraceEntry>,
+}
+
+/// The outcome at `solved`: residuals, uncertainty and timing at the full tolerance.
+/// `starts` counts the global and LM starts.
 fn finish(
     data: &FitData,
     opts: &FitOptions,
     full: &LogResidualProblem,
     sub: &LogResidualProblem,
-    u: DVector<f64>,
-    iterations: u64,
-    termination: String,
-    trace: Vec<TraceEntry>,
-    starts_global: usize,
-    starts_lm: usize,
+    solved: Solved,
+    starts: (usize, usize),
     clock: Instant,
 ) -> Result<FitOutcome> {
+    let Solved {
+        u,
+        iters: iterations,
+        termination,
+        trace,
+    } = solved;
+    let (starts_global, starts_lm) = starts;
     opts.cancel.check()?;
     // The solve's evaluations; those below (residuals, Jacobian for the uncertainty,
     // timing) are not part of it.

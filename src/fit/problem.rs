@@ -258,6 +258,17 @@ impl<'a> LogResidualProblem<'a> {
         }
     }
 
+    /// A problem on the same data and parameters with its own counters and cache.
+    pub fn fork(&self) -> LogResidualProblem<'a> {
+        self.with_far(self.far)
+    }
+
+    /// This problem at another far-field setting, with its own counters and cache.
+    pub fn with_far(&self, far: FarOptions) -> LogResidualProblem<'a> {
+        LogResidualProblem::new(self.data, self.layout.clone(), far)
+            .with_cancel(self.cancel.clone())
+    }
+
     /// This problem, its solver runs ended by `cancel` once it is set.
     pub fn with_cancel(mut self, cancel: Cancel) -> Self {
         self.cancel = cancel;

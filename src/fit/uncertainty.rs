@@ -83,7 +83,7 @@ pub struct Uncertainty {
     /// How far the local optimum of the linearised model is from the result: the largest
     /// Gauss-Newton step of a determined parameter in its standard errors
     /// ([`gauss_newton_step_se`], parameters on a bound held). A converged fit has it
-    /// below the solver's `step_se` (0.1).
+    /// below the solver's `step_se` ([`super::STEP_SE`]).
     pub step_se: f64,
     /// Standard errors robust to residuals correlated along the sweeps ([`robust`]; set
     /// by the fitter, `None` with too few rows).

@@ -3,6 +3,7 @@
 pub mod compare;
 pub mod far_error;
 pub mod fig11;
+pub mod fit_scaling;
 pub mod fit_time;
 pub mod model_vs_sim;
 pub mod nrmse;

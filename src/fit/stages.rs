@@ -1,0 +1,253 @@
+//! Stages 1 and 2 of [`super::fit_data`] (the global design scored on the subsample, and
+//! the multi-start LM runs there), the trace entries of a run, and the profile-likelihood
+//! stage after the fit.
+
+use super::problem::LogResidualProblem;
+use super::{likelihood, polish, run_lm, starts, FitOptions, FitOutcome, RunResult, Solved};
+use super::{TraceEntry, SUBSAMPLE_FTOL};
+use crate::error::Result;
+use nalgebra::DVector;
+use rayon::prelude::*;
+use std::sync::atomic::Ordering;
+use std::time::Instant;
+
+/// The scored starts of the global stage.
+pub(super) struct Starts {
+    /// `(candidate index, subsample cost, start in solver coordinates)` per candidate; the
+    /// `--init` start, when given, is candidate 0.
+    pub scored: Vec<(usize, f64, DVector<f64>)>,
+    /// Candidates by cost, best first.
+    pub order: Vec<usize>,
+    /// The candidates the LM runs start from.
+    pub chosen: Vec<usize>,
+    /// When the best was scored.
+    time_s: f64,
+}
+
+impl Starts {
+    /// The trace's `global` entry: the best start on `n` samples.
+    pub fn entry(&self, n: usize) -> TraceEntry {
+        TraceEntry {
+            stage: "global",
+            iter: 0,
+            time_s: self.time_s,
+            nrmse: (2.0 * self.scored[self.order[0]].1 / n as f64).sqrt(),
+        }
+    }
+}
+
+/// Step 1: the `--init` start, the model's presets and a Halton design, each scored on `sub`.
+pub(super) fn global(
+    sub: &LogResidualProblem,
+    opts: &FitOptions,
+    clock: Instant,
+    say: &dyn Fn(&str),
+) -> Result<Starts> {
+    let layout = &opts.layout;
+    let mut cands: Vec<Vec<f64>> = Vec::new();
+    if let Some(init) = &opts.init {
+        let mut v = init.clone();
+        for (k, f) in layout.fixed.iter().enumerate() {
+            if let Some(x) = f {
+                v[k] = *x;
+            }
+        }
+        cands.push(v);
+    }
+    let presets = starts::preset_starts(layout);
+    let n_presets = presets.len();
+    cands.extend(presets);
+    cands.extend(starts::halton_starts(layout, opts.n_global, opts.seed));
+    say(&format!(
+        "global stage: scoring {} starts ({} Halton, {} presets{}) on {} samples",
+        cands.len(),
+        opts.n_global,
+        n_presets,
+        if opts.init.is_some() { ", --init" } else { "" },
+        sub.data.len()
+    ));
+    let scored: Vec<(usize, f64, DVector<f64>)> = cands
+        .par_iter()
+        .enumerate()
+        .map(|(i, c)| {
+            let u = DVector::from_vec(layout.to_u(c));
+            // Once cancelled, the remaining starts are not evaluated (checked below).
+            let cost = if opts.cancel.is_cancelled() {
+                f64::INFINITY
+            } else {
+                sub.cost(u.as_slice())
+            };
+            (
+                i,
+                if cost.is_finite() {
+                    cost
+                } else {
+                    f64::INFINITY
+                },
+                u,
+            )
+        })
+        .collect();
+    opts.cancel.check()?;
+    let mut order: Vec<usize> = (0..scored.len()).collect();
+    order.sort_by(|&a, &b| scored[a].1.total_cmp(&scored[b].1).then(a.cmp(&b)));
+    let mut chosen: Vec<usize> = order.iter().copied().take(opts.n_best.max(1)).collect();
+    // The --init start always runs LM, in addition to the best scored ones (replacing one
+    // of them could drop the best start of all).
+    if opts.init.is_some() && !chosen.contains(&0) {
+        chosen.insert(0, 0);
+    }
+    Ok(Starts {
+        scored,
+        order,
+        chosen,
+        time_s: clock.elapsed().as_secs_f64(),
+    })
+}
+
+/// Step 2: LM from each chosen start on `sub` in parallel, to the loose [`SUBSAMPLE_FTOL`]
+/// (the runs only choose the basin): the best run and the others.
+pub(super) fn multi_start(
+    sub: &LogResidualProblem,
+    starts: &Starts,
+    opts: &FitOptions,
+    clock: Instant,
+    say: &dyn Fn(&str),
+) -> Result<(RunResult, Vec<RunResult>)> {
+    say(&format!(
+        "multi-start LM: {} starts on {} samples",
+        starts.chosen.len(),
+        sub.data.len()
+    ));
+    let runs: Vec<Result<RunResult>> = starts
+        .chosen
+        .par_iter()
+        .map(|&i| {
+            let u0 = starts.scored[i].2.clone();
+            run_lm(
+                sub,
+                u0,
+                opts.max_iters,
+                SUBSAMPLE_FTOL,
+                None,
+                opts.broyden,
+                clock,
+            )
+        })
+        .collect();
+    let mut runs: Vec<RunResult> = runs.into_iter().collect::<Result<_>>()?;
+    sub.evals
+        .fetch_add(runs.iter().map(|r| r.evals).sum(), Ordering::Relaxed);
+    sub.fd_columns
+        .fetch_add(runs.iter().map(|r| r.fd_columns).sum(), Ordering::Relaxed);
+    let best = (0..runs.len())
+        .min_by(|&a, &b| runs[a].cost.total_cmp(&runs[b].cost).then(a.cmp(&b)))
+        .expect("at least one start");
+    let best_run = runs.swap_remove(best);
+    Ok((best_run, runs))
+}
+
+/// The trace entries of `run` as `stage`, its iterations numbered on from `offset`, its
+/// cost as the RMS residual over `n` samples.
+pub(super) fn entries(
+    stage: &'static str,
+    offset: u64,
+    run: &RunResult,
+    n: usize,
+) -> Vec<TraceEntry> {
+    run.trace
+        .iter()
+        .map(|t| TraceEntry {
+            stage,
+            iter: offset + t.iter,
+            time_s: t.time_s,
+            nrmse: (2.0 * t.cost / n as f64).sqrt(),
+        })
+        .collect()
+}
+
+/// Profile-likelihood intervals of [`FitOptions::profile`] for the fit `out` at `solved`
+/// (cost `cost` on all samples), `finish` making the outcome of another solve. A profile
+/// re-solve that fits better than the optimum by more than the data's resolution means
+/// the fit stopped short (a valley the polish left on a bound): the fit is polished again
+/// from there, and when that wins, the result and its intervals are the new point's
+/// (once).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn with_profile(
+    mut out: FitOutcome,
+    full: &LogResidualProblem,
+    solved: Solved,
+    cost: f64,
+    opts: &FitOptions,
+    clock: Instant,
+    say: &dyn Fn(&str),
+    finish: impl Fn(Solved) -> Result<FitOutcome>,
+) -> Result<FitOutcome> {
+    let t = Instant::now();
+    // A re-solve with one more parameter fixed: its solution and RSS (2 x its cost). One
+    // the solver fails on is scored at its start (an upper bound of its RSS), and counted.
+    let failed = std::cell::Cell::new(0usize);
+    let mut refit = |p: &LogResidualProblem, start: DVector<f64>| {
+        let run = run_lm(
+            p,
+            start.clone(),
+            opts.max_iters,
+            opts.ftol,
+            opts.step_se,
+            opts.broyden,
+            clock,
+        );
+        match run {
+            Ok(run) => (run.u, 2.0 * run.cost),
+            Err(_) => {
+                failed.set(failed.get() + 1);
+                let rss = p.residuals(start.as_slice()).norm_squared();
+                (start, rss)
+            }
+        }
+    };
+    let mut profile_at = |u: &DVector<f64>, out: &FitOutcome| {
+        let (r, _) = full.evaluate_at(u);
+        likelihood::intervals(
+            full,
+            u,
+            &r,
+            &out.uncertainty,
+            &opts.profile,
+            &mut refit,
+            say,
+        )
+    };
+    out.profile = profile_at(&solved.u, &out);
+    let better = out
+        .profile
+        .iter()
+        .filter_map(|iv| Some((iv.lowest?.0, iv.better.clone()?)))
+        .filter(|(d, _)| *d < likelihood::REPOLISH)
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    if let Some((d, start)) = better {
+        say("polishing from a better profile point");
+        let run = polish::polish(full, start, opts, clock)?;
+        if run.cost < cost {
+            let mut trace = solved.trace;
+            trace.extend(entries("retry", solved.iters, &run, full.data.len()));
+            let again = Solved {
+                termination: format!(
+                    "{} (polished again from a profile re-solve {d:.1} s^2 below the first optimum)",
+                    run.termination
+                ),
+                iters: solved.iters + run.iters,
+                u: run.u,
+                trace,
+            };
+            let u = again.u.clone();
+            out = finish(again)?;
+            out.profile = profile_at(&u, &out);
+        }
+    }
+    out.profile_time_s = t.elapsed().as_secs_f64();
+    out.profile_failed = failed.get();
+    // A cancelled re-solve counts as failed above; the intervals are then unfinished.
+    opts.cancel.check()?;
+    Ok(out)
+}
