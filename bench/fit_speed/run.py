@@ -142,6 +142,8 @@ def write_report(rows, profiles, args):
     lines += ["", f"Median ratio over the profiles: **{statistics.median(ratios):.2f}x** (goal: 10x at an NRMSE no worse than scipy's + 2 %).", "",
               "## Every run", "", "| profile | repeat | tool | wall s | NRMSE | evaluations |", "|---|---:|---|---:|---:|---:|"]
     lines += [f"| {n} | {rep} | {t} | {w:.2f} | {100 * e:.3f}% | {ev} |" for n, rep, t, w, e, ev in rows]
+    # The ledger of what each direction gave, measured by hand and kept beside this script.
+    lines += ["", (ROOT / "bench" / "fit_speed" / "directions.md").read_text().rstrip()]
     (ROOT / "reports" / "fit_speed.md").write_text("\n".join(lines) + "\n")
     with open(ROOT / "reports" / "fit_speed.csv", "w") as f:
         f.write("profile,repeat,tool,wall_s,nrmse,evaluations\n")
