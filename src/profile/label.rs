@@ -1,7 +1,7 @@
 //! What metadata says of the data's origin: the `synthetic` label rules shared by the
 //! profile headers of every format and a species folder's `metadata.json`.
 
-use super::text::quoted;
+use crate::text::quoted;
 
 /// What a metadata entry says of the data's origin (shared by profile headers and a
 /// species folder's `metadata.json`): `synthetic` (any case) set to true/yes/1 is

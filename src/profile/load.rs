@@ -7,9 +7,9 @@ use super::merge::{collapsed_note, merge_loaded};
 use super::sample::{
     is_profile_file, samples_sha256, Format, LoadOptions, Loaded, Profile, ReadFile,
 };
-use super::text::split_lines;
 use super::{csv, npz, provenance, yan};
 use crate::error::{Error, Result};
+use crate::text::split_lines;
 use std::path::{Path, PathBuf};
 
 /// Load a profile file, choosing the loader by extension: `.csv` ([`csv`]), `.npz`

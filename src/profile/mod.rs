@@ -31,7 +31,7 @@
 //!   below the f64 range (`1e-400`) is an error like one above it ([`parse_number`]).
 //!
 //! Rooms: [`sample`] holds the types, [`checks`] the per-value rules and angle
-//! conventions, [`label`] the synthetic/measured label, [`text`] numbers and quoting,
+//! conventions, [`label`] the synthetic/measured label ([`crate::text`] reads numbers and quotes text),
 //! [`merge`] merging and duplicates, [`load`] the by-extension entry points; one module per
 //! format ([`csv`], [`npz`], [`yan`]); [`provenance`] a folder's `metadata.json`;
 //! [`summary`] what `furfit inspect` prints. Everything is re-exported here, so callers
@@ -42,7 +42,6 @@ mod label;
 mod load;
 mod merge;
 mod sample;
-mod text;
 
 pub mod csv;
 pub mod npz;
@@ -55,7 +54,6 @@ pub use label::*;
 pub use load::*;
 pub use merge::*;
 pub use sample::*;
-pub(crate) use text::*;
 
 #[cfg(test)]
 mod tests;

@@ -1,6 +1,7 @@
 use std::path::{Path, PathBuf};
 
 use super::*;
+use crate::text::quoted;
 
 #[test]
 fn sample_count_limit_names_file_and_line() {
@@ -414,14 +415,6 @@ fn axis_options_must_be_used_by_some_input() {
     );
     assert!(o(true, true, true).check_used(&[Format::Npy]).is_ok());
     assert!(o(false, false, false).check_used(&[Format::Csv]).is_ok());
-}
-
-#[test]
-fn lines_split_at_lf_crlf_and_lone_cr() {
-    let lines: Vec<&[u8]> = split_lines(b"a\nb\r\nc\rd\r\re\n").collect();
-    let want: Vec<&[u8]> = vec![b"a", b"b", b"c", b"d", b"", b"e", b""];
-    assert_eq!(lines, want);
-    assert_eq!(split_lines(b"").count(), 1);
 }
 
 #[test]

@@ -8,7 +8,7 @@ use crate::profile::checks::{
 };
 use crate::profile::merge::{dedupe_notes, wrap_conflict};
 use crate::profile::sample::{Layout, LoadOptions, Origin, Profile, Sample};
-use crate::profile::text::quoted;
+use crate::text::quoted;
 use ndarray::{ArrayD, Dimension, IxDyn};
 use std::io::Cursor;
 use std::path::Path;

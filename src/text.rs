@@ -1,5 +1,7 @@
-//! Text read from a profile file: numbers ([`parse_number`]), lines ([`split_lines`]) and
-//! how messages quote it ([`escaped`], [`quoted`]).
+//! Text read from files and options: numbers ([`parse_number`]), lines ([`split_lines`])
+//! and how messages quote it ([`escaped`], [`quoted`]). A leaf module: the profile
+//! loaders, [`crate::io`]'s JSON reader, the angle grids and the CLI all read numbers here,
+//! so they agree on what one is.
 
 /// `t` (text from a file) with control characters, a byte-order mark and other invisible
 /// characters escaped as Rust writes them (`\0`, `\u{feff}`), so a message echoing it
@@ -83,4 +85,17 @@ pub(crate) fn split_lines(bytes: &[u8]) -> impl Iterator<Item = &[u8]> {
             }
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lines_split_at_lf_crlf_and_lone_cr() {
+        let lines: Vec<&[u8]> = split_lines(b"a\nb\r\nc\rd\r\re\n").collect();
+        let want: Vec<&[u8]> = vec![b"a", b"b", b"c", b"d", b"", b"e", b""];
+        assert_eq!(lines, want);
+        assert_eq!(split_lines(b"").count(), 1);
+    }
 }
