@@ -8,11 +8,10 @@ const MAX_RANGE_VALUES: usize = 10_000_000;
 
 /// Parse an angle grid. `what` names the option in errors (e.g. `--theta-r`).
 pub fn parse_grid(what: &str, text: &str) -> Result<Vec<f64>> {
-    let bad =
-        |msg: String| Error::Invalid(format!("{what} {}: {msg}", crate::profile::quoted(text)));
+    let bad = |msg: String| Error::Invalid(format!("{what} {}: {msg}", crate::text::quoted(text)));
     let num = |s: &str| -> Result<f64> {
         // A file's number syntax: `1e-400` is refused, not read as 0.
-        let v = crate::profile::parse_number(s.trim()).map_err(bad)?;
+        let v = crate::text::parse_number(s.trim()).map_err(bad)?;
         if v.is_finite() {
             Ok(v)
         } else {

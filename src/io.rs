@@ -465,7 +465,7 @@ pub fn parse_json(text: &str, path: &Path) -> Result<serde_json::Value> {
 
 /// The first number of JSON `text` (outside strings) below the f64 range, which serde_json
 /// would read as 0 (`"kappa": 1e-400`), as (line, column, message); the same rule as a
-/// profile file's numbers ([`crate::profile::parse_number`]).
+/// profile file's numbers ([`crate::text::parse_number`]).
 fn underflowing_number(text: &str) -> Option<(usize, usize, String)> {
     // Columns in bytes from 1, as serde_json counts them for its own errors.
     let (mut line, mut line_start) = (1, 0);
@@ -498,7 +498,7 @@ fn underflowing_number(text: &str) -> Option<(usize, usize, String)> {
             }
             // Only the below-range rule: a malformed number is serde_json's to report.
             let token = &text[i..end];
-            if let (Ok(0.0), Err(m)) = (token.parse::<f64>(), crate::profile::parse_number(token)) {
+            if let (Ok(0.0), Err(m)) = (token.parse::<f64>(), crate::text::parse_number(token)) {
                 return Some((line, i - line_start + 1, m));
             }
         }

@@ -28,6 +28,7 @@ pub mod render;
 pub mod report;
 pub mod simulate;
 pub mod synth;
+pub mod text;
 pub mod timing;
 
 pub use error::{Error, Result};

@@ -129,9 +129,9 @@ pub const MAX_THREADS: usize = 1024;
 
 /// A number option: the syntax of a profile file's numbers, so a nonzero value below the
 /// f64 range (`1e-400`, which would read as 0) is refused as a file's is
-/// ([`crate::profile::parse_number`]).
+/// ([`crate::text::parse_number`]).
 pub fn number(s: &str) -> Result<f64, String> {
-    crate::profile::parse_number(s.trim())
+    crate::text::parse_number(s.trim())
 }
 
 /// [`crate::io::probe_writable`], saying when it created the folder.

@@ -25,7 +25,7 @@ pub struct Args {
 
 pub fn run(a: Args) -> anyhow::Result<()> {
     // The fits first: a refused run leaves no empty --out folder behind.
-    let (fits, mut unread) = crate::report::nrmse::read_fits(&a.fits)?;
+    let (fits, mut unread) = crate::fit::file::read_fits(&a.fits)?;
     // The Table-4 report is the fur model's: another model's fit in its folder is listed,
     // not tabled (its place is <fits>/<model>/, which the model comparison reads).
     let default = crate::models::default_model().name();

@@ -51,11 +51,11 @@
 //! as `nan`, a missing sigma/phi_i as an empty cell. Metadata keys may not contain `:` or
 //! line breaks and values may not contain line breaks (an error, not a silent edit).
 
-use super::{
-    check_angle, check_channel_name, check_measured, convert_theta_r, dedupe_rows, escaped,
-    parse_number, read_phi, split_lines, Field, Layout, LoadOptions, Origin, Profile, Sample,
-};
+use super::checks::{check_angle, check_channel_name, check_measured, convert_theta_r, read_phi};
+use super::merge::dedupe_rows;
+use super::sample::{Field, Layout, LoadOptions, Origin, Profile, Sample};
 use crate::error::{Error, Result};
+use crate::text::{escaped, parse_number, split_lines};
 use std::path::Path;
 
 /// Parse CSV bytes without convention options; `path` is used in error messages only.
@@ -129,14 +129,14 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
                 match c.split_once(':') {
                     Some((key, val)) if !key.trim().is_empty() => {
                         let key = key.trim();
-                        super::check_synthetic_label(key, val)
+                        super::label::check_synthetic_label(key, val)
                             .map_err(|m| perr(k + 1, "metadata".into(), m))?;
                         if !utf8 {
-                            label_notes.push(super::non_utf8_metadata_note(k + 1, key));
+                            label_notes.push(super::label::non_utf8_metadata_note(k + 1, key));
                         }
                         metadata.push((key.to_string(), val.trim().to_string()));
                     }
-                    _ => label_notes.extend(super::unlabelled_synthetic_note(k + 1, &c)),
+                    _ => label_notes.extend(super::label::unlabelled_synthetic_note(k + 1, &c)),
                 }
             }
             continue;
@@ -271,7 +271,12 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
                 }
             }
         };
-        super::check_sample_count(samples.len(), super::MAX_READ_CELLS, path, line)?;
+        super::checks::check_sample_count(
+            samples.len(),
+            super::checks::MAX_READ_CELLS,
+            path,
+            line,
+        )?;
         samples.push(Sample {
             theta_i,
             theta_r,
@@ -377,7 +382,7 @@ impl Columns {
                     format!("column '{want}'"),
                     format!(
                         "required column '{want}' is missing from the header (found: {}){hint}",
-                        super::cut_text(&names.join(", "), 200)
+                        crate::text::cut_text(&names.join(", "), 200)
                     ),
                 )
             })

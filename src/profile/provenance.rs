@@ -6,7 +6,7 @@
 //! may carry no label itself, so the folder's file counts too: either saying "synthetic"
 //! makes the data synthetic (the label can only be added, never removed).
 
-use super::Profile;
+use super::sample::Profile;
 use crate::error::{Error, Result};
 use std::path::Path;
 
@@ -38,9 +38,9 @@ fn folder_says_synthetic(dir: &Path) -> Result<Option<bool>> {
             _ if k.trim().eq_ignore_ascii_case("synthetic") => v.to_string(),
             _ => continue,
         };
-        super::check_synthetic_label(k, &text)
+        super::label::check_synthetic_label(k, &text)
             .map_err(|m| Error::file(&path, format!("key \"{k}\": {m}")))?;
-        says.extend(super::says_synthetic(k, &text));
+        says.extend(super::label::says_synthetic(k, &text));
     }
     Ok(if says.contains(&true) {
         Some(true)

@@ -1,7 +1,7 @@
 //! What `furfit inspect` prints about a profile: counts, and per angle the distinct values,
 //! range and most common step.
 
-use super::{Profile, Sample};
+use super::sample::{Profile, Sample};
 
 /// Resolution of [`AxisStats::step`], steps per degree: differences are grouped after
 /// rounding to 1e-9 deg.

@@ -41,11 +41,11 @@
 //! names the file, the 1-based line and the column (`column 2 (theta)`). A file without
 //! data rows is an error.
 
-use super::{
-    check_angle, convert_theta_r, dedupe_rows, parse_number, quoted, read_phi, split_lines, Layout,
-    LoadOptions, Origin, Profile, Sample,
-};
+use super::checks::{check_angle, convert_theta_r, read_phi};
+use super::merge::dedupe_rows;
+use super::sample::{Layout, LoadOptions, Origin, Profile, Sample};
 use crate::error::{Error, Num, Result};
+use crate::text::{parse_number, quoted, split_lines};
 use std::path::Path;
 
 const NAMES: [&str; 3] = ["phi", "theta", "value"];
@@ -114,18 +114,18 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                     }
                     file_theta_i = Some((v, line));
                 } else if !key.is_empty() {
-                    super::check_synthetic_label(key, val)
+                    super::label::check_synthetic_label(key, val)
                         .map_err(|m| perr(line, "metadata".into(), m))?;
                     // Owned only when the lossy decoding above replaced bad bytes.
                     if matches!(text, std::borrow::Cow::Owned(_)) {
-                        label_notes.push(super::non_utf8_metadata_note(line, key));
+                        label_notes.push(super::label::non_utf8_metadata_note(line, key));
                     }
                     metadata.push((key.to_string(), val.to_string()));
                 } else {
-                    label_notes.extend(super::unlabelled_synthetic_note(line, c));
+                    label_notes.extend(super::label::unlabelled_synthetic_note(line, c));
                 }
             } else {
-                label_notes.extend(super::unlabelled_synthetic_note(line, c));
+                label_notes.extend(super::label::unlabelled_synthetic_note(line, c));
             }
             continue;
         }
@@ -196,7 +196,12 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             v
         };
         // theta_i is set below, from the file's comment or --theta-i.
-        super::check_sample_count(samples.len(), super::MAX_READ_CELLS, path, line)?;
+        super::checks::check_sample_count(
+            samples.len(),
+            super::checks::MAX_READ_CELLS,
+            path,
+            line,
+        )?;
         let mut s = Sample::new(0.0, convert_theta_r(opts, theta), phi, value);
         s.origin = Origin::at_line(line);
         samples.push(s);

@@ -7,8 +7,9 @@
 //!
 //! Plotters with the shipped DejaVuSans font only (registered from `assets/fonts`).
 
-use super::nrmse::FitFile;
+use super::plot::plot_err;
 use crate::error::{Error, Result};
+use crate::fit::file::FitFile;
 use crate::fit::forward::Points;
 use crate::model::far::FarOptions;
 use crate::profile::Profile;
@@ -76,10 +77,6 @@ pub fn diverging(t: f64) -> RGBColor {
             (255.0 * (1.0 - t) + 43.0 * t) as u8,
         )
     }
-}
-
-pub(super) fn plot_err<E: std::fmt::Debug>(path: &Path) -> impl Fn(E) -> Error + '_ {
-    move |e| Error::file(path, format!("plotting failed: {e:?}"))
 }
 
 /// One incident angle's data on its grid.

@@ -10,9 +10,10 @@
 //! NRMSE (often several times smaller): those fits get the metric `weighted_rms` in the
 //! CSV and their own row of panels in the figure, never an NRMSE axis.
 
-use super::fig11::{ensure_font, plot_err, FONT};
-use super::nrmse::FitFile;
+use super::fig11::{ensure_font, FONT};
+use super::plot::plot_err;
 use crate::error::Result;
+use crate::fit::file::FitFile;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::fmt::Write as _;

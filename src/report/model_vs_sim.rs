@@ -7,9 +7,9 @@
 //! 3-D Monte Carlo, so a large NRMSE at the true parameters measures model error, not a bug
 //! in either; the table reports it as it comes out.
 
-use super::nrmse::FitFile;
 use super::sig;
 use crate::error::{Error, Result};
+use crate::fit::file::FitFile;
 
 use crate::params::{FurParams, ParamId};
 

@@ -6,7 +6,7 @@
 //! The fit files are read by [`crate::fit::file`].
 
 use crate::error::{Num, Result};
-pub use crate::fit::file::{read_fits, FitFile, Skipped};
+use crate::fit::file::{FitFile, Skipped};
 use crate::params::{preset_record, ParamId};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
@@ -565,6 +565,7 @@ fn write_planned(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::file::read_fits;
     use crate::FurParams;
 
     /// A fit file `<name>.json` in `dir` whose `data` holds `data`.

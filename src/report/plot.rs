@@ -29,6 +29,11 @@ pub fn register_fonts() {
     });
 }
 
+/// The error for a plotting failure while drawing `path` (plotters' errors name no file).
+pub(super) fn plot_err<E: std::fmt::Debug>(path: &Path) -> impl Fn(E) -> Error + '_ {
+    move |e| Error::file(path, format!("plotting failed: {e:?}"))
+}
+
 /// One line of a chart.
 #[derive(Clone, Debug)]
 pub struct Series {
