@@ -157,9 +157,13 @@ impl HRange {
 /// furnace renders at 1.40).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum MedullaEnergy {
+    /// The default: the scattered lobes as fitted, scaled per camera-side inclination so
+    /// the fiber's directional albedo equals the physical one ([`super::strand`]): a
+    /// lossless fiber returns what it receives, the lobe shapes are the fitted ones.
+    #[default]
+    Strand,
     /// `M_s` exactly as fitted (the light incident, as a goniometer sample): the render
     /// shows the lobes the fit measured, and the gain above.
-    #[default]
     Fit,
     /// `M_s` divided by its column's mass `∫ M_s(theta, theta_o, phi) dtheta` where that
     /// exceeds 1: no light is gained, at the price of dimmer scattered lobes than fitted
@@ -170,16 +174,18 @@ pub enum MedullaEnergy {
 impl MedullaEnergy {
     pub fn parse(s: &str) -> crate::Result<MedullaEnergy> {
         match s.trim().to_ascii_lowercase().as_str() {
+            "strand" => Ok(MedullaEnergy::Strand),
             "fit" => Ok(MedullaEnergy::Fit),
             "conserve" => Ok(MedullaEnergy::Conserve),
             other => Err(crate::Error::Invalid(format!(
-                "unknown medulla energy '{other}' (expected fit or conserve)"
+                "unknown medulla energy '{other}' (expected strand, fit or conserve)"
             ))),
         }
     }
 
     pub fn name(self) -> &'static str {
         match self {
+            MedullaEnergy::Strand => "strand",
             MedullaEnergy::Fit => "fit",
             MedullaEnergy::Conserve => "conserve",
         }
@@ -381,6 +387,9 @@ pub struct FiberBsdf {
     /// Tabulated lobe selection of the sampler ([`super::select`]); `None` computes it
     /// exactly per query.
     pub select: Option<Arc<SelectTable>>,
+    /// Scale of the scattered lobes per camera-side inclination and channel
+    /// ([`MedullaEnergy::Strand`], [`super::strand`]); `None` leaves them as fitted.
+    pub energy: Option<Arc<super::strand::EnergyScale>>,
 }
 
 /// Upper-tail masses `(Q(-pi/2), Q(pi/2))` of the normal (`mu`, `s`) reflected so its
@@ -424,6 +433,7 @@ impl FiberBsdf {
             far_opts: FarOptions::default(),
             far_table: None,
             select: None,
+            energy: None,
         }
     }
 
@@ -506,7 +516,20 @@ impl FiberBsdf {
                 out[l.index()][c] = a.get(l) * md[l.index()];
             }
         }
+        self.scale_scattered(theta_o, &mut out);
         out
+    }
+
+    /// Apply the [`MedullaEnergy::Strand`] scale (when set) to the scattered lobes.
+    #[inline]
+    fn scale_scattered(&self, theta_o: f64, out: &mut LobeRgb) {
+        if let Some(e) = self.energy.as_deref() {
+            for c in 0..3 {
+                let k = e.at(theta_o, c);
+                out[Lobe::TTs.index()][c] *= k;
+                out[Lobe::TRTs.index()][c] *= k;
+            }
+        }
     }
 
     /// Far field / multi-scale: `M_p` times the model's `N_p` averaged over `[h1, h2]`
@@ -523,6 +546,7 @@ impl FiberBsdf {
                     out[l.index()][c] = m.get(l) * n.get(l);
                 }
             }
+            self.scale_scattered(theta_o, &mut out);
             return out;
         }
         for c in 0..3 {
@@ -536,6 +560,7 @@ impl FiberBsdf {
                 out[l.index()][c] = m.get(l) * n.get(l);
             }
         }
+        self.scale_scattered(theta_o, &mut out);
         out
     }
 
@@ -543,7 +568,7 @@ impl FiberBsdf {
     /// model's, the light as the incident side (module doc), with the scattered lobes'
     /// `M_s` divided by its column's mass where that exceeds 1 under
     /// [`MedullaEnergy::Conserve`].
-    fn longitudinal(&self, theta_o: f64, theta: f64, phi: f64) -> LobeValues {
+    pub(crate) fn longitudinal(&self, theta_o: f64, theta: f64, phi: f64) -> LobeValues {
         let mut m = self.models[0].longitudinal(theta, theta_o, phi, self.lobes);
         if self.medulla_energy == MedullaEnergy::Conserve {
             let mass = self.models[0]
@@ -599,7 +624,7 @@ impl FiberBsdf {
     /// Per-channel attenuations at one path of slice `theta_d`: the cuticle depends on eta
     /// and l only, which the channels share (the tint scales absorption), so one Fresnel
     /// term serves the three.
-    fn attenuation_rgb(&self, theta_d: f64, geo: &PathGeometry) -> [LobeValues; 3] {
+    pub(crate) fn attenuation_rgb(&self, theta_d: f64, geo: &PathGeometry) -> [LobeValues; 3] {
         let f = self.models[0].azimuthal(theta_d).cuticle(geo);
         std::array::from_fn(|c| {
             self.models[c]
@@ -623,8 +648,15 @@ impl FiberBsdf {
             w[l.index()] *= side.m.mass(l.index()).max(MIN_MASS);
         }
         let (ws, x_med, phi_s) = self.scattered_selection(theta_o, h, geo);
+        // The Strand scale multiplies the scattered lobes' energy (up to ~10x near the
+        // poles, where the fitted ones carry little): without it there they were chosen
+        // too rarely and came as rare large weights.
+        let k = self
+            .energy
+            .as_deref()
+            .map_or(1.0, |e| (0..3).map(|c| e.at(theta_o, c)).sum::<f64>() / 3.0);
         for l in self.lobes.iter().filter(|l| l.is_scattered()) {
-            w[l.index()] = ws[l.p() - 1];
+            w[l.index()] = ws[l.p() - 1] * k;
         }
         let sum: f64 = w.iter().sum();
         Selection {
