@@ -21,9 +21,11 @@ pub mod bsdf;
 pub mod bvh;
 pub mod furnace;
 pub mod integrator;
+pub mod ishair;
 pub mod math;
 pub mod ntable;
 pub mod output;
+pub mod sampler_study;
 pub mod scene;
 pub mod select;
 pub mod strand;
@@ -156,6 +158,8 @@ pub struct RenderSettings {
     pub medulla_energy: bsdf::MedullaEnergy,
     /// Weights file of [`bsdf::MedullaEnergy::Strand`] (`None`: the built-in ones).
     pub energy_weights: Option<std::path::PathBuf>,
+    /// The BCSDF sampler's proposal ([`ishair::Sampling`]).
+    pub sampling: ishair::Sampling,
     /// Set from another thread, ends the render with [`crate::Error::Interrupted`] after
     /// the image rows in progress (the default token is never set).
     pub cancel: crate::cancel::Cancel,
@@ -192,6 +196,7 @@ impl Default for RenderSettings {
             env_nee: false,
             medulla_energy: bsdf::MedullaEnergy::Strand,
             energy_weights: None,
+            sampling: ishair::Sampling::default(),
             cancel: Default::default(),
         }
     }
@@ -365,6 +370,7 @@ fn render_in_pool(
     let mut bsdf = FiberBsdf::new(params, s.tint, s.lobes);
     bsdf.far_opts.cull = s.far_cull;
     bsdf.medulla_energy = s.medulla_energy;
+    bsdf.sampling = s.sampling;
     let setup = Instant::now();
     // Multi-scale with footprint 0 only ever queries the near field.
     let spans = s.mode == Mode::Far || (s.mode == Mode::Multiscale && s.footprint_scale > 0.0);
