@@ -113,9 +113,10 @@ pub struct Args {
     /// `furfit tables strand`).
     #[arg(long)]
     pub energy_weights: Option<PathBuf>,
-    /// BCSDF sampling: `lobes` (truncated and wrapped Gaussians, the lobes' own shapes),
-    /// `ishair` (Cauchy proposals of Ou et al. 2012) or `uniform` (the sphere; a baseline).
-    #[arg(long, default_value = "lobes")]
+    /// BCSDF sampling: `ishair` (default: Cauchy proposals of Ou et al. 2012, the better
+    /// of the two in reports/render_convergence.md), `lobes` (truncated and wrapped
+    /// Gaussians, the lobes' own shapes) or `uniform` (the sphere; a baseline).
+    #[arg(long, default_value = "ishair")]
     pub sampling: String,
     /// Skip the per-lobe AOV images.
     #[arg(long)]

@@ -71,7 +71,7 @@ pub struct Args {
     /// BCSDF samplers to compare, each once: ishair, lobes, uniform. The first one's curves
     /// are the report's; with more than one the report adds their equal-quality ratios and
     /// writes render_samplers.csv.
-    #[arg(long, default_value = "lobes")]
+    #[arg(long, default_value = "ishair")]
     pub samplings: String,
     /// Also time the full --frame at 64 spp in multi-scale and in near field with the first
     /// sampler (the preview's cost as a ratio to the same render in near-field mode).

@@ -439,7 +439,9 @@ impl FiberBsdf {
             far_table: None,
             select: None,
             energy: None,
-            sampling: Sampling::default(),
+            // The sampler the BCSDF's own tests pin down; renders set theirs
+            // (`RenderSettings::sampling`, ISHair by default).
+            sampling: Sampling::Lobes,
         }
     }
 

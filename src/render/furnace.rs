@@ -57,6 +57,8 @@ pub fn furnace_bsdf(
     params.validate()?;
     let mut b = FiberBsdf::new(params, Tint::GREY, LobeSet::ALL);
     b.medulla_energy = mode;
+    // The renderer's default sampler: the furnace measures what a render integrates.
+    b.sampling = super::ishair::Sampling::default();
     if mode == MedullaEnergy::Strand {
         let mlp = match weights {
             Some(p) => StrandMlp::load(p)?,
