@@ -386,6 +386,7 @@ mod quote_tests {
 pub mod bench_model;
 pub mod export;
 pub mod fit;
+pub mod furnace;
 pub mod inspect;
 pub mod render;
 pub mod render_convergence;
@@ -395,6 +396,7 @@ pub mod simulate;
 pub mod stability;
 pub mod synth;
 pub mod tables;
+pub mod tables_strand;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -430,6 +432,8 @@ pub enum Command {
     SeCalibration(se_calibration::Args),
     /// Export a fit as a Mitsuba 3, pbrt-v4, Blender Cycles or MaterialX hair material.
     Export(export::Args),
+    /// White furnace: directional albedo over theta of the renderer's BCSDF.
+    Furnace(furnace::Args),
 }
 
 /// The smallest `--tol`: at 1e-9 the cat preset's refinement already hits its split limit
@@ -453,6 +457,7 @@ pub fn main() -> std::process::ExitCode {
         Command::RenderConvergence(a) => render_convergence::run(a),
         Command::SeCalibration(a) => se_calibration::run(a),
         Command::Export(a) => export::run(a),
+        Command::Furnace(a) => furnace::run(a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

@@ -100,13 +100,24 @@ pub struct Args {
     /// noise (see `render::integrator`).
     #[arg(long)]
     pub env_nee: bool,
-    /// How the scattered lobes' longitudinal term is read: `fit` (as fitted, the light
-    /// incident; its tables are not reciprocal, so a fiber with a medulla returns more light
-    /// than it receives under a uniform environment, and again at each bounce) or
-    /// `conserve` (each camera-side column scaled to hold at most 1: no gain, scattered
-    /// lobes dimmer than fitted where a column held more)
-    #[arg(long, default_value = "fit")]
+    /// How the scattered lobes' energy is read: `strand` (default: the fitted lobes scaled
+    /// so the fiber's directional albedo is the physical one of the project's Monte Carlo,
+    /// learnt by a small network; a lossless fiber returns what it receives), `fit` (as
+    /// fitted, the light incident; its tables are not reciprocal, so a fiber with a medulla
+    /// returns more light than it receives under a uniform environment, and again at each
+    /// bounce) or `conserve` (each camera-side column scaled to hold at most 1: no gain,
+    /// scattered lobes dimmer than fitted where a column held more)
+    #[arg(long, default_value = "strand")]
     pub medulla_energy: String,
+    /// Weights of `--medulla-energy strand` (default: built into the binary; rebuilt by
+    /// `furfit tables strand`).
+    #[arg(long)]
+    pub energy_weights: Option<PathBuf>,
+    /// BCSDF sampling: `ishair` (default: Cauchy proposals of Ou et al. 2012, the better
+    /// of the two in reports/render_convergence.md), `lobes` (truncated and wrapped
+    /// Gaussians, the lobes' own shapes) or `uniform` (the sphere; a baseline).
+    #[arg(long, default_value = "ishair")]
+    pub sampling: String,
     /// Skip the per-lobe AOV images.
     #[arg(long)]
     pub no_aovs: bool,
@@ -231,6 +242,8 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
         far_table: !a.exact_far,
         env_nee: a.env_nee,
         medulla_energy: MedullaEnergy::parse(&a.medulla_energy).context("--medulla-energy")?,
+        energy_weights: a.energy_weights.clone(),
+        sampling: crate::render::ishair::Sampling::parse(&a.sampling).context("--sampling")?,
         ..RenderSettings::default()
     };
     s.camera.dist = a.cam_dist;

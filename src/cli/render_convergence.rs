@@ -4,6 +4,7 @@
 //! (with `--noise-budget`) the speedup under lightings that isolate the noise of `h`.
 
 use crate::render::bsdf::Mode;
+use crate::render::sampler_study::{preview_ratio, sampler_study};
 use crate::render::study::{
     convergence, culling_study, noise_budget, noise_budget_markdown, plot_convergence_bytes,
 };
@@ -67,6 +68,15 @@ pub struct Args {
     /// Output directory.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
+    /// BCSDF samplers to compare, each once: ishair, lobes, uniform. The first one's curves
+    /// are the report's; with more than one the report adds their equal-quality ratios and
+    /// writes render_samplers.csv.
+    #[arg(long, default_value = "ishair")]
+    pub samplings: String,
+    /// Also time the full --frame at 64 spp in multi-scale and in near field with the first
+    /// sampler (the preview's cost as a ratio to the same render in near-field mode).
+    #[arg(long, conflicts_with_all = ["culling_study", "noise_budget"])]
+    pub preview: bool,
 }
 
 pub fn run(a: Args) -> anyhow::Result<()> {
@@ -76,6 +86,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     let (fw, fh) = super::parse_size("--frame", &a.frame, MAX_SIDE, usize::MAX)?;
     if pw > fw || ph > fh {
         bail!("--size {pw}x{ph} must fit in --frame {fw}x{fh}");
+    }
+    let mut samplings = Vec::new();
+    for m in a.samplings.split(',') {
+        let m = crate::render::ishair::Sampling::parse(m)
+            .with_context(|| format!("--samplings '{}'", a.samplings))?;
+        if samplings.contains(&m) {
+            bail!("--samplings '{}': {} given twice", a.samplings, m.name());
+        }
+        samplings.push(m);
     }
     let mut modes: Vec<Mode> = Vec::new();
     for m in a.modes.split(',') {
@@ -112,7 +131,10 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             "render_convergence.md",
         ]
     };
-    let paths: Vec<PathBuf> = names.iter().map(|n| a.out.join(n)).collect();
+    let mut paths: Vec<PathBuf> = names.iter().map(|n| a.out.join(n)).collect();
+    if samplings.len() > 1 && names.len() == 4 {
+        paths.push(a.out.join("render_samplers.csv"));
+    }
     let (params, _, _) = super::load_params(&a.params)?;
     super::prepare_out_dir(&a.out)?;
     for p in &paths {
@@ -131,6 +153,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         threads: a.threads,
         region: Some(((fw - pw) / 2, (fh - ph) / 2, pw, ph)),
         env_nee: a.env_nee,
+        sampling: samplings[0],
         ..RenderSettings::default()
     };
     if a.culling_study {
@@ -210,9 +233,49 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         outln!("wrote {}", p.display());
         return Ok(());
     }
-    let c = convergence(&scene, &params, &base, &modes, spp, a.repeats, |m| {
-        outln!("{m}")
-    })?;
+    let study = if samplings.len() > 1 {
+        Some(sampler_study(
+            &scene,
+            &params,
+            &base,
+            &modes,
+            &samplings,
+            spp,
+            a.repeats,
+            |m| outln!("{m}"),
+        )?)
+    } else {
+        None
+    };
+    let c = match &study {
+        Some(st) => st.runs[0].1.clone(),
+        None => convergence(&scene, &params, &base, &modes, spp, a.repeats, |m| {
+            outln!("{m}")
+        })?,
+    };
+    let mut extra = String::new();
+    if let Some(st) = &study {
+        extra += &format!(
+            "\nThe curves above are sampler `{}`'s.\n\n{}",
+            samplings[0].name(),
+            st.markdown(&modes)
+        );
+        for line in st.markdown(&modes).lines().filter(|l| l.starts_with("- ")) {
+            outln!("{}", line.trim_start_matches("- ").replace("**", ""));
+        }
+    }
+    if a.preview {
+        let mut s = base.clone();
+        s.spp = 64;
+        let (t, near) = preview_ratio(&scene, &params, &s, Mode::Multiscale)?;
+        let line = format!(
+            "preview {fw}x{fh} at 64 spp, multiscale, sampler {}: {:.2}x the time of the same render in near-field mode ({t:.1} s against {near:.1} s on this run)",
+            samplings[0].name(),
+            t / near
+        );
+        outln!("{line}");
+        extra += &format!("\n## Preview\n\n{line}.\n");
+    }
     for m in &modes {
         if let Some(v) = c.inefficiency(*m, 4) {
             outln!(
@@ -228,8 +291,15 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         (csv.clone(), c.to_csv().into_bytes()),
         (png.clone(), plot_convergence_bytes(&c, &png, false)?),
         (svg.clone(), plot_convergence_bytes(&c, &svg, true)?),
-        (md.clone(), c.to_markdown(&command, 4, threads).into_bytes()),
+        (
+            md.clone(),
+            (c.to_markdown(&command, 4, threads) + &extra).into_bytes(),
+        ),
     ];
+    let mut files = files;
+    if let Some(st) = &study {
+        files.push((a.out.join("render_samplers.csv"), st.csv().into_bytes()));
+    }
     crate::io::write_outputs(&files)?;
     outln!("wrote {} (+ .png, .svg, .md)", csv.display());
     for fast in [Mode::Multiscale, Mode::Far] {
@@ -263,7 +333,7 @@ fn command_line(a: &Args, (pw, ph): (usize, usize), (fw, fh): (usize, usize)) ->
     };
     format!(
         "furfit render-convergence{variant} --params {} --size {pw}x{ph} --frame {fw}x{fh} \
-         --max-spp {} --ref-spp {}{modes} --seed {} --repeats {} --threads {}{} --out {}",
+         --max-spp {} --ref-spp {}{modes} --seed {} --repeats {} --threads {}{} --samplings {}{} --out {}",
         super::shell_quote(&a.params),
         a.max_spp,
         a.ref_spp,
@@ -271,6 +341,8 @@ fn command_line(a: &Args, (pw, ph): (usize, usize), (fw, fh): (usize, usize)) ->
         a.repeats,
         a.threads,
         if a.env_nee { " --env-nee" } else { "" },
+        super::shell_quote(&a.samplings),
+        if a.preview { " --preview" } else { "" },
         super::shell_quote(&a.out.display().to_string())
     )
 }

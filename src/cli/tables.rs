@@ -21,6 +21,8 @@ pub enum TablesCommand {
     Build(BuildArgs),
     /// Print size, ranks and hold-out errors of a tables file.
     Info(InfoArgs),
+    /// Train the Strand energy network (`--medulla-energy strand`) from fresh Monte Carlo.
+    Strand(super::tables_strand::StrandArgs),
 }
 
 #[derive(clap::Args, Debug)]
@@ -70,6 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     match args.command {
         TablesCommand::Build(a) => build(a),
         TablesCommand::Info(a) => info(a),
+        TablesCommand::Strand(a) => super::tables_strand::run(a),
     }
 }
 

@@ -79,6 +79,7 @@
 //! from the per-render table of [`super::ntable`] when one is set (`far_table`), else from
 //! the model's engine per query.
 
+use super::ishair::{self, CauchyTheta, Sampling};
 use super::math::{Rgb, V3};
 use super::ntable::FarTable;
 use super::select::{SelectTable, Selection};
@@ -157,9 +158,13 @@ impl HRange {
 /// furnace renders at 1.40).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum MedullaEnergy {
+    /// The default: the scattered lobes as fitted, scaled per camera-side inclination so
+    /// the fiber's directional albedo equals the physical one ([`super::strand`]): a
+    /// lossless fiber returns what it receives, the lobe shapes are the fitted ones.
+    #[default]
+    Strand,
     /// `M_s` exactly as fitted (the light incident, as a goniometer sample): the render
     /// shows the lobes the fit measured, and the gain above.
-    #[default]
     Fit,
     /// `M_s` divided by its column's mass `∫ M_s(theta, theta_o, phi) dtheta` where that
     /// exceeds 1: no light is gained, at the price of dimmer scattered lobes than fitted
@@ -170,16 +175,18 @@ pub enum MedullaEnergy {
 impl MedullaEnergy {
     pub fn parse(s: &str) -> crate::Result<MedullaEnergy> {
         match s.trim().to_ascii_lowercase().as_str() {
+            "strand" => Ok(MedullaEnergy::Strand),
             "fit" => Ok(MedullaEnergy::Fit),
             "conserve" => Ok(MedullaEnergy::Conserve),
             other => Err(crate::Error::Invalid(format!(
-                "unknown medulla energy '{other}' (expected fit or conserve)"
+                "unknown medulla energy '{other}' (expected strand, fit or conserve)"
             ))),
         }
     }
 
     pub fn name(self) -> &'static str {
         match self {
+            MedullaEnergy::Strand => "strand",
             MedullaEnergy::Fit => "fit",
             MedullaEnergy::Conserve => "conserve",
         }
@@ -347,6 +354,8 @@ impl TruncM {
 pub struct CameraSide {
     theta_o: f64,
     m: TruncM,
+    /// ISHair's truncated Cauchy in `theta` per unscattered lobe ([`super::ishair`]).
+    cauchy: [CauchyTheta; 5],
 }
 
 /// Quantile nodes of `M_s` at which [`FiberBsdf::scattered_selection`] reads the scattered
@@ -381,6 +390,11 @@ pub struct FiberBsdf {
     /// Tabulated lobe selection of the sampler ([`super::select`]); `None` computes it
     /// exactly per query.
     pub select: Option<Arc<SelectTable>>,
+    /// Scale of the scattered lobes per camera-side inclination and channel
+    /// ([`MedullaEnergy::Strand`], [`super::strand`]); `None` leaves them as fitted.
+    pub energy: Option<Arc<super::strand::EnergyScale>>,
+    /// The sampler's proposal ([`Sampling`]); sample and pdf follow it alike.
+    pub sampling: Sampling,
 }
 
 /// Upper-tail masses `(Q(-pi/2), Q(pi/2))` of the normal (`mu`, `s`) reflected so its
@@ -424,6 +438,10 @@ impl FiberBsdf {
             far_opts: FarOptions::default(),
             far_table: None,
             select: None,
+            energy: None,
+            // The sampler the BCSDF's own tests pin down; renders set theirs
+            // (`RenderSettings::sampling`, ISHair by default).
+            sampling: Sampling::Lobes,
         }
     }
 
@@ -482,6 +500,21 @@ impl FiberBsdf {
         d
     }
 
+    /// The azimuthal proposal densities of the unscattered lobes at one path: the model's
+    /// `D_l` for [`Sampling::Lobes`], ISHair's Cauchy about `Phi_l(h)` of the same width.
+    fn proposal_d(&self, geo: &PathGeometry, phi: f64) -> [f64; 5] {
+        if self.sampling != Sampling::Ishair {
+            return self.unscattered_d(geo, phi);
+        }
+        let beta_n = self.models[0].params.beta_n;
+        let mut d = [0.0; 5];
+        for l in self.lobes.iter().filter(|l| !l.is_scattered()) {
+            let c = azimuthal::phi_p(l.p(), geo);
+            d[l.index()] = ishair::pdf_phi(c, azimuthal::beta_p(l.p(), beta_n), phi);
+        }
+        d
+    }
+
     /// [`Self::eval_near`] at a prepared [`NearPoint`].
     fn eval_near_at(&self, at: &NearPoint, theta_o: f64, theta: f64, phi: f64) -> LobeRgb {
         let m0 = &self.models[0];
@@ -506,7 +539,20 @@ impl FiberBsdf {
                 out[l.index()][c] = a.get(l) * md[l.index()];
             }
         }
+        self.scale_scattered(theta_o, &mut out);
         out
+    }
+
+    /// Apply the [`MedullaEnergy::Strand`] scale (when set) to the scattered lobes.
+    #[inline]
+    fn scale_scattered(&self, theta_o: f64, out: &mut LobeRgb) {
+        if let Some(e) = self.energy.as_deref() {
+            for c in 0..3 {
+                let k = e.at(theta_o, c);
+                out[Lobe::TTs.index()][c] *= k;
+                out[Lobe::TRTs.index()][c] *= k;
+            }
+        }
     }
 
     /// Far field / multi-scale: `M_p` times the model's `N_p` averaged over `[h1, h2]`
@@ -523,6 +569,7 @@ impl FiberBsdf {
                     out[l.index()][c] = m.get(l) * n.get(l);
                 }
             }
+            self.scale_scattered(theta_o, &mut out);
             return out;
         }
         for c in 0..3 {
@@ -536,6 +583,7 @@ impl FiberBsdf {
                 out[l.index()][c] = m.get(l) * n.get(l);
             }
         }
+        self.scale_scattered(theta_o, &mut out);
         out
     }
 
@@ -543,7 +591,7 @@ impl FiberBsdf {
     /// model's, the light as the incident side (module doc), with the scattered lobes'
     /// `M_s` divided by its column's mass where that exceeds 1 under
     /// [`MedullaEnergy::Conserve`].
-    fn longitudinal(&self, theta_o: f64, theta: f64, phi: f64) -> LobeValues {
+    pub(crate) fn longitudinal(&self, theta_o: f64, theta: f64, phi: f64) -> LobeValues {
         let mut m = self.models[0].longitudinal(theta, theta_o, phi, self.lobes);
         if self.medulla_energy == MedullaEnergy::Conserve {
             let mass = self.models[0]
@@ -577,14 +625,18 @@ impl FiberBsdf {
             s: [1.0; 5],
             tails: [(0.0, 0.0); 5],
         };
+        let mut cauchy = [CauchyTheta::default(); 5];
         for l in self.lobes.iter().filter(|l| !l.is_scattered()) {
             let i = l.index();
             let (mu, s) = self.m_params(l, theta_o);
             m.mu[i] = mu;
             m.s[i] = s;
             m.tails[i] = trunc_tails(mu, s);
+            if self.sampling == Sampling::Ishair {
+                cauchy[i] = CauchyTheta::new(mu, s);
+            }
         }
-        CameraSide { theta_o, m }
+        CameraSide { theta_o, m, cauchy }
     }
 
     /// The lobe selection at offset `h` of a camera side: from the per-render table when
@@ -599,7 +651,7 @@ impl FiberBsdf {
     /// Per-channel attenuations at one path of slice `theta_d`: the cuticle depends on eta
     /// and l only, which the channels share (the tint scales absorption), so one Fresnel
     /// term serves the three.
-    fn attenuation_rgb(&self, theta_d: f64, geo: &PathGeometry) -> [LobeValues; 3] {
+    pub(crate) fn attenuation_rgb(&self, theta_d: f64, geo: &PathGeometry) -> [LobeValues; 3] {
         let f = self.models[0].azimuthal(theta_d).cuticle(geo);
         std::array::from_fn(|c| {
             self.models[c]
@@ -623,8 +675,15 @@ impl FiberBsdf {
             w[l.index()] *= side.m.mass(l.index()).max(MIN_MASS);
         }
         let (ws, x_med, phi_s) = self.scattered_selection(theta_o, h, geo);
+        // The Strand scale multiplies the scattered lobes' energy (up to ~10x near the
+        // poles, where the fitted ones carry little): without it there they were chosen
+        // too rarely and came as rare large weights.
+        let k = self
+            .energy
+            .as_deref()
+            .map_or(1.0, |e| (0..3).map(|c| e.at(theta_o, c)).sum::<f64>() / 3.0);
         for l in self.lobes.iter().filter(|l| l.is_scattered()) {
-            w[l.index()] = ws[l.p() - 1];
+            w[l.index()] = ws[l.p() - 1] * k;
         }
         let sum: f64 = w.iter().sum();
         Selection {
@@ -732,11 +791,14 @@ impl FiberBsdf {
         theta: f64,
         phi: f64,
     ) -> f64 {
+        if self.sampling == Sampling::Uniform {
+            return ishair::uniform_pdf(theta);
+        }
         let slice = self.models[0].azimuthal(geometry::theta_d(side.theta_o, theta));
         let mut q = PdfQuery::new(self, side, theta, phi);
         let mut total = 0.0;
         for (sel, &h) in sels.iter().zip(hs) {
-            let d = self.unscattered_d(&slice.geometry(h), phi);
+            let d = self.proposal_d(&slice.geometry(h), phi);
             total += q.at(sel, &d);
         }
         total / sels.len() as f64
@@ -800,6 +862,9 @@ impl FiberBsdf {
             HRange::At(h) => (h, u[0]),
             HRange::Span(h1, h2) => (h1 + u[0] * (h2 - h1), u[1]),
         };
+        if self.sampling == Sampling::Uniform {
+            return self.sample_uniform(side, h, u);
+        }
         // In span mode u[1] picks the lobe; in near mode u[0] does and u[1] is free.
         let sel = self.select_at(side, h);
         let probs = sel.probs;
@@ -830,7 +895,10 @@ impl FiberBsdf {
             (theta, phi, None)
         } else {
             let (i, m) = (lobe.index(), &side.m);
-            let theta = if m.mass(i) < MIN_MASS {
+            let ish = self.sampling == Sampling::Ishair;
+            let theta = if ish {
+                side.cauchy[i].sample(u[2])
+            } else if m.mass(i) < MIN_MASS {
                 PI * (u[2] - 0.5)
             } else {
                 trunc_sample(m.mu[i], m.s[i], m.tails[i], u[2])
@@ -839,9 +907,15 @@ impl FiberBsdf {
             let slice = self.models[0].azimuthal(td);
             let geo = slice.geometry(h);
             let sigma = azimuthal::beta_p(lobe.p(), self.models[0].params.beta_n);
-            let z = SQRT_2 * puruspe::inverf((2.0 * u[3] - 1.0).clamp(-1.0 + 1e-16, 1.0 - 1e-16));
-            // D_p is a Gaussian of width beta_p about Phi_p(h) (Eqs. 7, 15).
-            let phi = wrap_angle(azimuthal::phi_p(lobe.p(), &geo) + sigma * z);
+            let centre = azimuthal::phi_p(lobe.p(), &geo);
+            let phi = if ish {
+                ishair::sample_phi(centre, sigma, u[3])
+            } else {
+                let z =
+                    SQRT_2 * puruspe::inverf((2.0 * u[3] - 1.0).clamp(-1.0 + 1e-16, 1.0 - 1e-16));
+                // D_p is a Gaussian of width beta_p about Phi_p(h) (Eqs. 7, 15).
+                wrap_angle(centre + sigma * z)
+            };
             (theta, phi, Some((td, geo)))
         };
         // The pdf and the near-field value share the path (traced once) and its D_l.
@@ -849,7 +923,12 @@ impl FiberBsdf {
             Some((td, geo)) => self.near_point_at(td, geo, phi),
             None => self.near_point(theta_o, theta, phi, h),
         };
-        let pdf = PdfQuery::new(self, side, theta, phi).at(&sel, &at.d);
+        let d = if self.sampling == Sampling::Ishair {
+            self.proposal_d(&at.geo, phi)
+        } else {
+            at.d
+        };
+        let pdf = PdfQuery::new(self, side, theta, phi).at(&sel, &d);
         if pdf.is_nan() || pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }
@@ -859,6 +938,35 @@ impl FiberBsdf {
                 *c /= pdf;
             }
         }
+        Some(BsdfSample {
+            theta,
+            phi,
+            h,
+            lobe,
+            weight,
+            pdf,
+        })
+    }
+}
+
+impl FiberBsdf {
+    /// [`Sampling::Uniform`]: a direction uniform over the sphere (u[2], u[3]) at offset
+    /// `h`; the lobe reported is the one of largest weight (for the AOV split only).
+    fn sample_uniform(&self, side: &CameraSide, h: f64, u: [f64; 4]) -> Option<BsdfSample> {
+        let (theta, phi) = ishair::uniform_sample(u[2], u[3]);
+        let pdf = ishair::uniform_pdf(theta);
+        if pdf <= 0.0 {
+            return None;
+        }
+        let mut weight = self.eval_near(side.theta_o, theta, phi, h);
+        let lum = |l: &[f64; 3]| l.iter().sum::<f64>();
+        let best = (0..5).max_by(|&a, &b| lum(&weight[a]).total_cmp(&lum(&weight[b])))?;
+        let lobe = self
+            .lobes
+            .iter()
+            .find(|l| l.index() == best)
+            .unwrap_or(Lobe::R);
+        weight.iter_mut().flatten().for_each(|c| *c /= pdf);
         Some(BsdfSample {
             theta,
             phi,
@@ -894,9 +1002,12 @@ struct PdfQuery<'a> {
 impl<'a> PdfQuery<'a> {
     fn new(bsdf: &'a FiberBsdf, side: &CameraSide, theta: f64, phi: f64) -> Self {
         let m = &side.m;
+        let ish = bsdf.sampling == Sampling::Ishair;
         let pt = std::array::from_fn(|i| {
             let mass = m.mass(i);
-            if mass < MIN_MASS {
+            if ish {
+                side.cauchy[i].pdf(theta)
+            } else if mass < MIN_MASS {
                 1.0 / PI
             } else {
                 longitudinal::gaussian(theta, m.mu[i], m.s[i]) / mass

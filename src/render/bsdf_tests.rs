@@ -415,3 +415,63 @@ fn grazing_selection_weighs_the_truncated_lobe_mass() {
         assert!(r < 0.05, "theta_o -1.53 {hr:?}: relative variance {r}");
     }
 }
+
+/// ISHair's Cauchy proposals ([`crate::render::ishair`]) and the uniform baseline: the
+/// samples follow the pdf the sampler reports, per lobe and mixed, in each mode (near
+/// field at one `h`, far field over [-1, 1], multi-scale over a footprint), with and
+/// without the selection table, as Mitsuba's chi2 test checks a BSDF's `sample` against
+/// its `pdf`; the weights' mean is the BCSDF's integral.
+#[test]
+fn chi_square_ishair_and_uniform_per_mode() {
+    use crate::render::ishair::Sampling;
+    // (params, theta_o, query, sampler, with the selection table): near field, far field
+    // and multi-scale footprints; span cases cost ~10x a near one (the binned pdf
+    // integrates over h), so the uniform baseline takes one of each.
+    let (ish, uni) = (Sampling::Ishair, Sampling::Uniform);
+    for (k, (p, theta_o, hr, sampling, table)) in [
+        (fur(), 0.3, HRange::At(0.35), ish, false),
+        (sharp(), -0.95, HRange::At(-0.71), ish, true),
+        (hair(), 1.2, HRange::At(0.05), ish, false),
+        (fur(), 0.3, HRange::At(0.35), uni, false),
+        (fur(), 0.4, HRange::Span(-1.0, 1.0), ish, true),
+        (sharp(), 1.2, HRange::Span(-1.0, 1.0), uni, false),
+        (hair(), -0.2, HRange::Span(0.1, 0.6), ish, false),
+        (sharp(), -0.95, HRange::Span(-0.2, 0.45), ish, true),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let mut b = FiberBsdf::new(&p, Tint::default(), LobeSet::ALL);
+        b.sampling = sampling;
+        if table {
+            b.build_select_table();
+        }
+        check_sampling_of(&b, theta_o, hr, 500 + k as u64);
+    }
+    // Each lobe alone under ISHair (near field).
+    let b0 = FiberBsdf::new(&fur(), Tint::default(), LobeSet::ALL);
+    for (j, l) in b0.lobes().iter().enumerate() {
+        let mut b = FiberBsdf::new(&fur(), Tint::default(), LobeSet::only(l));
+        b.sampling = Sampling::Ishair;
+        check_sampling_of(
+            &b,
+            [0.3, -0.9, 1.2][j % 3],
+            HRange::At(-0.4),
+            600 + j as u64,
+        );
+    }
+}
+
+/// The chi-square test can fail for ISHair too: its samples against the Gaussian
+/// sampler's pdf (a different proposal of the same lobes) give a huge z.
+#[test]
+fn chi_square_tells_ishair_from_the_gaussian_proposal() {
+    use crate::render::ishair::Sampling;
+    let mut b = FiberBsdf::new(&sharp(), Tint::default(), LobeSet::ALL);
+    b.sampling = Sampling::Ishair;
+    let (counts, _, _) = sample_hist(&b, 0.3, HRange::At(0.3), 60_000, 3);
+    let mut g = b.clone();
+    g.sampling = Sampling::Lobes;
+    let probs = bin_probs(&mut |t, p| g.pdf_at(0.3, t, p, 0.3), 3);
+    assert!(chi_square_z(&counts, &probs, 60_000) > 20.0);
+}

@@ -19,12 +19,17 @@
 
 pub mod bsdf;
 pub mod bvh;
+pub mod furnace;
 pub mod integrator;
+pub mod ishair;
 pub mod math;
 pub mod ntable;
 pub mod output;
+pub mod sampler_study;
 pub mod scene;
 pub mod select;
+pub mod strand;
+pub mod strand_train;
 pub mod study;
 
 #[cfg(test)]
@@ -151,6 +156,10 @@ pub struct RenderSettings {
     pub env_nee: bool,
     /// How the scattered lobes' `M_s` is read ([`bsdf::MedullaEnergy`]).
     pub medulla_energy: bsdf::MedullaEnergy,
+    /// Weights file of [`bsdf::MedullaEnergy::Strand`] (`None`: the built-in ones).
+    pub energy_weights: Option<std::path::PathBuf>,
+    /// The BCSDF sampler's proposal ([`ishair::Sampling`]).
+    pub sampling: ishair::Sampling,
     /// Set from another thread, ends the render with [`crate::Error::Interrupted`] after
     /// the image rows in progress (the default token is never set).
     pub cancel: crate::cancel::Cancel,
@@ -185,7 +194,9 @@ impl Default for RenderSettings {
             far_cull: true,
             far_table: true,
             env_nee: false,
-            medulla_energy: bsdf::MedullaEnergy::Fit,
+            medulla_energy: bsdf::MedullaEnergy::Strand,
+            energy_weights: None,
+            sampling: ishair::Sampling::default(),
             cancel: Default::default(),
         }
     }
@@ -221,7 +232,12 @@ pub struct Scene {
     tables: Mutex<Vec<(TableKey, Arc<ntable::FarTable>)>>,
     /// Shadow-ray trees of the key light directions rendered so far.
     light_trees: Mutex<Vec<([u64; 3], Arc<DirTree>)>>,
+    /// Strand energy scales of the parameter sets rendered so far.
+    energies: Mutex<Vec<(EnergyKey, Arc<strand::EnergyScale>)>>,
 }
+
+/// What a Strand energy scale depends on: parameters, tint, weights file.
+type EnergyKey = ([u64; 10], [u64; 7], Option<std::path::PathBuf>);
 
 impl Scene {
     pub fn build(strand: &StrandSpec) -> Scene {
@@ -229,6 +245,7 @@ impl Scene {
             bvh: Bvh::build(scene::build_lock(strand)),
             tables: Default::default(),
             light_trees: Default::default(),
+            energies: Default::default(),
         }
     }
 
@@ -239,26 +256,38 @@ impl Scene {
         cached(&self.light_trees, key, || self.bvh.dir_tree(dir))
     }
 
+    /// Set the Strand energy scale of `bsdf` ([`bsdf::MedullaEnergy::Strand`]), built on
+    /// first use for its key; an unreadable weights file is an error.
+    fn energy(
+        &self,
+        bsdf: &mut FiberBsdf,
+        params: &FurParams,
+        s: &RenderSettings,
+    ) -> crate::Result<()> {
+        if !bsdf.lobes().contains(crate::model::Lobe::TTs)
+            && !bsdf.lobes().contains(crate::model::Lobe::TRTs)
+        {
+            return Ok(());
+        }
+        let key: EnergyKey = (param_bits(params), s.tint.key(), s.energy_weights.clone());
+        let mut entries = self.energies.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, v)) = entries.iter().find(|(k, _)| *k == key) {
+            bsdf.energy = Some(v.clone());
+            return Ok(());
+        }
+        let mlp = match &s.energy_weights {
+            Some(p) => strand::StrandMlp::load(p)?,
+            None => strand::StrandMlp::builtin()?,
+        };
+        let v = Arc::new(strand::EnergyScale::build(params, s.tint, &mlp));
+        entries.push((key, v.clone()));
+        bsdf.energy = Some(v);
+        Ok(())
+    }
+
     /// Set the far-field table of `bsdf`, built on first use for its key.
     fn far_table(&self, bsdf: &mut FiberBsdf, params: &FurParams, s: &RenderSettings) {
-        let key: TableKey = (
-            [
-                params.eta,
-                params.kappa,
-                params.alpha,
-                params.beta_m,
-                params.beta_n,
-                params.sigma_c_a,
-                params.sigma_m_s,
-                params.sigma_m_a,
-                params.g,
-                params.l,
-            ]
-            .map(f64::to_bits),
-            s.tint.key(),
-            bsdf.lobes(),
-            s.far_cull,
-        );
+        let key: TableKey = (param_bits(params), s.tint.key(), bsdf.lobes(), s.far_cull);
         let table = cached(&self.tables, key, || bsdf.tabulate_far());
         bsdf.far_table = Some(table);
     }
@@ -278,6 +307,23 @@ fn cached<K: PartialEq, V>(
     let v = Arc::new(build());
     entries.push((key, v.clone()));
     v
+}
+
+/// Bit patterns of the ten parameters (a cache key).
+fn param_bits(params: &FurParams) -> [u64; 10] {
+    [
+        params.eta,
+        params.kappa,
+        params.alpha,
+        params.beta_m,
+        params.beta_n,
+        params.sigma_c_a,
+        params.sigma_m_s,
+        params.sigma_m_a,
+        params.g,
+        params.l,
+    ]
+    .map(f64::to_bits)
 }
 
 fn pixel_seed(seed: u64, index: u64) -> u64 {
@@ -324,11 +370,16 @@ fn render_in_pool(
     let mut bsdf = FiberBsdf::new(params, s.tint, s.lobes);
     bsdf.far_opts.cull = s.far_cull;
     bsdf.medulla_energy = s.medulla_energy;
+    bsdf.sampling = s.sampling;
     let setup = Instant::now();
     // Multi-scale with footprint 0 only ever queries the near field.
     let spans = s.mode == Mode::Far || (s.mode == Mode::Multiscale && s.footprint_scale > 0.0);
     if s.far_table && spans {
         scene.far_table(&mut bsdf, params, s);
+    }
+    // The energy scale first: the lobe selection weighs the scaled lobes.
+    if s.medulla_energy == bsdf::MedullaEnergy::Strand {
+        scene.energy(&mut bsdf, params, s)?;
     }
     bsdf.build_select_table();
     let light_tree = s.light.map(|l| scene.light_tree(l.dir));
