@@ -28,6 +28,7 @@ pub mod render;
 pub mod report;
 pub mod simulate;
 pub mod synth;
+pub mod view;
 
 pub use error::{Error, Result};
 

@@ -395,6 +395,7 @@ pub mod simulate;
 pub mod stability;
 pub mod synth;
 pub mod tables;
+pub mod view;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -430,6 +431,8 @@ pub enum Command {
     SeCalibration(se_calibration::Args),
     /// Export a fit as a Mitsuba 3, pbrt-v4, Blender Cycles or MaterialX hair material.
     Export(export::Args),
+    /// Write a real-time WebGL2 viewer of fits (shell textures + PRT), serve it, or render its still.
+    View(Box<view::Args>),
 }
 
 /// The smallest `--tol`: at 1e-9 the cat preset's refinement already hits its split limit
@@ -453,6 +456,7 @@ pub fn main() -> std::process::ExitCode {
         Command::RenderConvergence(a) => render_convergence::run(a),
         Command::SeCalibration(a) => se_calibration::run(a),
         Command::Export(a) => export::run(a),
+        Command::View(a) => view::run(*a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,
