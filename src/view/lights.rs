@@ -38,7 +38,7 @@ pub const LIGHTS: [Light; 2] = [
     Light {
         name: "lobe",
         label: "key lobe (order-4, 65 deg half max)",
-        kind: Kind::Lobe([2.6, 2.45, 2.25]),
+        kind: Kind::Lobe([6.0, 5.6, 5.1]),
         default_elev: 55.0,
         default_azim: -40.0,
     },

@@ -59,8 +59,8 @@ pub fn lighting(
     (l, c)
 }
 
-/// Premultiplied radiance and coverage of every texel of every shell: `[s][texel]` as
-/// `(r, g, b, alpha)`, from the packed (dequantised) channels, f32 as the shader does.
+/// Radiance and coverage of every texel of every shell: `[s][texel]` as `(r, g, b,
+/// alpha)`, from the packed (dequantised) channels, f32 as the shader does.
 pub fn texel_radiance(p: &Packed, c: &Rgb25) -> Vec<Vec<[f32; 4]>> {
     let n = p.res * p.res;
     (0..p.shells)
@@ -136,9 +136,11 @@ pub fn render(data: &ViewData, s: &Still) -> Image {
                     };
                     for &sh_i in &order {
                         if let Some(p) = hit_shell(data, cam.eye, d, sh_i) {
+                            // Radiance and coverage filtered apart, then
+                            // premultiplied: what the shader does with its samples.
                             let t = sample(&tex[sh_i], res, p.x, p.z);
                             for ch in 0..3 {
-                                col[ch] = t[ch] + (1.0 - t[3]) * col[ch];
+                                col[ch] = t[ch] * t[3] + (1.0 - t[3]) * col[ch];
                             }
                         }
                     }

@@ -167,11 +167,15 @@
   uniform sampler2DArray uTex; uniform int uBase;
   uniform vec4 uCR[7], uCG[7], uCB[7]; uniform vec3 uB; uniform vec2 uAlpha;
   void main() {
-    vec3 c = uB; float a = 0.0;
-    for (int j = 0; j < 7; j++) {
+    // The coverage first: an empty texel (all four filtered neighbours empty) adds
+    // nothing, so it skips the other six fetches (most texels of the upper shells).
+    vec4 q6 = texture(uTex, vec3(xz, float(uBase + 6)));
+    float a = uAlpha.x + uAlpha.y * q6.y;
+    if (a <= 0.0) discard;
+    vec3 c = uB + vec3(dot(q6, uCR[6]), dot(q6, uCG[6]), dot(q6, uCB[6]));
+    for (int j = 0; j < 6; j++) {
       vec4 q = texture(uTex, vec3(xz, float(uBase + j)));
       c += vec3(dot(q, uCR[j]), dot(q, uCG[j]), dot(q, uCB[j]));
-      if (j == 6) a = uAlpha.x + uAlpha.y * q.y;
     }
     o = vec4(c * a, a);
   }`);
@@ -285,7 +289,7 @@
     const s = D.species[st.species];
     info.textContent = s.name + "\n" + s.model + ": " + s.title + "\n" + s.params.join("\n") + "\ncolour: " + s.colour;
   }
-  if (!showUi) document.getElementById("ui").style.display = "none";
+  if (!showUi) for (const id of ["ui", "status", "bench"]) document.getElementById(id).style.visibility = "hidden";
   let ema = null, pending = false;
   function frame() {
     pending = false;
