@@ -30,6 +30,7 @@ pub mod simulate;
 pub mod synth;
 pub mod text;
 pub mod timing;
+pub mod view;
 
 pub use error::{Error, Result};
 

@@ -397,6 +397,7 @@ pub mod stability;
 pub mod synth;
 pub mod tables;
 pub mod tables_strand;
+pub mod view;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
@@ -434,6 +435,8 @@ pub enum Command {
     Export(export::Args),
     /// White furnace: directional albedo over theta of the renderer's BCSDF.
     Furnace(furnace::Args),
+    /// Write a real-time WebGL2 viewer of fits (shell textures + PRT), serve it, or render its still.
+    View(Box<view::Args>),
 }
 
 /// The smallest `--tol`: at 1e-9 the cat preset's refinement already hits its split limit
@@ -458,6 +461,7 @@ pub fn main() -> std::process::ExitCode {
         Command::SeCalibration(a) => se_calibration::run(a),
         Command::Export(a) => export::run(a),
         Command::Furnace(a) => furnace::run(a),
+        Command::View(a) => view::run(*a),
     };
     match result {
         Ok(()) => std::process::ExitCode::SUCCESS,

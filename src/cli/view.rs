@@ -1,0 +1,326 @@
+//! `furfit view`: write the real-time viewer page, serve it, or render its still
+//! ([`crate::view`]).
+
+use crate::render::output;
+use crate::view::{self, lights, page, prt, reference, serve, shells::FurSpec, still, View};
+use anyhow::Context;
+use std::path::{Path, PathBuf};
+
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Fit files (or parameter files, presets) to show, any model; one species each.
+    #[arg(long, num_args = 1.., value_name = "FIT")]
+    pub params: Vec<String>,
+    /// The page's folder; with --still a PNG file; with --reference a report folder.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Write the page into an --out that holds other files too (an earlier view's own
+    /// files are replaced without it).
+    #[arg(long)]
+    pub force: bool,
+    /// Serve the page in DIR on 127.0.0.1 and print its URL (nothing else is done).
+    #[arg(long, value_name = "DIR")]
+    pub serve: Option<PathBuf>,
+    /// Port for --serve (0 = any free port).
+    #[arg(long, default_value_t = 8000)]
+    pub port: u16,
+    /// Render the page's view on the CPU into --out (PNG), through the same textures.
+    #[arg(long)]
+    pub still: bool,
+    /// Path-trace the reference of the same fibers and write PRT-vs-reference errors
+    /// (yan2017 fits) into the --out folder.
+    #[arg(long)]
+    pub reference: bool,
+    /// Species shown by --still: index into --params (0-based) or name.
+    #[arg(long, default_value = "0")]
+    pub species: String,
+    /// Light of --still: lobe or sky.
+    #[arg(long, default_value = "lobe")]
+    pub light: String,
+    /// Image size of --still and --reference.
+    #[arg(long, default_value = "640x480")]
+    pub size: String,
+    /// Camera elevation,azimuth in degrees.
+    #[arg(long, value_name = "ELEV,AZIM")]
+    pub cam: Option<String>,
+    /// Light elevation,azimuth in degrees (default: the light's own).
+    #[arg(long, value_name = "ELEV,AZIM")]
+    pub light_dir: Option<String>,
+    /// Exposure in EV.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    pub ev: f64,
+    /// Texels per tile side of the shell textures.
+    #[arg(long, default_value_t = 128)]
+    pub res: usize,
+    #[arg(long, default_value_t = 32)]
+    pub shells: usize,
+    /// Fibers per tile.
+    #[arg(long, default_value_t = 4000)]
+    pub fibers: usize,
+    /// Fiber length in tile sides.
+    #[arg(long, default_value_t = 0.26)]
+    pub length: f64,
+    /// Helical curl radius in tile sides.
+    #[arg(long, default_value_t = 0.006)]
+    pub curl: f64,
+    /// Comb tilt from the vertical, degrees.
+    #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
+    pub tilt: f64,
+    #[arg(long, default_value_t = 3)]
+    pub seed: u64,
+    /// Transfer sweep directions NZxNPHI (even NZ).
+    #[arg(long, default_value = "8x16")]
+    pub dirs: String,
+    /// Samples per pixel of --reference.
+    #[arg(long, default_value_t = 256)]
+    pub spp: usize,
+}
+
+fn pair(opt: &str, s: &str) -> anyhow::Result<(f64, f64)> {
+    let (a, b) = s
+        .split_once(',')
+        .ok_or_else(|| anyhow::anyhow!("{opt} '{s}': expected two numbers A,B"))?;
+    let n = |v: &str| super::number(v).map_err(|e| anyhow::anyhow!("{opt} '{s}': {e}"));
+    Ok((n(a)?, n(b)?))
+}
+
+fn fur(a: &Args) -> FurSpec {
+    FurSpec {
+        res: a.res,
+        shells: a.shells,
+        fibers: a.fibers,
+        length: a.length,
+        curl: a.curl,
+        tilt_deg: a.tilt,
+        seed: a.seed,
+        ..FurSpec::default()
+    }
+}
+
+fn view_of(a: &Args, light: &lights::Light) -> anyhow::Result<View> {
+    let mut v = View {
+        exposure_ev: a.ev,
+        light_elev_deg: light.default_elev,
+        light_azim_deg: light.default_azim,
+        ..View::default()
+    };
+    if let Some(c) = &a.cam {
+        (v.elev_deg, v.azim_deg) = pair("--cam", c)?;
+    }
+    if let Some(c) = &a.light_dir {
+        (v.light_elev_deg, v.light_azim_deg) = pair("--light-dir", c)?;
+    }
+    Ok(v)
+}
+
+pub fn run(a: Args) -> anyhow::Result<()> {
+    if let Some(dir) = &a.serve {
+        let listener = serve::bind(dir, a.port)?;
+        let addr = listener.local_addr().context("--serve")?;
+        println!(
+            "serving {} at {}  (Ctrl-C to stop)",
+            dir.display(),
+            serve::url(addr)
+        );
+        use std::io::Write;
+        std::io::stdout().flush().ok();
+        return Ok(serve::run(dir, listener)?);
+    }
+    if a.params.is_empty() {
+        anyhow::bail!("--params: give at least one fit file (or --serve DIR)");
+    }
+    let out = a
+        .out
+        .clone()
+        .ok_or_else(|| anyhow::anyhow!("--out is required"))?;
+    let dirs = {
+        let (nz, np) = a
+            .dirs
+            .split_once(['x', 'X'])
+            .ok_or_else(|| anyhow::anyhow!("--dirs '{}': expected NZxNPHI", a.dirs))?;
+        let p = |s: &str| {
+            s.trim()
+                .parse::<usize>()
+                .map_err(|_| anyhow::anyhow!("--dirs '{}': expected NZxNPHI", a.dirs))
+        };
+        (p(nz)?, p(np)?)
+    };
+    let (w, h) = super::parse_size("--size", &a.size, 8192, 1 << 24)?;
+    if a.still {
+        crate::io::check_out_file(&out).context("--out")?;
+    } else if a.reference {
+        crate::io::check_out_dir(&out).context("--out")?;
+    } else {
+        page::check_out(&out, a.force).context("--out")?;
+    }
+    let data = view::build(&fur(&a), &a.params, prt::TableSize::default(), dirs)?;
+    for s in &data.species {
+        println!(
+            "{}: {} ({}), BCSDF table {:.2} s, colour: {}",
+            s.name, s.model, s.title, s.seconds, s.colour
+        );
+    }
+    println!(
+        "shells: {} x {}^2 texels, {} fibers; coverage {:.2} s, transfer ({} directions) {:.2} s, packing {:.2} s",
+        data.fur.shells, data.fur.res, data.fur.fibers, data.seconds[0], data.n_dirs, data.seconds[1], data.seconds[2]
+    );
+    if a.still {
+        let species = species_index(&data, &a.species)?;
+        let light = lights::by_name(&a.light)?;
+        let st = still::Still {
+            width: w,
+            height: h,
+            view: view_of(&a, &light)?,
+            species,
+            light,
+            background: true,
+        };
+        let img = still::render(&data, &st);
+        let text = [
+            ("Software", format!("furfit {}", env!("CARGO_PKG_VERSION"))),
+            (
+                "Description",
+                format!(
+                    "furfit view --still: {} under {}",
+                    data.species[species].name, light.name
+                ),
+            ),
+        ];
+        let bytes = output::png_bytes(&img, st.view.exposure_ev, &text, &out)?;
+        crate::io::write_atomic(&out, &bytes)?;
+        println!("wrote {}", out.display());
+        return Ok(());
+    }
+    if a.reference {
+        return run_reference(&a, &data, &out, (w, h));
+    }
+    let light = lights::LIGHTS[0];
+    let files = page::write(&out, &data, &view_of(&a, &light)?)?;
+    let size: u64 = files
+        .iter()
+        .filter_map(|f| std::fs::metadata(f).ok())
+        .map(|m| m.len())
+        .sum();
+    println!(
+        "wrote {} ({:.1} MB); open {} or run furfit view --serve {}",
+        out.display(),
+        size as f64 / 1e6,
+        out.join("index.html").display(),
+        out.display()
+    );
+    Ok(())
+}
+
+fn species_index(data: &view::ViewData, s: &str) -> anyhow::Result<usize> {
+    if let Ok(i) = s.parse::<usize>() {
+        if i < data.species.len() {
+            return Ok(i);
+        }
+    }
+    data.species
+        .iter()
+        .position(|sp| sp.name == s)
+        .ok_or_else(|| {
+            let names: Vec<&str> = data.species.iter().map(|s| s.name.as_str()).collect();
+            anyhow::anyhow!(
+                "--species {s}: expected an index below {} or one of {}",
+                data.species.len(),
+                names.join(", ")
+            )
+        })
+}
+
+/// PRT stills against path-traced references, per species and light: PNGs and a table.
+fn run_reference(
+    a: &Args,
+    data: &view::ViewData,
+    out: &Path,
+    (w, h): (usize, usize),
+) -> anyhow::Result<()> {
+    let margin = 0.6;
+    let bvh = reference::geometry(data, margin);
+    let mut rows = vec!["| species | light | PRT vs single-scattering PT | PRT vs full PT (16 bounces) | PRT vs single, 1 px | PT seconds |".to_string(), "|---|---|---|---|---|---|".to_string()];
+    let mut csv =
+        String::from("species,light,rel_rmse_single_4px,rel_rmse_full_4px,rel_rmse_single_1px\n");
+    let mut files = Vec::new();
+    for (i, (sp, spec)) in data.species.iter().zip(&a.params).enumerate() {
+        let (mp, _, json) = crate::models::ModelParams::load(spec, None)?;
+        let Some(fp) = mp.fur() else {
+            println!(
+                "{}: {} is not yan2017; the renderer traces the fur model only: skipped",
+                sp.name, sp.model
+            );
+            continue;
+        };
+        let tint = json
+            .as_ref()
+            .and_then(|v| crate::params::fit_channels(v, spec).ok())
+            .and_then(|c| crate::render::bsdf::Tint::from_fit_channels(&c))
+            .unwrap_or_default();
+        for light in lights::LIGHTS {
+            let v = view_of(a, &light)?;
+            let st = still::Still {
+                width: w,
+                height: h,
+                view: v,
+                species: i,
+                light,
+                background: matches!(light.kind, lights::Kind::Sky { .. }),
+            };
+            let prt_img = still::render(data, &st);
+            let t0 = std::time::Instant::now();
+            let rs = |single| reference::RefSettings {
+                width: w,
+                height: h,
+                spp: a.spp,
+                seed: 11,
+                single,
+                margin,
+            };
+            let single = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(true))?;
+            let secs = t0.elapsed().as_secs_f64();
+            let full = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(false))?;
+            let mask = reference::mask(data, &v, w, h, -0.1);
+            let e1 = reference::relative_rmse(&prt_img, &single, &mask, 4);
+            let e2 = reference::relative_rmse(&prt_img, &full, &mask, 4);
+            let e3 = reference::relative_rmse(&prt_img, &single, &mask, 1);
+            println!("{} / {}: PRT vs single-scattering PT {:.1} %, vs full PT {:.1} % (4x4 px blocks), {:.1} % per pixel", sp.name, light.name, 100.0 * e1, 100.0 * e2, 100.0 * e3);
+            rows.push(format!(
+                "| {} | {} | {:.1} % | {:.1} % | {:.1} % | {:.0} |",
+                sp.name,
+                light.name,
+                100.0 * e1,
+                100.0 * e2,
+                100.0 * e3,
+                secs
+            ));
+            csv.push_str(&format!(
+                "{},{},{:.5},{:.5},{:.5}\n",
+                sp.name, light.name, e1, e2, e3
+            ));
+            for (tag, img) in [
+                ("prt", &prt_img),
+                ("pt_single", &single),
+                ("pt_full", &full),
+            ] {
+                let p = out.join(format!("{}_{}_{tag}.png", sp.name, light.name));
+                files.push((
+                    p.clone(),
+                    output::png_bytes(
+                        img,
+                        v.exposure_ev,
+                        &[("Software", "furfit view --reference".into())],
+                        &p,
+                    )?,
+                ));
+            }
+        }
+    }
+    let md = format!("{}\n", rows.join("\n"));
+    files.push((out.join("prt_error.md"), md.clone().into_bytes()));
+    files.push((out.join("prt_error.csv"), csv.into_bytes()));
+    std::fs::create_dir_all(out).with_context(|| format!("--out {}", out.display()))?;
+    crate::io::write_atomic_all(&files)?;
+    print!("{md}");
+    Ok(())
+}

@@ -1,0 +1,489 @@
+//! Precomputed radiance transfer for the shell stack (seed 003 Sec. 2.3-2.4, after Sloan
+//! et al. 2002), split so that camera orbit stays exact for the fitted BCSDF.
+//!
+//! The radiance a fiber in texel `x` sends toward the camera `w_o` is
+//! `L_o(x) = ∫∫ L(w) P(theta, theta_o, phi) T(x, w) dtheta dphi`, with `P = sum_p M_p N_p`
+//! the model's far-field value in the `(theta, phi)` measure (what
+//! [`crate::models::FiberModel::predict`] returns and `render` uses: see
+//! `src/render/bsdf.rs`, "Units") and `T` the transmittance of the fur above (or below)
+//! `x` toward `w`. In `dw = cos theta dtheta dphi` the integrand is `L P / cos theta * T`.
+//!
+//! * `T(x, .)` depends on the texel, not on the camera: it is projected per texel onto the
+//!   25 SH functions (`v_k(x)`, [`transfer`]), with transmittance ray-marched through the
+//!   shells' density (seed Eq. 4).
+//! * `P` depends on the camera, not on the texel (the swatch is combed: one tangent): for
+//!   each camera inclination `theta_o` to the fiber the 25x25 matrix
+//!   `B_jk(theta_o) = ∫∫ P Y_j Y_k dtheta dphi` is tabulated in the fiber frame
+//!   ([`BcsdfTable`]). Per frame the light's SH vector is rotated into that frame,
+//!   multiplied by `B` and rotated back ([`frame_lighting`]): the coefficients `c_k` of
+//!   `L P / cos theta`.
+//! * Run time: `L_o(x) = sum_k c_k v_k(x)`, a 25-term dot product per texel (seed Sec. 2.4).
+//!
+//! For an order-4 light (all of [`super::lights`]) `c` is exact; the only truncation is
+//! of `T`, which is smooth. Per-fiber tangents (curl, spread) and multiple scattering are
+//! left out (the path-traced reference has both; see `reports/viewer/`).
+
+use super::sh::{self, Mat3, Rule, N_COEFFS};
+use super::shells::FurSpec;
+use crate::model::far::FarOptions;
+use crate::model::LobeSet;
+use crate::models::{Integral, ModelParams, Points};
+use crate::render::math::V3;
+use rayon::prelude::*;
+use std::f64::consts::PI;
+
+/// Per-texel SH transfer of the transmittance, `[shell][coefficient][texel]`.
+#[derive(Clone, Debug)]
+pub struct Transfer {
+    pub res: usize,
+    pub shells: usize,
+    pub v: Vec<f32>,
+}
+
+impl Transfer {
+    pub fn at(&self, s: usize, k: usize) -> &[f32] {
+        let n = self.res * self.res;
+        &self.v[(s * N_COEFFS + k) * n..(s * N_COEFFS + k + 1) * n]
+    }
+}
+
+/// The sweep directions: `rule`'s nodes with its polar axis along world `y` (the shells'
+/// normal), so no node is horizontal for an even number of nodes in `z`.
+pub fn sweep_dirs(rule: &Rule) -> Vec<([f64; 3], f64)> {
+    rule.dirs
+        .iter()
+        .zip(&rule.weights)
+        .map(|(d, w)| ([d[0], d[2], d[1]], *w))
+        .collect()
+}
+
+/// Project the transmittance of every texel onto the SH basis with the directions of
+/// `rule` (polar axis up; `n_z` even). `cov` is the shells' coverage ([`super::shells::coverage`]).
+///
+/// Transmittance toward `w` from shell `s` multiplies `(1 - alpha)^(1 / |w_y|)` of every
+/// shell the ray crosses above (`w_y > 0`) or below, at the texel it crosses, read
+/// bilinearly with wrap: a sweep shell by shell keeps it O(1) per texel and direction.
+/// A fiber does not shadow the shell it is in.
+pub fn transfer(spec: &FurSpec, cov: &[Vec<f32>], rule: &Rule) -> Transfer {
+    let (res, shells) = (spec.res, spec.shells);
+    let n = res * res;
+    let od: Vec<Vec<f32>> = cov
+        .iter()
+        .map(|c| c.iter().map(|a| -(1.0 - a.min(0.9999)).ln()).collect())
+        .collect();
+    let mut v = vec![0.0f32; shells * N_COEFFS * n];
+    let dirs = sweep_dirs(rule);
+    for up in [true, false] {
+        let pass: Vec<&([f64; 3], f64)> = dirs.iter().filter(|(d, _)| (d[1] > 0.0) == up).collect();
+        if pass.is_empty() {
+            continue;
+        }
+        let steps: Vec<Step> = pass.iter().map(|(d, w)| Step::new(*d, *w, spec)).collect();
+        let mut taus = vec![vec![0.0f32; n]; steps.len()];
+        let order: Vec<usize> = if up {
+            (0..shells).rev().collect()
+        } else {
+            (0..shells).collect()
+        };
+        for (i, &s) in order.iter().enumerate() {
+            if i > 0 {
+                let prev = order[i - 1];
+                taus.par_iter_mut().zip(&steps).for_each(|(tau, st)| {
+                    st.advance(tau, &od[prev], res);
+                });
+            }
+            let block = &mut v[s * N_COEFFS * n..(s + 1) * N_COEFFS * n];
+            accumulate(block, &taus, &steps, res);
+        }
+    }
+    Transfer { res, shells, v }
+}
+
+/// One sweep direction: its SH weights and the per-shell shift in texels.
+struct Step {
+    wy: [f32; N_COEFFS],
+    inv_cos: f32,
+    /// Integer and fractional shift in `x` (`i`) and `z` (`j`).
+    shift: (i64, f32, i64, f32),
+}
+
+impl Step {
+    fn new(d: [f64; 3], w: f64, spec: &FurSpec) -> Step {
+        let y = sh::eval(d);
+        let ay = d[1].abs();
+        let k = spec.dy() * spec.res as f64 / ay;
+        let (sx, sz) = (d[0] * k, d[2] * k);
+        Step {
+            wy: std::array::from_fn(|i| (w * y[i]) as f32),
+            inv_cos: (1.0 / ay) as f32,
+            shift: (
+                sx.floor() as i64,
+                (sx - sx.floor()) as f32,
+                sz.floor() as i64,
+                (sz - sz.floor()) as f32,
+            ),
+        }
+    }
+
+    /// `tau` of the previous shell to this one: add the previous shell's optical depth
+    /// along the ray, then move to where the ray crosses it (bilinear, wrapped).
+    fn advance(&self, tau: &mut [f32], od_prev: &[f32], res: usize) {
+        let src: Vec<f32> = tau
+            .iter()
+            .zip(od_prev)
+            .map(|(t, o)| t + o * self.inv_cos)
+            .collect();
+        let (ox, fx, oz, fz) = self.shift;
+        let r = res as i64;
+        let wrap = |a: i64| a.rem_euclid(r) as usize;
+        let cols0: Vec<usize> = (0..r).map(|i| wrap(i + ox)).collect();
+        let cols1: Vec<usize> = (0..r).map(|i| wrap(i + ox + 1)).collect();
+        for j in 0..res {
+            let r0 = wrap(j as i64 + oz) * res;
+            let r1 = wrap(j as i64 + oz + 1) * res;
+            let row = &mut tau[j * res..(j + 1) * res];
+            for i in 0..res {
+                let (c0, c1) = (cols0[i], cols1[i]);
+                let a = src[r0 + c0] + fx * (src[r0 + c1] - src[r0 + c0]);
+                let b = src[r1 + c0] + fx * (src[r1 + c1] - src[r1 + c0]);
+                row[i] = a + fz * (b - a);
+            }
+        }
+    }
+}
+
+/// `block[k][texel] += sum_dirs w Y_k(d) exp(-tau_d(texel))`, row-parallel.
+fn accumulate(block: &mut [f32], taus: &[Vec<f32>], steps: &[Step], res: usize) {
+    let n = res * res;
+    // Rows of all 25 coefficient planes: split the block into per-row work by index.
+    let rows: Vec<(usize, Vec<f32>)> = (0..res)
+        .into_par_iter()
+        .map(|j| {
+            let mut acc = vec![0.0f32; N_COEFFS * res];
+            let mut e = vec![0.0f32; res];
+            for (tau, st) in taus.iter().zip(steps) {
+                for (ei, t) in e.iter_mut().zip(&tau[j * res..(j + 1) * res]) {
+                    *ei = (-t).exp();
+                }
+                for k in 0..N_COEFFS {
+                    let wk = st.wy[k];
+                    for (a, ei) in acc[k * res..(k + 1) * res].iter_mut().zip(&e) {
+                        *a += wk * ei;
+                    }
+                }
+            }
+            (j, acc)
+        })
+        .collect();
+    for (j, acc) in rows {
+        for k in 0..N_COEFFS {
+            let dst = &mut block[k * n + j * res..k * n + (j + 1) * res];
+            for (d, a) in dst.iter_mut().zip(&acc[k * res..(k + 1) * res]) {
+                *d += a;
+            }
+        }
+    }
+}
+
+/// The fitted BCSDF as 25x25 SH matrices per camera inclination, RGB
+/// (`m[((c * n_o + o) * 25 + j) * 25 + k]`), `theta_o` at midpoints of `[-90, 90]` degrees.
+#[derive(Clone, Debug)]
+pub struct BcsdfTable {
+    pub n_o: usize,
+    pub m: Vec<f32>,
+}
+
+/// Quadrature of [`bcsdf_table`]: midpoints in `theta` and `phi`.
+#[derive(Clone, Copy, Debug)]
+pub struct TableSize {
+    pub n_theta: usize,
+    pub n_phi: usize,
+    pub n_o: usize,
+}
+
+impl Default for TableSize {
+    fn default() -> Self {
+        // 2-degree midpoints integrate a Gaussian of 1.4 degrees (human's beta_m) to ~1e-4
+        // (Poisson summation: exp(-2 pi^2 sigma^2 / h^2)); 48 inclinations keep the
+        // linear interpolation of the smooth (order-8) B(theta_o) near 3 %.
+        TableSize {
+            n_theta: 90,
+            n_phi: 180,
+            n_o: 48,
+        }
+    }
+}
+
+/// `theta_o` of table row `o` (radians).
+pub fn theta_o_node(o: usize, n_o: usize) -> f64 {
+    -0.5 * PI + (o as f64 + 0.5) * PI / n_o as f64
+}
+
+/// The model's far-field value `P(theta_i, theta_r, phi)` on the table's grid, one
+/// channel: `[o][t][p]`. Everything model-specific stays behind `predict`.
+pub fn tabulate_p(params: &ModelParams, size: TableSize) -> Vec<f64> {
+    let TableSize {
+        n_theta,
+        n_phi,
+        n_o,
+    } = size;
+    let mut pts = Vec::with_capacity(n_o * n_theta * n_phi);
+    for o in 0..n_o {
+        let to = theta_o_node(o, n_o);
+        for t in 0..n_theta {
+            let ti = -0.5 * PI + (t as f64 + 0.5) * PI / n_theta as f64;
+            for p in 0..n_phi {
+                let ph = -PI + (p as f64 + 0.5) * 2.0 * PI / n_phi as f64;
+                pts.push((ti, to, ph));
+            }
+        }
+    }
+    let points = Points::new(pts);
+    let pred = params.model.predict(
+        &params.values,
+        &points,
+        &FarOptions::default(),
+        LobeSet::ALL,
+        Integral::Far,
+    );
+    pred.lobes.iter().map(|l| l.sum()).collect()
+}
+
+/// The light direction in the fiber frame of table node `(t, p)`: `(cos theta cos phi,
+/// cos theta sin phi, sin theta)`, axes `(v, w, u)` as in `src/render/bsdf.rs`.
+fn local_dir(t: usize, p: usize, size: TableSize) -> [f64; 3] {
+    let ti = -0.5 * PI + (t as f64 + 0.5) * PI / size.n_theta as f64;
+    let ph = -PI + (p as f64 + 0.5) * 2.0 * PI / size.n_phi as f64;
+    [ti.cos() * ph.cos(), ti.cos() * ph.sin(), ti.sin()]
+}
+
+/// [`BcsdfTable`] of three channels' parameters (r, g, b).
+pub fn bcsdf_table(channels: &[ModelParams; 3], size: TableSize) -> BcsdfTable {
+    let TableSize {
+        n_theta,
+        n_phi,
+        n_o,
+    } = size;
+    let ys: Vec<[f64; N_COEFFS]> = (0..n_theta * n_phi)
+        .map(|i| sh::eval(local_dir(i / n_phi, i % n_phi, size)))
+        .collect();
+    let cell = (PI / n_theta as f64) * (2.0 * PI / n_phi as f64);
+    // Grey channels (a model without a tint) are tabulated once.
+    let mut ps: Vec<Vec<f64>> = Vec::new();
+    for c in 0..3 {
+        match (0..c).find(|&b| channels[b] == channels[c]) {
+            Some(b) => ps.push(ps[b].clone()),
+            None => ps.push(tabulate_p(&channels[c], size)),
+        }
+    }
+    let m: Vec<f32> = (0..3 * n_o)
+        .into_par_iter()
+        .flat_map_iter(|co| {
+            let (c, o) = (co / n_o, co % n_o);
+            let p = &ps[c][o * n_theta * n_phi..(o + 1) * n_theta * n_phi];
+            let mut b = [[0.0f64; N_COEFFS]; N_COEFFS];
+            for (pv, y) in p.iter().zip(&ys) {
+                let w = pv * cell;
+                for j in 0..N_COEFFS {
+                    let wj = w * y[j];
+                    for k in j..N_COEFFS {
+                        b[j][k] += wj * y[k];
+                    }
+                }
+            }
+            (0..N_COEFFS * N_COEFFS).map(move |i| {
+                let (j, k) = (i / N_COEFFS, i % N_COEFFS);
+                b[j.min(k)][j.max(k)] as f32
+            })
+        })
+        .collect();
+    BcsdfTable { n_o, m }
+}
+
+/// World-to-fiber-frame rotation for camera direction `wo` and tangent `u` (rows `v, w,
+/// u`; `v` is `wo` projected on the normal plane).
+pub fn fiber_frame(wo: V3, u: V3) -> Mat3 {
+    let mut v = wo - u * wo.dot(u);
+    if v.length() < 1e-9 {
+        v = u.cross(V3::new(0.0, 0.0, 1.0));
+        if v.length() < 1e-9 {
+            v = u.cross(V3::new(1.0, 0.0, 0.0));
+        }
+    }
+    let v = v.normalized();
+    let w = u.cross(v);
+    [[v.x, v.y, v.z], [w.x, w.y, w.z], [u.x, u.y, u.z]]
+}
+
+/// RGB SH coefficients of the lighting per unit solid angle.
+pub type Rgb25 = [[f64; N_COEFFS]; 3];
+
+/// Per-frame coefficients `c` with `L_o(x) = sum_k c_k v_k(x)` (module doc) for the light
+/// `light` (world SH, RGB), the camera direction `wo` (unit, toward the camera) and the
+/// comb tangent `u`.
+pub fn frame_lighting(table: &BcsdfTable, light: &Rgb25, wo: V3, u: V3) -> Rgb25 {
+    let r = fiber_frame(wo, u);
+    let rt = sh::transpose(&r);
+    let theta_o = wo.dot(u).clamp(-1.0, 1.0).asin();
+    let n_o = table.n_o;
+    let f = ((theta_o + 0.5 * PI) / (PI / n_o as f64) - 0.5).clamp(0.0, (n_o - 1) as f64);
+    let o0 = (f.floor() as usize).min(n_o - 1);
+    let o1 = (o0 + 1).min(n_o - 1);
+    let a = f - o0 as f64;
+    std::array::from_fn(|c| {
+        let l = sh::rotate(&light[c], &r);
+        let mut out = [0.0; N_COEFFS];
+        let base = |o: usize| ((c * n_o + o) * N_COEFFS) * N_COEFFS;
+        for (j, oj) in out.iter_mut().enumerate() {
+            let mut s = 0.0;
+            for (k, lk) in l.iter().enumerate() {
+                let m0 = table.m[base(o0) + j * N_COEFFS + k] as f64;
+                let m1 = table.m[base(o1) + j * N_COEFFS + k] as f64;
+                s += (m0 + a * (m1 - m0)) * lk;
+            }
+            *oj = s;
+        }
+        sh::rotate(&out, &rt)
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::bsdf::{lobe_sum, FiberBsdf, HRange, Tint};
+
+    /// The tabulated P is the renderer's far-field BCSDF (same frame, units, argument
+    /// order): `FiberBsdf::eval` over the whole fiber width. Far-field tolerance 1e-4
+    /// relative (FarOptions::default), so 1e-3.
+    #[test]
+    fn p_matches_the_renderer() {
+        let fur = crate::FurParams::preset("cat").unwrap();
+        let mp = ModelParams::from(fur);
+        let size = TableSize {
+            n_theta: 6,
+            n_phi: 8,
+            n_o: 4,
+        };
+        let p = tabulate_p(&mp, size);
+        let bsdf = FiberBsdf::new(&fur, Tint::GREY, LobeSet::ALL);
+        for (o, t, ph) in [(1, 2, 3), (2, 4, 0), (3, 1, 6)] {
+            let to = theta_o_node(o, size.n_o);
+            let d = local_dir(t, ph, size);
+            let (ti, phi) = (d[2].asin(), d[1].atan2(d[0]));
+            let want = lobe_sum(&bsdf.eval(to, ti, phi, HRange::Span(-1.0, 1.0)))[0];
+            let got = p[(o * size.n_theta + t) * size.n_phi + ph];
+            assert!(
+                (got - want).abs() <= 1e-3 * want.abs() + 1e-9,
+                "{got} vs {want}"
+            );
+        }
+    }
+
+    /// With nothing in the way (T = 1) the dot product equals the direct quadrature of
+    /// `L P / cos theta` over the sphere, for a light of order 4 (exact in SH). Tolerance
+    /// 2 %: the linear interpolation of B between inclination nodes and the 2-degree
+    /// quadrature of a sharp lobe.
+    #[test]
+    fn unshadowed_radiance_matches_direct_integral() {
+        let fur = crate::FurParams::preset("cat").unwrap();
+        let mp = ModelParams::from(fur);
+        let size = TableSize::default();
+        let table = bcsdf_table(&[mp.clone(), mp.clone(), mp.clone()], size);
+        let rule = Rule::product(8, 17);
+        let d: [f64; 3] = [0.3, 0.8, 0.52];
+        let nd = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        let d = d.map(|v| v / nd);
+        let lobe = sh::project(&rule, |w| {
+            ((1.0 + w[0] * d[0] + w[1] * d[1] + w[2] * d[2]) / 2.0).powi(4)
+        });
+        let light: Rgb25 = [lobe; 3];
+        let u = V3::new(0.5, 0.866, 0.0);
+        let theta_o_node_3 = theta_o_node(30, size.n_o);
+        // A camera exactly at a node inclination isolates the quadrature error.
+        let wo = {
+            let perp = V3::new(0.0, 0.0, 1.0);
+            (u * theta_o_node_3.sin() + perp * theta_o_node_3.cos()).normalized()
+        };
+        let c = frame_lighting(&table, &light, wo, u);
+        let got = c[0][0] * (4.0 * PI).sqrt();
+        // Direct: P on a fine grid at this theta_o, in the fiber frame.
+        let fine = TableSize {
+            n_theta: 180,
+            n_phi: 360,
+            n_o: 1,
+        };
+        let r = fiber_frame(wo, u);
+        let rt = sh::transpose(&r);
+        let p = {
+            let mut pts = Vec::new();
+            for t in 0..fine.n_theta {
+                for ph in 0..fine.n_phi {
+                    let l = local_dir(t, ph, fine);
+                    pts.push((l[2].asin(), theta_o_node_3, l[1].atan2(l[0])));
+                }
+            }
+            let pr = mp.model.predict(
+                &mp.values,
+                &Points::new(pts),
+                &FarOptions::default(),
+                LobeSet::ALL,
+                Integral::Far,
+            );
+            pr.lobes.iter().map(|l| l.sum()).collect::<Vec<_>>()
+        };
+        let cell = (PI / 180.0) * (2.0 * PI / 360.0);
+        let mut want = 0.0;
+        for t in 0..fine.n_theta {
+            for ph in 0..fine.n_phi {
+                let l = local_dir(t, ph, fine);
+                let w = sh::mat_vec(&rt, l);
+                want += sh::reconstruct(&lobe, w) * p[t * fine.n_phi + ph] * cell;
+            }
+        }
+        assert!((got / want - 1.0).abs() < 0.02, "{got} vs {want}");
+    }
+
+    /// An empty volume transmits everything: v = projection of 1 = (sqrt(4 pi), 0, ...).
+    /// An opaque shell above blocks the upper hemisphere of the shells below it.
+    #[test]
+    fn transfer_of_empty_and_opaque_volumes() {
+        let spec = FurSpec {
+            res: 16,
+            shells: 4,
+            ..FurSpec::default()
+        };
+        let rule = Rule::product(8, 16);
+        let empty = vec![vec![0.0f32; 256]; 4];
+        let t = transfer(&spec, &empty, &rule);
+        for s in 0..4 {
+            assert!(t
+                .at(s, 0)
+                .iter()
+                .all(|v| (*v as f64 - (4.0 * PI).sqrt()).abs() < 1e-4));
+            assert!(t.at(s, 2).iter().all(|v| v.abs() < 1e-4));
+        }
+        let mut opaque = empty.clone();
+        opaque[3] = vec![1.0; 256];
+        let t = transfer(&spec, &opaque, &rule);
+        // Shell 0 sees only the lower hemisphere: half the constant, and the
+        // z-like (here y-like) coefficient Y_1,-1 = 0.4886 y integrates to -0.4886 pi.
+        let half = 0.5 * (4.0 * PI).sqrt();
+        assert!(
+            t.at(0, 0).iter().all(|v| (*v as f64 - half).abs() < 1e-3),
+            "{}",
+            t.at(0, 0)[0]
+        );
+        assert!(
+            t.at(0, 1)
+                .iter()
+                .all(|v| (*v as f64 + 0.488_602_5 * PI).abs() < 2e-2),
+            "{}",
+            t.at(0, 1)[0]
+        );
+        // The top shell itself is not shadowed by its own fibers.
+        assert!(t
+            .at(3, 0)
+            .iter()
+            .all(|v| (*v as f64 - (4.0 * PI).sqrt()).abs() < 1e-4));
+    }
+}

@@ -1,0 +1,171 @@
+//! `furfit view --still`: the page's picture on the CPU, through the same packed
+//! textures and the same per-frame lighting, so the page can be checked against it
+//! pixel by pixel. GL conventions are followed where they matter: pixel centres at
+//! `+0.5`, bilinear `LINEAR` filtering with `REPEAT` wrap (texel centres at `(i + 0.5) /
+//! res`), premultiplied "over" compositing back to front, tone map after compositing.
+
+use super::lights::Light;
+use super::pack::{Packed, ALPHA};
+use super::prt::{frame_lighting, Rgb25};
+use super::sh::{self, N_COEFFS};
+use super::{target, View, ViewData};
+use crate::render::math::V3;
+use crate::render::scene::Camera;
+use crate::render::Image;
+use rayon::prelude::*;
+
+/// The swatch the page draws: tiles over `[-EXTENT, 1 + EXTENT]^2`.
+pub const EXTENT: f64 = 1.0;
+
+/// What one picture shows.
+#[derive(Clone, Debug)]
+pub struct Still {
+    pub width: usize,
+    pub height: usize,
+    pub view: View,
+    pub species: usize,
+    pub light: Light,
+    /// Show the environment behind the fur (the page does); off for the comparison with
+    /// a reference that has none behind it.
+    pub background: bool,
+}
+
+/// The camera of a view.
+pub fn camera(data: &ViewData, v: &View, width: usize, height: usize) -> Camera {
+    Camera::look_at(
+        target(&data.fur),
+        v.dist,
+        v.elev_deg,
+        v.azim_deg,
+        v.fov_deg,
+        width,
+        height,
+    )
+}
+
+/// World SH of the light and the per-frame lighting coefficients of a view.
+pub fn lighting(
+    data: &ViewData,
+    species: usize,
+    light: &Light,
+    v: &View,
+    width: usize,
+    height: usize,
+) -> (Rgb25, Rgb25) {
+    let l = light.coeffs(v.light_elev_deg, v.light_azim_deg);
+    let cam = camera(data, v, width, height);
+    let wo = (cam.eye - target(&data.fur)).normalized();
+    let c = frame_lighting(&data.species[species].table, &l, wo, data.fur.comb());
+    (l, c)
+}
+
+/// Radiance and coverage of every texel of every shell: `[s][texel]` as `(r, g, b,
+/// alpha)`, from the packed (dequantised) channels, f32 as the shader does.
+pub fn texel_radiance(p: &Packed, c: &Rgb25) -> Vec<Vec<[f32; 4]>> {
+    let n = p.res * p.res;
+    (0..p.shells)
+        .into_par_iter()
+        .map(|s| {
+            (0..n)
+                .map(|texel| {
+                    let mut out = [0.0f32; 4];
+                    for k in 0..N_COEFFS {
+                        let v = p.value(s, k, texel);
+                        for ch in 0..3 {
+                            out[ch] += c[ch][k] as f32 * v;
+                        }
+                    }
+                    out[3] = p.value(s, ALPHA, texel);
+                    out
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// Bilinear `REPEAT` sample of a `res x res` texel grid at tile coordinates `(x, z)`.
+fn sample(tex: &[[f32; 4]], res: usize, x: f64, z: f64) -> [f32; 4] {
+    let (fx, fz) = (x * res as f64 - 0.5, z * res as f64 - 0.5);
+    let (i0, j0) = (fx.floor(), fz.floor());
+    let (ax, az) = ((fx - i0) as f32, (fz - j0) as f32);
+    let r = res as i64;
+    let w = |a: f64, d: i64| ((a as i64 + d).rem_euclid(r)) as usize;
+    let t = |i: usize, j: usize| tex[j * res + i];
+    let (i0u, i1u, j0u, j1u) = (w(i0, 0), w(i0, 1), w(j0, 0), w(j0, 1));
+    let (a, b, c, d) = (t(i0u, j0u), t(i1u, j0u), t(i0u, j1u), t(i1u, j1u));
+    std::array::from_fn(|k| {
+        let top = a[k] + ax * (b[k] - a[k]);
+        let bot = c[k] + ax * (d[k] - c[k]);
+        top + az * (bot - top)
+    })
+}
+
+/// The shells in drawing order (back to front) for a camera at height `eye_y`.
+pub fn shell_order(data: &ViewData, eye_y: f64) -> Vec<usize> {
+    let shells = data.fur.shells;
+    let mut below: Vec<usize> = (0..shells)
+        .filter(|&s| data.fur.shell_y(s) < eye_y)
+        .collect();
+    let above: Vec<usize> = (0..shells)
+        .rev()
+        .filter(|&s| data.fur.shell_y(s) >= eye_y)
+        .collect();
+    below.extend(above);
+    below
+}
+
+/// Render the still (linear radiance).
+pub fn render(data: &ViewData, s: &Still) -> Image {
+    let (l, c) = lighting(data, s.species, &s.light, &s.view, s.width, s.height);
+    let tex = texel_radiance(&data.packed, &c);
+    let cam = camera(data, &s.view, s.width, s.height);
+    let order = shell_order(data, cam.eye.y);
+    let res = data.packed.res;
+    let rows: Vec<Vec<[f64; 3]>> = (0..s.height)
+        .into_par_iter()
+        .map(|py| {
+            (0..s.width)
+                .map(|px| {
+                    let d = cam.ray_dir(px as f64 + 0.5, py as f64 + 0.5);
+                    let mut col = if s.background {
+                        let y = sh::eval([d.x, d.y, d.z]);
+                        [0, 1, 2]
+                            .map(|ch| (0..N_COEFFS).map(|k| l[ch][k] * y[k]).sum::<f64>() as f32)
+                    } else {
+                        [0.0f32; 3]
+                    };
+                    for &sh_i in &order {
+                        if let Some(p) = hit_shell(data, cam.eye, d, sh_i) {
+                            // Radiance and coverage filtered apart, then
+                            // premultiplied: what the shader does with its samples.
+                            let t = sample(&tex[sh_i], res, p.x, p.z);
+                            for ch in 0..3 {
+                                col[ch] = t[ch] * t[3] + (1.0 - t[3]) * col[ch];
+                            }
+                        }
+                    }
+                    col.map(|v| v as f64)
+                })
+                .collect()
+        })
+        .collect();
+    Image {
+        width: s.width,
+        height: s.height,
+        data: rows.into_iter().flatten().collect(),
+    }
+}
+
+/// Where the ray from `eye` along `d` meets shell `s` inside the swatch, if it does.
+fn hit_shell(data: &ViewData, eye: V3, d: V3, s: usize) -> Option<V3> {
+    if d.y.abs() < 1e-12 {
+        return None;
+    }
+    let t = (data.fur.shell_y(s) - eye.y) / d.y;
+    if t <= 0.0 {
+        return None;
+    }
+    let p = eye + d * t;
+    let inside = |v: f64| (-EXTENT..=1.0 + EXTENT).contains(&v);
+    (inside(p.x) && inside(p.z)).then_some(p)
+}
