@@ -516,7 +516,7 @@ fn renders_carry_their_provenance_in_png_text() {
         d.starts_with("image rendered by furfit from fit file ")
             && d.contains("species red-fox, fitted to SYNTHETIC data")
             && d.contains("mode far, 8x8, 1 spp, seed ")
-            && d.contains("lobes R,TT,TRT,TTs,TRTs, medulla energy fit; colour: absorption tinted by r:g:b ratios"),
+            && d.contains("lobes R,TT,TRT,TTs,TRTs, medulla energy strand; colour: absorption tinted by r:g:b ratios"),
         "{d}"
     );
     assert!(get(&out, "Comment").contains("\"sigma_c_a\""));

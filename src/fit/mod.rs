@@ -449,7 +449,7 @@ pub fn fit_data(
     if opts.profile.is_empty() {
         return Ok(out);
     }
-    stages::with_profile(out, &full, solved, cost, opts, clock, &say, |s| {
+    polish::with_profile(out, &full, solved, cost, opts, clock, &say, |s| {
         finish(data, opts, &full, &sub, s, counts, clock)
     })
 }

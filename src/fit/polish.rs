@@ -1,4 +1,5 @@
-//! Polishes on all samples (steps 3 and 4 of [`super::fit_data`]).
+//! Polishes on all samples (steps 3 and 4 of [`super::fit_data`]), and the
+//! profile-likelihood stage after the fit, which may polish again.
 //!
 //! A second polish (from a start off a bound, see [`super::second_polish_starts`]) is
 //! screened first on the far field's fixed initial segmentation (`tol: None`): smooth in
@@ -17,7 +18,7 @@
 
 use super::problem::LogResidualProblem;
 use super::stages::{entries, Starts};
-use super::{reparam, run_lm, FitOptions, RunResult, Solved};
+use super::{likelihood, reparam, run_lm, FitOptions, FitOutcome, RunResult, Solved};
 use crate::error::Result;
 use crate::model::far::FarOptions;
 use nalgebra::DVector;
@@ -59,9 +60,10 @@ pub(super) struct Screen<'p, 'a> {
 
 impl<'p, 'a> Screen<'p, 'a> {
     /// A screen against the first polish's end `first` (no screening when `full` has no
-    /// tolerance to relax).
+    /// tolerance to relax, or its model none to honour).
     pub fn new(full: &'p LogResidualProblem<'a>, first: &DVector<f64>) -> Self {
-        let coarse = full.far.tol.map(|_| {
+        let refines = full.far.tol.is_some() && full.layout.model.refines();
+        let coarse = refines.then(|| {
             full.with_far(FarOptions {
                 tol: None,
                 ..full.far
@@ -210,4 +212,90 @@ fn second_polish_starts(
 fn count(full: &LogResidualProblem, run: &RunResult) {
     full.evals.fetch_add(run.evals, Ordering::Relaxed);
     full.fd_columns.fetch_add(run.fd_columns, Ordering::Relaxed);
+}
+
+/// Profile-likelihood intervals of [`FitOptions::profile`] for the fit `out` at `solved`
+/// (cost `cost` on all samples), `finish` making the outcome of another solve. A profile
+/// re-solve that fits better than the optimum by more than the data's resolution means
+/// the fit stopped short (a valley the polish left on a bound): the fit is polished again
+/// from there, and when that wins, the result and its intervals are the new point's
+/// (once).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn with_profile(
+    mut out: FitOutcome,
+    full: &LogResidualProblem,
+    solved: Solved,
+    cost: f64,
+    opts: &FitOptions,
+    clock: Instant,
+    say: &dyn Fn(&str),
+    finish: impl Fn(Solved) -> Result<FitOutcome>,
+) -> Result<FitOutcome> {
+    let t = Instant::now();
+    // A re-solve with one more parameter fixed: its solution and RSS (2 x its cost). One
+    // the solver fails on is scored at its start (an upper bound of its RSS), and counted.
+    let failed = std::cell::Cell::new(0usize);
+    let mut refit = |p: &LogResidualProblem, start: DVector<f64>| {
+        let run = run_lm(
+            p,
+            start.clone(),
+            opts.max_iters,
+            opts.ftol,
+            opts.step_se,
+            opts.broyden,
+            clock,
+        );
+        match run {
+            Ok(run) => (run.u, 2.0 * run.cost),
+            Err(_) => {
+                failed.set(failed.get() + 1);
+                let rss = p.residuals(start.as_slice()).norm_squared();
+                (start, rss)
+            }
+        }
+    };
+    let mut profile_at = |u: &DVector<f64>, out: &FitOutcome| {
+        let (r, _) = full.evaluate_at(u);
+        likelihood::intervals(
+            full,
+            u,
+            &r,
+            &out.uncertainty,
+            &opts.profile,
+            &mut refit,
+            say,
+        )
+    };
+    out.profile = profile_at(&solved.u, &out);
+    let better = out
+        .profile
+        .iter()
+        .filter_map(|iv| Some((iv.lowest?.0, iv.better.clone()?)))
+        .filter(|(d, _)| *d < likelihood::REPOLISH)
+        .min_by(|a, b| a.0.total_cmp(&b.0));
+    if let Some((d, start)) = better {
+        say("polishing from a better profile point");
+        let run = polish(full, start, opts, clock)?;
+        if run.cost < cost {
+            let mut trace = solved.trace;
+            trace.extend(entries("retry", solved.iters, &run, full.data.len()));
+            let again = Solved {
+                termination: format!(
+                    "{} (polished again from a profile re-solve {d:.1} s^2 below the first optimum)",
+                    run.termination
+                ),
+                iters: solved.iters + run.iters,
+                u: run.u,
+                trace,
+            };
+            let u = again.u.clone();
+            out = finish(again)?;
+            out.profile = profile_at(&u, &out);
+        }
+    }
+    out.profile_time_s = t.elapsed().as_secs_f64();
+    out.profile_failed = failed.get();
+    // A cancelled re-solve counts as failed above; the intervals are then unfinished.
+    opts.cancel.check()?;
+    Ok(out)
 }

@@ -1,10 +1,8 @@
 //! Stages 1 and 2 of [`super::fit_data`] (the global design scored on the subsample, and
-//! the multi-start LM runs there), the trace entries of a run, and the profile-likelihood
-//! stage after the fit.
+//! the multi-start LM runs there), and the trace entries of a run.
 
 use super::problem::LogResidualProblem;
-use super::{likelihood, polish, run_lm, starts, FitOptions, FitOutcome, RunResult, Solved};
-use super::{TraceEntry, SUBSAMPLE_FTOL};
+use super::{run_lm, starts, FitOptions, RunResult, TraceEntry, SUBSAMPLE_FTOL};
 use crate::error::Result;
 use nalgebra::DVector;
 use rayon::prelude::*;
@@ -164,90 +162,4 @@ pub(super) fn entries(
             nrmse: (2.0 * t.cost / n as f64).sqrt(),
         })
         .collect()
-}
-
-/// Profile-likelihood intervals of [`FitOptions::profile`] for the fit `out` at `solved`
-/// (cost `cost` on all samples), `finish` making the outcome of another solve. A profile
-/// re-solve that fits better than the optimum by more than the data's resolution means
-/// the fit stopped short (a valley the polish left on a bound): the fit is polished again
-/// from there, and when that wins, the result and its intervals are the new point's
-/// (once).
-#[allow(clippy::too_many_arguments)]
-pub(super) fn with_profile(
-    mut out: FitOutcome,
-    full: &LogResidualProblem,
-    solved: Solved,
-    cost: f64,
-    opts: &FitOptions,
-    clock: Instant,
-    say: &dyn Fn(&str),
-    finish: impl Fn(Solved) -> Result<FitOutcome>,
-) -> Result<FitOutcome> {
-    let t = Instant::now();
-    // A re-solve with one more parameter fixed: its solution and RSS (2 x its cost). One
-    // the solver fails on is scored at its start (an upper bound of its RSS), and counted.
-    let failed = std::cell::Cell::new(0usize);
-    let mut refit = |p: &LogResidualProblem, start: DVector<f64>| {
-        let run = run_lm(
-            p,
-            start.clone(),
-            opts.max_iters,
-            opts.ftol,
-            opts.step_se,
-            opts.broyden,
-            clock,
-        );
-        match run {
-            Ok(run) => (run.u, 2.0 * run.cost),
-            Err(_) => {
-                failed.set(failed.get() + 1);
-                let rss = p.residuals(start.as_slice()).norm_squared();
-                (start, rss)
-            }
-        }
-    };
-    let mut profile_at = |u: &DVector<f64>, out: &FitOutcome| {
-        let (r, _) = full.evaluate_at(u);
-        likelihood::intervals(
-            full,
-            u,
-            &r,
-            &out.uncertainty,
-            &opts.profile,
-            &mut refit,
-            say,
-        )
-    };
-    out.profile = profile_at(&solved.u, &out);
-    let better = out
-        .profile
-        .iter()
-        .filter_map(|iv| Some((iv.lowest?.0, iv.better.clone()?)))
-        .filter(|(d, _)| *d < likelihood::REPOLISH)
-        .min_by(|a, b| a.0.total_cmp(&b.0));
-    if let Some((d, start)) = better {
-        say("polishing from a better profile point");
-        let run = polish::polish(full, start, opts, clock)?;
-        if run.cost < cost {
-            let mut trace = solved.trace;
-            trace.extend(entries("retry", solved.iters, &run, full.data.len()));
-            let again = Solved {
-                termination: format!(
-                    "{} (polished again from a profile re-solve {d:.1} s^2 below the first optimum)",
-                    run.termination
-                ),
-                iters: solved.iters + run.iters,
-                u: run.u,
-                trace,
-            };
-            let u = again.u.clone();
-            out = finish(again)?;
-            out.profile = profile_at(&u, &out);
-        }
-    }
-    out.profile_time_s = t.elapsed().as_secs_f64();
-    out.profile_failed = failed.get();
-    // A cancelled re-solve counts as failed above; the intervals are then unfinished.
-    opts.cancel.check()?;
-    Ok(out)
 }

@@ -236,6 +236,12 @@ pub trait FiberModel: Send + Sync + 'static {
         (Vec::new(), "")
     }
 
+    /// Does [`FarOptions::tol`] change this model's far field (adaptive refinement)? The
+    /// fitter's coarse screens ([`crate::fit`]) are pointless for a model that ignores it.
+    fn refines(&self) -> bool {
+        false
+    }
+
     /// The lobes that can be non-zero for these parameters (internal units).
     fn active_lobes(&self, _p: &[f64]) -> LobeSet {
         LobeSet((1u8 << self.lobe_names().len()) - 1)

@@ -157,6 +157,10 @@ impl FiberModel for Yan2017 {
         FurModel::model_notes(&fur(p))
     }
 
+    fn refines(&self) -> bool {
+        true
+    }
+
     fn active_lobes(&self, p: &[f64]) -> LobeSet {
         FurModel::new(&fur(p)).active_lobes()
     }
