@@ -3,6 +3,7 @@
 
 use furfit::params::FurParams;
 use furfit::render::bsdf::{MedullaEnergy, Mode, Tint};
+use furfit::render::ishair::Sampling;
 use furfit::render::math::V3;
 use furfit::render::scene::{DirectionalLight, Environment, StrandSpec};
 use furfit::render::{render_scene, RenderSettings, Scene};
@@ -46,13 +47,17 @@ fn fur() -> FurParams {
     FurParams::preset("red-fox").unwrap()
 }
 
-/// A white furnace: constant environment 1, no key light, grey fibers, near field.
+/// A white furnace: constant environment 1, no key light, grey fibers, near field. The
+/// `lobes` sampler, whose weights stay below ~2, so that [`furnace_check`]'s per-pixel
+/// bound holds (with ISHair's Cauchy proposals a pixel's 16-spp mean reached 1.77 here:
+/// its furnace is checked on the mean in `ishair_white_furnace_mean_stays_at_or_below_one`).
 fn furnace() -> RenderSettings {
     let mut s = small(Mode::Near);
     s.light = None;
     s.env = Environment::constant(1.0);
     s.tint = Tint::GREY;
     s.spp = 16;
+    s.sampling = Sampling::Lobes;
     s
 }
 
@@ -69,6 +74,36 @@ fn white_furnace_scene_stays_at_or_below_one() {
         s.env_nee = env_nee;
         furnace_check(&render_scene(&scene, &p, &s).unwrap(), env_nee);
     }
+}
+
+/// The default sampler (ISHair) in the same furnace: the mean of the fiber pixels stays
+/// at or below one within 4 standard errors and most light survives (its per-pixel maximum
+/// is not bounded like `lobes`', see [`furnace`]).
+#[test]
+fn ishair_white_furnace_mean_stays_at_or_below_one() {
+    let p =
+        FurParams::from_file_units([1.55, 0.0, 2.0, 8.0, 20.0, 0.0, 0.0, 0.0, 0.0, 1.0]).unwrap();
+    let mut s = furnace();
+    s.sampling = Sampling::Ishair;
+    let scene = Scene::build(&s.strand);
+    for env_nee in [false, true] {
+        s.env_nee = env_nee;
+        let fiber = fiber_pixels(&render_scene(&scene, &p, &s).unwrap());
+        assert!(fiber.len() > 200, "{} fiber pixels", fiber.len());
+        let (mean, se) = mean_se(&fiber);
+        assert!(
+            mean <= 1.0 + 4.0 * se,
+            "env NEE {env_nee}: mean {mean} se {se}"
+        );
+        assert!(mean > 0.5, "env NEE {env_nee}: mean {mean}");
+    }
+}
+
+/// Mean and its standard error.
+fn mean_se(v: &[f64]) -> (f64, f64) {
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    let var = v.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / v.len() as f64;
+    (mean, (var / v.len() as f64).sqrt())
 }
 
 /// With a medulla the fitted `M_s` (non-reciprocal `C^M`, read down a column) returns more
@@ -110,9 +145,7 @@ fn furnace_check(r: &furfit::render::RenderOutput, env_nee: bool) {
     let fiber = fiber_pixels(r);
     // The scene must actually show fibers (else the test could not fail).
     assert!(fiber.len() > 200, "{} fiber pixels", fiber.len());
-    let mean = fiber.iter().sum::<f64>() / fiber.len() as f64;
-    let var = fiber.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / fiber.len() as f64;
-    let se = (var / fiber.len() as f64).sqrt();
+    let (mean, se) = mean_se(&fiber);
     // Energy is lost (orders p > 2 are not in the model), never gained: the mean of the
     // fiber pixels is <= 1 within 4 standard errors ...
     assert!(
@@ -517,10 +550,15 @@ fn key_lights_from_every_direction_add_up_to_the_environment() {
 /// vertices do carry light here: at one sample per pixel the first vertex draws the same
 /// random numbers as in a first-vertex-only render, so the difference of the two images
 /// is exactly the later vertices' light: never negative, and measured 3.4 % of the R
-/// image and 1.5 % of the TT image (bound: more than 1 %).
+/// image and 1.5 % of the TT image (bound: more than 1 %) with the `lobes` sampler, which
+/// the test pins: one sample of the later vertices' light is noisy (TT's share moved from
+/// 1.5 % to 9.7 % at 8 spp, and ISHair's draw gave 0.36 % at 1 spp), so the figure belongs
+/// to this stream; the samplers' means agree (`environment_estimators_agree` and the
+/// chi-square tests of `render::ishair`).
 #[test]
 fn later_vertices_light_goes_to_the_first_vertex_lobe() {
     let mut s = small(Mode::Near);
+    s.sampling = Sampling::Lobes;
     s.env = Environment::constant(0.0);
     s.spp = 1;
     let scene = Scene::build(&s.strand);
