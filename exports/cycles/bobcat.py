@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/bobcat.json (NRMSE 4.754% against its data), parameters mapped exactly
-# chiang2016: eta=1.0001099059662693 beta_m=0.9614093268707435 beta_n=0.9584051949183303 alpha=-19.999999999999932 deg sigma_a=2.7523066966678122, 2.7523066966678122, 2.7523066966678122 per unit fiber radius (r, g, b)
-# the fit's exposure 14.69396710008648 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.000110040338805 beta_m=0.9614220550935173 beta_n=0.9584049262849405 alpha=-19.999999999953562 deg sigma_a=2.7497155852297412, 2.7497155852297412, 2.7497155852297412 per unit fiber radius (r, g, b)
+# the fit's exposure 14.664559252359082 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_bobcat" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9614093268707435,
-    "beta_n": 0.9584051949183303,
-    "eta": 1.0001099059662693,
-    "alpha_deg": -19.999999999999932,
-    "sigma_a": (2.7523066966678122, 2.7523066966678122, 2.7523066966678122),
+    "beta_m": 0.9614220550935173,
+    "beta_n": 0.9584049262849405,
+    "eta": 1.000110040338805,
+    "alpha_deg": -19.999999999953562,
+    "sigma_a": (2.7497155852297412, 2.7497155852297412, 2.7497155852297412),
 }
 
 

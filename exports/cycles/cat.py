@@ -1,4 +1,4 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/cat.json (NRMSE 3.639% against its data), parameters mapped exactly
 # chiang2016: eta=1.000036634074192 beta_m=0.9778999675628577 beta_n=0.9536349774982146 alpha=-19.99999971484908 deg sigma_a=1.655419988649438, 1.655419988649438, 1.655419988649438 per unit fiber radius (r, g, b)
 # the fit's exposure 9.12261806703044 is the goniometer's scale, not part of the material

@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/deer.json (NRMSE 4.036% against its data), parameters mapped exactly
-# chiang2016: eta=1.0001250597644296 beta_m=0.9822900268030288 beta_n=0.9999999943640153 alpha=-19.99999999997951 deg sigma_a=2.2454368311845245, 2.2454368311845245, 2.2454368311845245 per unit fiber radius (r, g, b)
-# the fit's exposure 10.247263663143007 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.0001263248768755 beta_m=0.9822856517136376 beta_n=0.9999999943615927 alpha=-19.99999999997951 deg sigma_a=2.2362292082268183, 2.2362292082268183, 2.2362292082268183 per unit fiber radius (r, g, b)
+# the fit's exposure 10.158841435301609 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_deer" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9822900268030288,
-    "beta_n": 0.9999999943640153,
-    "eta": 1.0001250597644296,
+    "beta_m": 0.9822856517136376,
+    "beta_n": 0.9999999943615927,
+    "eta": 1.0001263248768755,
     "alpha_deg": -19.99999999997951,
-    "sigma_a": (2.2454368311845245, 2.2454368311845245, 2.2454368311845245),
+    "sigma_a": (2.2362292082268183, 2.2362292082268183, 2.2362292082268183),
 }
 
 

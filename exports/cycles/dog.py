@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/dog.json (NRMSE 3.912% against its data), parameters mapped exactly
-# chiang2016: eta=1.0000978669742366 beta_m=0.9963002800947547 beta_n=0.9999999924612496 alpha=-19.999999967971533 deg sigma_a=1.697220178001083, 1.697220178001083, 1.697220178001083 per unit fiber radius (r, g, b)
-# the fit's exposure 13.403780692350733 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.0001000809765606 beta_m=0.9965063738411609 beta_n=0.9999999924501767 alpha=-19.999999967957564 deg sigma_a=1.696933545040454, 1.696933545040454, 1.696933545040454 per unit fiber radius (r, g, b)
+# the fit's exposure 13.40538308653388 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_dog" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9963002800947547,
-    "beta_n": 0.9999999924612496,
-    "eta": 1.0000978669742366,
-    "alpha_deg": -19.999999967971533,
-    "sigma_a": (1.697220178001083, 1.697220178001083, 1.697220178001083),
+    "beta_m": 0.9965063738411609,
+    "beta_n": 0.9999999924501767,
+    "eta": 1.0001000809765606,
+    "alpha_deg": -19.999999967957564,
+    "sigma_a": (1.696933545040454, 1.696933545040454, 1.696933545040454),
 }
 
 

@@ -1,4 +1,4 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/human.json (NRMSE 8.182% against its data), parameters mapped exactly
 # chiang2016: eta=1.9903249680901023 beta_m=0.860393536948282 beta_n=0.9343942872224257 alpha=-19.999999999999932 deg sigma_a=9.357622968840175e-14, 9.357622968840175e-14, 9.357622968840175e-14 per unit fiber radius (r, g, b)
 # the fit's exposure 0.19548742275335604 is the goniometer's scale, not part of the material

@@ -1,4 +1,4 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/mouse.json (NRMSE 6.513% against its data), parameters mapped exactly
 # chiang2016: eta=1.001459544205043 beta_m=0.9261310729861659 beta_n=0.9468952061996577 alpha=-19.999999999999932 deg sigma_a=1.2630195478798383, 1.2630195478798383, 1.2630195478798383 per unit fiber radius (r, g, b)
 # the fit's exposure 5.224008564696428 is the goniometer's scale, not part of the material

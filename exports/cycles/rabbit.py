@@ -1,4 +1,4 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/rabbit.json (NRMSE 7.207% against its data), parameters mapped exactly
 # chiang2016: eta=1.0011680627573618 beta_m=0.9334753877893485 beta_n=0.9606625438553913 alpha=-19.999999999999932 deg sigma_a=1.2375125835769787, 1.2375125835769787, 1.2375125835769787 per unit fiber radius (r, g, b)
 # the fit's exposure 3.6257487150876693 is the goniometer's scale, not part of the material

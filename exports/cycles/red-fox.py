@@ -1,4 +1,4 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/red-fox.json (NRMSE 4.456% against its data), parameters mapped exactly
 # chiang2016: eta=1.0003146388881052 beta_m=0.9357651453332078 beta_n=0.9248270285000417 alpha=-19.999999999999932 deg sigma_a=1.545714713886922, 1.545714713886922, 1.545714713886922 per unit fiber radius (r, g, b)
 # the fit's exposure 4.781139023493521 is the goniometer's scale, not part of the material

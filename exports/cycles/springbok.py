@@ -1,4 +1,4 @@
-# written by furfit export (furfit 0.1.0 (git 164b3af4512a+dirty)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/springbok.json (NRMSE 15.111% against its data), parameters mapped exactly
 # chiang2016: eta=2.8669856174409585 beta_m=0.6946163706507127 beta_n=0.9997562613583456 alpha=-19.9999909575592 deg sigma_a=3.536153326408623e-13, 3.536153326408623e-13, 3.536153326408623e-13 per unit fiber radius (r, g, b)
 # the fit's exposure 0.23433247688673217 is the goniometer's scale, not part of the material
