@@ -1,11 +1,11 @@
 //! `furfit render`: preview fur on the built-in test lock (see `crate::render`).
 
-use crate::model::{Lobe, LobeSet};
+use crate::model::LobeSet;
 use crate::params::FurParams;
 use crate::render::bsdf::{MedullaEnergy, Mode, Tint};
 use crate::render::math::V3;
 use crate::render::scene::{DirectionalLight, Environment, MAX_FIBERS};
-use crate::render::{output, render_scene, RenderSettings, Scene};
+use crate::render::{batch, output, RenderSettings};
 use crate::render::{MAX_DEPTH, MAX_PIXELS, MAX_RADIANCE, MAX_SIDE, MAX_SPP};
 use anyhow::{bail, Context};
 use clap::builder::RangedU64ValueParser;
@@ -294,314 +294,76 @@ fn ignored(a: &Args, s: &RenderSettings) -> Vec<String> {
     w
 }
 
-fn with_suffix(out: &Path, suffix: &str, ext: &str) -> PathBuf {
-    let stem = out
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "render".into());
-    out.with_file_name(format!("{stem}{suffix}.{ext}"))
-}
-
-/// What one output file of a render holds.
-#[derive(Clone, Copy)]
-enum Image {
-    /// The tone-mapped beauty PNG.
-    Png,
-    /// The linear beauty EXR.
-    Exr,
-    /// A lobe's tone-mapped AOV PNG.
-    Aov(Lobe),
-    /// A lobe's linear AOV EXR (for compositing: the lobes' EXRs add up to the fiber
-    /// radiance of the beauty EXR; the background is in no lobe).
-    AovExr(Lobe),
-}
-
-/// The files one render writes: the PNG, the linear EXR beside it and the AOVs.
-fn outputs(out: &Path, s: &RenderSettings, aovs: bool) -> Vec<(Image, PathBuf)> {
-    let mut v = vec![
-        (Image::Png, out.to_path_buf()),
-        (Image::Exr, with_suffix(out, "", "exr")),
-    ];
-    if aovs {
-        for l in Lobe::ALL.into_iter().filter(|&l| s.lobes.contains(l)) {
-            v.push((
-                Image::Aov(l),
-                with_suffix(out, &format!("_{}", l.name()), "png"),
-            ));
-            v.push((
-                Image::AovExr(l),
-                with_suffix(out, &format!("_{}", l.name()), "exr"),
-            ));
-        }
-    }
-    v
-}
-
+/// Run `furfit render`: parse the options and the parameters, then render and write
+/// ([`batch::run`]).
 pub fn run(a: Args) -> anyhow::Result<()> {
     let s = settings_from(&a)?;
     for w in ignored(&a, &s) {
         eprintln!("warning: {w}");
     }
-    // (name, parameters, the fit file's r, g, b channels when it has them, where the
-    // parameters come from)
-    let jobs: Vec<(String, FurParams, Option<Tint>, String)> = if a.all {
+    let jobs = load_jobs(&a)?;
+    let opts = batch::BatchOptions {
+        settings: s,
+        out: a.out.clone(),
+        sheet: a.all,
+        aovs: !a.no_aovs,
+        force: a.force,
+        exposure: a.exposure,
+        tint: a.tint.clone(),
+        from_fits: a.fit.is_some() || a.all,
+        command: super::command_line(),
+    };
+    let plan = batch::plan(&opts, &jobs)?;
+    for d in &plan.dirs {
+        super::prepare_out_dir(d)?;
+    }
+    batch::run(&opts, &jobs, &plan, |l| outln!("{l}"), |n| eprintln!("{n}"))?;
+    Ok(())
+}
+
+/// The images of `--all`, `--fit` or `--params`: name, parameters, the fit file's r, g,
+/// b colour when it has them, and where the parameters come from.
+fn load_jobs(a: &Args) -> anyhow::Result<Vec<batch::RenderJob>> {
+    let job = |name: String, (params, colour, about)| batch::RenderJob {
+        name,
+        params,
+        colour,
+        about,
+    };
+    if a.all {
         let dir = a.fits_dir.clone().unwrap_or_else(|| "fits".into());
         let files = crate::io::fit_files(&dir)?;
         if files.is_empty() {
             bail!("{}: no *.json fit files", dir.display());
         }
-        files
+        return files
             .iter()
             .map(|f| {
                 let spec = f.to_string_lossy();
                 let name = f.file_stem().unwrap().to_string_lossy().into_owned();
-                let (p, colour, about) = load_with_colour(&spec)?;
-                Ok((name, p, colour, about))
+                Ok(job(name, load_with_colour(&spec)?))
             })
-            .collect::<anyhow::Result<_>>()?
-    } else {
-        if let Some(f) = &a.fit {
-            if Path::new(f).is_dir() {
-                bail!("--fit {f}: is a directory, not a fit file (--all --fits-dir DIR renders every fit in one)");
-            }
-            if !Path::new(f).is_file() {
-                bail!("--fit {f}: no such fit file (a preset name goes with --params)");
-            }
-        }
-        let spec = a
-            .fit
-            .clone()
-            .or(a.params.clone())
-            .context("give --fit FILE, --params FILE|PRESET or --all")?;
-        let (p, colour, about) = load_with_colour(&spec)?;
-        let name = Path::new(&spec)
-            .file_stem()
-            .map(|s| s.to_string_lossy().into_owned())
-            .unwrap_or(spec.clone());
-        vec![(name, p, colour, about)]
-    };
-    // Every output path is checked before the (possibly long) renders, so a bad --out
-    // fails at once, before anything is written (a render that fails later still leaves
-    // the species finished before it).
-    let outs: Vec<PathBuf> = jobs
-        .iter()
-        .map(|(name, ..)| {
-            if a.all {
-                a.out.with_file_name(format!("{name}.png"))
-            } else {
-                a.out.clone()
-            }
-        })
-        .collect();
-    let mut taken: Vec<(PathBuf, &str)> = Vec::new();
-    if a.all {
-        taken.push((a.out.clone(), "the contact sheet"));
+            .collect();
     }
-    for ((name, ..), out) in jobs.iter().zip(&outs) {
-        for (_, p) in outputs(out, &s, !a.no_aovs) {
-            if let Some((_, owner)) = taken.iter().find(|(q, _)| *q == p) {
-                bail!(
-                    "--out {}: {} of fit '{name}' would overwrite {owner}; rename the fit \
-                     or choose another --out",
-                    a.out.display(),
-                    p.display()
-                );
-            }
-            taken.push((p, name));
+    if let Some(f) = &a.fit {
+        if Path::new(f).is_dir() {
+            bail!("--fit {f}: is a directory, not a fit file (--all --fits-dir DIR renders every fit in one)");
+        }
+        if !Path::new(f).is_file() {
+            bail!("--fit {f}: no such fit file (a preset name goes with --params)");
         }
     }
-    for (p, _) in &taken {
-        crate::io::check_out_file(p)?;
-    }
-    let planned: Vec<PathBuf> = taken.iter().map(|(p, _)| p.clone()).collect();
-    crate::io::check_replaceable(&planned, a.force)?;
-    let mut dirs: Vec<PathBuf> = planned.iter().map(|p| crate::io::parent_dir(p)).collect();
-    dirs.dedup();
-    for d in &dirs {
-        super::prepare_out_dir(d)?;
-    }
-    let built = std::time::Instant::now();
-    let scene = Scene::build(&s.strand);
-    // Said apart: each image's wall time below covers its own setup and tracing only.
-    outln!(
-        "scene: {} fibers, {} segments, built in {:.2} s; {}x{} at {} spp, mode {}",
-        s.strand.fibers,
-        scene.bvh.segments().len(),
-        built.elapsed().as_secs_f64(),
-        s.width,
-        s.height,
-        s.spp,
-        s.mode.name()
-    );
-    let mut tiles = Vec::new();
-    let command = super::command_line();
-    let (mut sheet_about, mut sheet_params) = (Vec::new(), Vec::new());
-    for ((name, p, colour, about), out) in jobs.iter().zip(&outs) {
-        for n in crate::model::FurModel::model_notes(p) {
-            eprintln!("note: {name}: {n}");
-        }
-        // An explicit --tint wins; else a fit's own r, g, b absorption, else the default.
-        let mut s = s.clone();
-        match (colour, &a.tint) {
-            (Some(t), None) => {
-                s.tint = *t;
-                eprintln!("note: {name}: colour from the fit's r, g, b channel absorption");
-            }
-            (Some(_), Some(t)) => {
-                eprintln!("note: {name}: --tint {t} replaces the fit's r, g, b absorption")
-            }
-            // Said of fits only: a preset or parameter file has no channels to look for.
-            (None, None) if a.fit.is_some() || a.all => eprintln!(
-                "note: {name}: no r, g, b channels in {about}: default eumelanin-like tint of \
-                 its primary channel's absorption (--tint)"
-            ),
-            (None, _) => {}
-        }
-        let r = render_scene(&scene, p, &s)?;
-        outln!(
-            "{name}: {:.2} s wall ({:.2} s setup + {:.2} s tracing), {} rays, \
-             {:.3} Mrays/s (tracing)",
-            r.setup_seconds + r.seconds,
-            r.setup_seconds,
-            r.seconds,
-            r.rays,
-            r.rays_per_second() / 1e6
-        );
-        // What made the image travels with its PNGs (text chunks).
-        // The EXRs hold linear radiance: the tone map and exposure are the PNGs' only.
-        let text = |what: &str, linear: bool| -> Vec<(&'static str, String)> {
-            vec![
-                ("Software", crate::TOOL_VERSION.to_string()),
-                ("Source", command.clone()),
-                (
-                    "Description",
-                    format!(
-                        "{what} rendered by furfit from {about}; mode {}, {}x{}, {} spp, \
-                         seed {}, lobes {}, medulla energy {}; colour: {}; {}",
-                        s.mode.name(),
-                        s.width,
-                        s.height,
-                        s.spp,
-                        s.seed,
-                        s.lobes
-                            .iter()
-                            .map(|l| l.name())
-                            .collect::<Vec<_>>()
-                            .join(","),
-                        s.medulla_energy.name(),
-                        s.tint,
-                        if linear {
-                            "linear scene radiance (the ACES tone map and --exposure apply \
-                             to the PNGs only)"
-                                .to_string()
-                        } else {
-                            format!("ACES tone map, sRGB, exposure {} EV", a.exposure)
-                        }
-                    ),
-                ),
-                ("Comment", format!("parameters {}", p.to_json_value())),
-            ]
-        };
-        sheet_about.push(format!("{name}: {about}"));
-        sheet_params.push(format!("{name}: {}", p.to_json_value()));
-        // The PNG, the EXR and the AOVs are written as one: all or none.
-        let files = outputs(out, &s, !a.no_aovs)
-            .into_iter()
-            .map(|(image, p)| {
-                let bytes = match image {
-                    Image::Png => {
-                        output::png_bytes(&r.beauty, a.exposure, &text("image", false), &p)?
-                    }
-                    Image::Exr => output::exr_bytes(&r.beauty, &text("linear image", true), &p)?,
-                    Image::Aov(l) => output::png_bytes(
-                        &r.lobes[l.index()],
-                        a.exposure,
-                        &text(&format!("{} lobe AOV", l.name()), false),
-                        &p,
-                    )?,
-                    Image::AovExr(l) => output::exr_bytes(
-                        &r.lobes[l.index()],
-                        &text(&format!("{} lobe linear AOV", l.name()), true),
-                        &p,
-                    )?,
-                };
-                Ok((p, bytes))
-            })
-            .collect::<crate::Result<Vec<_>>>()?;
-        crate::io::write_outputs(&files)?;
-        let written: Vec<PathBuf> = files.into_iter().map(|(p, _)| p).collect();
-        for n in stale_aov_notes(out, &written) {
-            eprintln!("note: {n}");
-        }
-        outln!("wrote {} (+ .exr)", out.display());
-        if !a.no_aovs {
-            outln!(
-                "wrote per-lobe AOVs {} (+ linear .exr)",
-                with_suffix(out, "_<lobe>", "png").display()
-            );
-        }
-        tiles.push((name.clone(), r.beauty));
-    }
-    if a.all {
-        let text = [
-            ("Software", crate::TOOL_VERSION.to_string()),
-            ("Source", command.clone()),
-            (
-                "Description",
-                format!(
-                    "contact sheet rendered by furfit, mode {}, {} spp, seed {}, medulla energy {}: {}",
-                    s.mode.name(),
-                    s.spp,
-                    s.seed,
-                    s.medulla_energy.name(),
-                    sheet_about.join("; ")
-                ),
-            ),
-            ("Comment", format!("parameters {}", sheet_params.join("; "))),
-        ];
-        output::write_contact_sheet(&tiles, a.exposure, &text, &a.out)?;
-        outln!("wrote contact sheet {}", a.out.display());
-    }
-    Ok(())
-}
-
-/// Notes on files with the AOV names of `out` that this render did not write (`written`;
-/// --no-aovs, other --lobes): they are left as they are (deleting is not this command's
-/// to do), but do not go with the new image. Only a file the ledger lists unchanged is
-/// called furfit's earlier render; any other is just named as not part of this one.
-fn stale_aov_notes(out: &Path, written: &[PathBuf]) -> Vec<String> {
-    let (ours, others): (Vec<PathBuf>, Vec<PathBuf>) = Lobe::ALL
-        .into_iter()
-        .flat_map(|l| ["png", "exr"].map(|ext| with_suffix(out, &format!("_{}", l.name()), ext)))
-        .filter(|p| p.exists() && !written.contains(p))
-        .partition(|p| crate::io::check_replaceable(std::slice::from_ref(p), false).is_ok());
-    let list = |v: &[PathBuf]| {
-        v.iter()
-            .map(|p| p.display().to_string())
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
-    let mut notes = Vec::new();
-    if !ours.is_empty() {
-        let one = ours.len() == 1;
-        notes.push(format!(
-            "{} from an earlier render {} not part of this one and no longer {} {}",
-            list(&ours),
-            if one { "is" } else { "are" },
-            if one { "matches" } else { "match" },
-            out.display()
-        ));
-    }
-    if !others.is_empty() {
-        notes.push(format!(
-            "{} {} an AOV's name but {} not part of this render (not a furfit output \
-             recorded in the ledger, or changed since)",
-            list(&others),
-            if others.len() == 1 { "has" } else { "have" },
-            if others.len() == 1 { "is" } else { "are" },
-        ));
-    }
-    notes
+    let spec = a
+        .fit
+        .clone()
+        .or(a.params.clone())
+        .context("give --fit FILE, --params FILE|PRESET or --all")?;
+    let loaded = load_with_colour(&spec)?;
+    let name = Path::new(&spec)
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or(spec.clone());
+    Ok(vec![job(name, loaded)])
 }
 
 /// The parameters of a preset, parameter file or fit file, the colour of a fit file

@@ -4,11 +4,8 @@
 //! (with `--noise-budget`) the speedup under lightings that isolate the noise of `h`.
 
 use crate::render::bsdf::Mode;
-use crate::render::sampler_study::{preview_ratio, sampler_study};
-use crate::render::study::{
-    convergence, culling_study, noise_budget, noise_budget_markdown, plot_convergence_bytes,
-};
-use crate::render::{RenderSettings, Scene, MAX_PIXELS, MAX_SIDE, MAX_SPP};
+use crate::render::study_run::{self, StudyKind, StudyOptions};
+use crate::render::{MAX_PIXELS, MAX_SIDE, MAX_SPP};
 use anyhow::{bail, Context};
 use clap::builder::RangedU64ValueParser;
 use std::path::PathBuf;
@@ -79,6 +76,8 @@ pub struct Args {
     pub preview: bool,
 }
 
+/// Run `furfit render-convergence`: parse and check every option, load the parameters,
+/// prepare the output folder, then make the study ([`study_run::run`]).
 pub fn run(a: Args) -> anyhow::Result<()> {
     // Every option and the output paths are checked before the first render.
     let (pw, ph) = super::parse_size("--size", &a.size, MAX_SIDE, MAX_PIXELS)?;
@@ -119,202 +118,34 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             1usize << a.max_spp.ilog2()
         );
     }
-    let names: &[&str] = if a.culling_study {
-        &["render_culling.md"]
+    let kind = if a.culling_study {
+        StudyKind::Culling
     } else if a.noise_budget {
-        &["render_noise_budget.md"]
+        StudyKind::NoiseBudget
     } else {
-        &[
-            "render_convergence.csv",
-            "render_convergence.png",
-            "render_convergence.svg",
-            "render_convergence.md",
-        ]
+        StudyKind::Convergence
     };
-    let mut paths: Vec<PathBuf> = names.iter().map(|n| a.out.join(n)).collect();
-    if samplings.len() > 1 && names.len() == 4 {
-        paths.push(a.out.join("render_samplers.csv"));
-    }
+    let opts = StudyOptions {
+        kind,
+        params_spec: a.params.clone(),
+        patch: (pw, ph),
+        frame: (fw, fh),
+        max_spp: a.max_spp,
+        ref_spp: a.ref_spp,
+        modes,
+        samplings,
+        seed: a.seed,
+        repeats: a.repeats,
+        threads: a.threads,
+        env_nee: a.env_nee,
+        preview: a.preview,
+        out: a.out.clone(),
+        force: a.force,
+        command: command_line(&a, (pw, ph), (fw, fh)),
+    };
     let (params, _, _) = super::load_params(&a.params)?;
     super::prepare_out_dir(&a.out)?;
-    for p in &paths {
-        crate::io::check_out_file(p)?;
-    }
-    crate::io::check_replaceable(&paths, a.force)?;
-    // What each render's pool gets: --threads 0 is rayon's default, the global pool's size.
-    let threads = match a.threads {
-        0 => rayon::current_num_threads(),
-        t => t,
-    };
-    let base = RenderSettings {
-        width: fw,
-        height: fh,
-        seed: a.seed,
-        threads: a.threads,
-        region: Some(((fw - pw) / 2, (fh - ph) / 2, pw, ph)),
-        env_nee: a.env_nee,
-        sampling: samplings[0],
-        ..RenderSettings::default()
-    };
-    if a.culling_study {
-        let mut s = base.clone();
-        s.spp = a.max_spp;
-        s.mode = Mode::Multiscale;
-        let rows = culling_study(&s.strand, &params, &s)?;
-        let mut md = format!(
-            "# Render culling study\n\n`furfit render-convergence --culling-study --params {} \
-             --size {pw}x{ph} --frame {fw}x{fh} --max-spp {}` ({}): multi-scale mode, same seed; \
-             RMSE against the unculled image, noise floor = RMSE between two seeds. Culling \
-             acts where the far field / multi-scale term is computed: in the per-render \
-             table build (`render::ntable`); tracing reads the table either way.\n\n\
-             | variant | table build s | tracing s | total s | RMSE vs unculled | noise floor |\n\
-             |---|---|---|---|---|---|\n",
-            a.params,
-            a.max_spp,
-            crate::TOOL_VERSION
-        );
-        for r in &rows {
-            outln!(
-                "{:28} table {:6.2} s + tracing {:7.2} s  RMSE vs unculled {:.3e}  (noise floor {:.3e})",
-                r.name, r.setup_seconds, r.seconds, r.rmse_vs_full, r.noise_rmse
-            );
-            md += &format!(
-                "| {} | {:.2} | {:.2} | {:.2} | {:.3e} | {:.3e} |\n",
-                r.name,
-                r.setup_seconds,
-                r.seconds,
-                r.setup_seconds + r.seconds,
-                r.rmse_vs_full,
-                r.noise_rmse
-            );
-        }
-        let total = |r: &crate::render::study::CullingRow| r.setup_seconds + r.seconds;
-        let saved = 1.0 - total(&rows[1]) / total(&rows[0]);
-        let saved_table = 1.0 - rows[1].setup_seconds / rows[0].setup_seconds.max(1e-9);
-        outln!(
-            "time saved by culling: {:.1} % of the total, {:.1} % of the table build",
-            100.0 * saved,
-            100.0 * saved_table
-        );
-        md += &format!(
-            "\nTime saved by culling: {:.1} % of the total ({:.1} % of the table build; \
-             {threads} thread(s), wall times: noisy under load). Scattered lobes are skipped whenever \
-             kappa = 0 or sigma_m_s = 0 (`FurModel::active_lobes`) and footprints covering \
-             the whole fiber use the far field directly; both are always on.\n",
-            100.0 * saved,
-            100.0 * saved_table
-        );
-        let p = &paths[0];
-        crate::io::write_output(p, md.as_bytes())?;
-        outln!("wrote {}", p.display());
-        return Ok(());
-    }
-    let scene = Scene::build(&base.strand);
-    let spp = (a.max_spp, a.ref_spp);
-    if a.noise_budget {
-        let rows = noise_budget(&scene, &params, &base, spp, a.repeats, |m| outln!("{m}"))?;
-        let command = command_line(&a, (pw, ph), (fw, fh));
-        for (l, c) in &rows {
-            for m in [Mode::Multiscale, Mode::Far] {
-                if let Some(x) = c.speedup(Mode::Near, m, 4) {
-                    outln!(
-                        "{}: equal-quality speedup of {} over near {x:.2}x",
-                        l.describe(),
-                        m.name()
-                    );
-                }
-            }
-        }
-        let p = &paths[0];
-        crate::io::write_output(
-            p,
-            noise_budget_markdown(&rows, &command, 4, threads).as_bytes(),
-        )?;
-        outln!("wrote {}", p.display());
-        return Ok(());
-    }
-    let study = if samplings.len() > 1 {
-        Some(sampler_study(
-            &scene,
-            &params,
-            &base,
-            &modes,
-            &samplings,
-            spp,
-            a.repeats,
-            |m| outln!("{m}"),
-        )?)
-    } else {
-        None
-    };
-    let c = match &study {
-        Some(st) => st.runs[0].1.clone(),
-        None => convergence(&scene, &params, &base, &modes, spp, a.repeats, |m| {
-            outln!("{m}")
-        })?,
-    };
-    let mut extra = String::new();
-    if let Some(st) = &study {
-        extra += &format!(
-            "\nThe curves above are sampler `{}`'s.\n\n{}",
-            samplings[0].name(),
-            st.markdown(&modes)
-        );
-        for line in st.markdown(&modes).lines().filter(|l| l.starts_with("- ")) {
-            outln!("{}", line.trim_start_matches("- ").replace("**", ""));
-        }
-    }
-    if a.preview {
-        let mut s = base.clone();
-        s.spp = 64;
-        let (t, near) = preview_ratio(&scene, &params, &s, Mode::Multiscale)?;
-        let line = format!(
-            "preview {fw}x{fh} at 64 spp, multiscale, sampler {}: {:.2}x the time of the same render in near-field mode ({t:.1} s against {near:.1} s on this run)",
-            samplings[0].name(),
-            t / near
-        );
-        outln!("{line}");
-        extra += &format!("\n## Preview\n\n{line}.\n");
-    }
-    for m in &modes {
-        if let Some(v) = c.inefficiency(*m, 4) {
-            outln!(
-                "{:10} RMSE^2 x seconds (median, spp >= 4): {v:.3e}",
-                m.name()
-            );
-        }
-    }
-    let command = command_line(&a, (pw, ph), (fw, fh));
-    // The report's files land together or not at all.
-    let [csv, png, svg, md] = [0, 1, 2, 3].map(|i| paths[i].clone());
-    let files = vec![
-        (csv.clone(), c.to_csv().into_bytes()),
-        (png.clone(), plot_convergence_bytes(&c, &png, false)?),
-        (svg.clone(), plot_convergence_bytes(&c, &svg, true)?),
-        (
-            md.clone(),
-            (c.to_markdown(&command, 4, threads) + &extra).into_bytes(),
-        ),
-    ];
-    let mut files = files;
-    if let Some(st) = &study {
-        files.push((a.out.join("render_samplers.csv"), st.csv().into_bytes()));
-    }
-    crate::io::write_outputs(&files)?;
-    outln!("wrote {} (+ .png, .svg, .md)", csv.display());
-    for fast in [Mode::Multiscale, Mode::Far] {
-        if let Some(s) = c.speedup(Mode::Near, fast, 4) {
-            outln!(
-                "equal-quality speedup {} over near: {s:.2}x pooled, per repeat {} (paper, hair lock: multi-scale ~5x its near field)",
-                fast.name(),
-                c.speedup_per_repeat(Mode::Near, fast, 4)
-                    .iter()
-                    .map(|x| format!("{x:.2}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            );
-        }
-    }
+    study_run::run(&opts, &params, |m| outln!("{m}"))?;
     Ok(())
 }
 

@@ -67,16 +67,86 @@ pub fn parse(bytes: &[u8], path: &Path) -> Result<(Profile, Vec<String>)> {
 /// [`parse`] with the convention options of `opts` (`flip_phi`, `phi_offset`,
 /// `flip_theta_r`) applied to each row as it is read.
 pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, Vec<String>)> {
-    let perr = |line: usize, column: String, msg: String| Error::Parse {
+    let lines = first_pass(bytes, path)?;
+    let header_line = lines.header_line;
+    let Rows {
+        names,
+        cols,
+        mut samples,
+        raw_phi,
+        channels,
+    } = read_rows(&lines, path, opts)?;
+    if samples.is_empty() {
+        return Err(Error::file(
+            path,
+            format!("no sample rows after the header on line {header_line}"),
+        ));
+    }
+    let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
+    let mut notes = dedupe_rows(
+        &mut samples,
+        &channels,
+        &raw_phi,
+        path,
+        opts,
+        &label(cols.phi),
+        &|f| label(cols.of(f)),
+    )?;
+    notes.extend(lines.label_notes);
+    if lines.separator_rows > 0 {
+        notes.push(format!(
+            "{} row(s) holding only separators (e.g. a spreadsheet's ',,,') skipped",
+            lines.separator_rows
+        ));
+    }
+    Ok((
+        Profile {
+            samples,
+            channels,
+            metadata: lines.metadata,
+            source: Some(path.to_path_buf()),
+            files: vec![path.to_path_buf()],
+            layouts: vec![Layout::Rows {
+                value_column: label(cols.value),
+                sigma_column: cols.sigma.map(label),
+                phi_i_column: cols.phi_i.map(label),
+            }],
+        },
+        notes,
+    ))
+}
+
+/// A parse error of `path` at `line` (1-based) and `column`.
+fn perr(path: &Path, line: usize, column: String, msg: String) -> Error {
+    Error::Parse {
         file: path.to_path_buf(),
         line,
         column,
         msg,
-    };
+    }
+}
 
-    // Pass 1: metadata lines before the header; blank and comment lines dropped everywhere.
-    // The remaining lines go to the csv reader, with a table back to the file's line
-    // numbers (the csv crate does not count lines it is not given).
+/// What the first pass over a file's lines keeps.
+struct Lines {
+    /// The `# key: value` lines before the header, in file order.
+    metadata: Vec<(String, String)>,
+    /// The header's line (1-based).
+    header_line: usize,
+    /// The header and the data lines, for the csv reader.
+    kept: Vec<u8>,
+    /// The file's line (1-based) of each line of `kept` (the csv crate does not count
+    /// lines it is not given).
+    orig_line: Vec<usize>,
+    /// Rows holding only separators, skipped.
+    separator_rows: usize,
+    /// Notes on the metadata lines (synthetic labels, non-UTF-8).
+    label_notes: Vec<String>,
+}
+
+/// Pass 1: metadata lines before the header; blank and comment lines dropped everywhere.
+/// The remaining lines go to the csv reader, with a table back to the file's line
+/// numbers.
+fn first_pass(bytes: &[u8], path: &Path) -> Result<Lines> {
     let mut metadata = Vec::new();
     let mut header_line = None;
     let mut kept: Vec<u8> = Vec::with_capacity(bytes.len());
@@ -94,27 +164,10 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
         if t.is_empty() {
             continue;
         }
-        // Excel's `sep=,` first line names the separator; any other separator is refused
-        // here, where the reason is clear, rather than as a header without its columns.
         if !seen_line {
             seen_line = true;
-            let u = t.to_ascii_lowercase();
-            let u = u
-                .strip_prefix(b"\"")
-                .and_then(|u| u.strip_suffix(b"\""))
-                .unwrap_or(&u[..]);
-            if let Some(sep) = u.strip_prefix(b"sep=") {
-                if sep == b"," {
-                    continue;
-                }
-                return Err(perr(
-                    k + 1,
-                    "column 1".into(),
-                    format!(
-                        "the file declares the separator '{}' (Excel's sep= line); the separator must be a comma",
-                        escaped(&String::from_utf8_lossy(t))
-                    ),
-                ));
+            if is_sep_line(t, k + 1, path)? {
+                continue;
             }
         }
         // Spreadsheets pad a table with rows of bare separators: they hold no sample.
@@ -124,20 +177,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
         }
         if let Some(c) = t.strip_prefix(b"#") {
             if header_line.is_none() {
-                let utf8 = std::str::from_utf8(c).is_ok();
-                let c = String::from_utf8_lossy(c);
-                match c.split_once(':') {
-                    Some((key, val)) if !key.trim().is_empty() => {
-                        let key = key.trim();
-                        super::label::check_synthetic_label(key, val)
-                            .map_err(|m| perr(k + 1, "metadata".into(), m))?;
-                        if !utf8 {
-                            label_notes.push(super::label::non_utf8_metadata_note(k + 1, key));
-                        }
-                        metadata.push((key.to_string(), val.trim().to_string()));
-                    }
-                    _ => label_notes.extend(super::label::unlabelled_synthetic_note(k + 1, &c)),
-                }
+                metadata_line(c, k + 1, path, &mut metadata, &mut label_notes)?;
             }
             continue;
         }
@@ -152,29 +192,104 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
             "empty file: no header line (expected theta_i,theta_r,phi,value)",
         )
     })?;
-    let line_of = |pos: Option<&::csv::Position>| -> usize {
-        pos.and_then(|p| orig_line.get((p.line() as usize).saturating_sub(1)))
-            .copied()
-            .unwrap_or(header_line)
-    };
+    Ok(Lines {
+        metadata,
+        header_line,
+        kept,
+        orig_line,
+        separator_rows,
+        label_notes,
+    })
+}
 
+/// Whether the first line `t` (trimmed, on `line`) is Excel's `sep=,`, to skip. Excel's
+/// `sep=` line names the separator; any other separator is refused here, where the
+/// reason is clear, rather than as a header without its columns.
+fn is_sep_line(t: &[u8], line: usize, path: &Path) -> Result<bool> {
+    let u = t.to_ascii_lowercase();
+    let u = u
+        .strip_prefix(b"\"")
+        .and_then(|u| u.strip_suffix(b"\""))
+        .unwrap_or(&u[..]);
+    let Some(sep) = u.strip_prefix(b"sep=") else {
+        return Ok(false);
+    };
+    if sep == b"," {
+        return Ok(true);
+    }
+    Err(perr(
+        path,
+        line,
+        "column 1".into(),
+        format!(
+            "the file declares the separator '{}' (Excel's sep= line); the separator must be a comma",
+            escaped(&String::from_utf8_lossy(t))
+        ),
+    ))
+}
+
+/// A `#` line before the header (`c`: after the `#`, on `line`): a `key: value` goes to
+/// `metadata`, anything else is a free comment (with a note if it looks like an
+/// unlabelled synthetic label).
+fn metadata_line(
+    c: &[u8],
+    line: usize,
+    path: &Path,
+    metadata: &mut Vec<(String, String)>,
+    label_notes: &mut Vec<String>,
+) -> Result<()> {
+    let utf8 = std::str::from_utf8(c).is_ok();
+    let c = String::from_utf8_lossy(c);
+    match c.split_once(':') {
+        Some((key, val)) if !key.trim().is_empty() => {
+            let key = key.trim();
+            super::label::check_synthetic_label(key, val)
+                .map_err(|m| perr(path, line, "metadata".into(), m))?;
+            if !utf8 {
+                label_notes.push(super::label::non_utf8_metadata_note(line, key));
+            }
+            metadata.push((key.to_string(), val.trim().to_string()));
+        }
+        _ => label_notes.extend(super::label::unlabelled_synthetic_note(line, &c)),
+    }
+    Ok(())
+}
+
+/// The rows of a file as read: the header's names and columns, the samples (before
+/// duplicates are collapsed), each sample's phi as written, the channel names.
+struct Rows {
+    names: Vec<String>,
+    cols: Columns,
+    samples: Vec<Sample>,
+    /// Each sample's phi as written (for a wrap's duplicate message).
+    raw_phi: Vec<f64>,
+    channels: Vec<String>,
+}
+
+/// Pass 2: the header and the data rows of `lines.kept`, each row checked.
+fn read_rows(lines: &Lines, path: &Path, opts: &LoadOptions) -> Result<Rows> {
+    let line_of = |pos: Option<&::csv::Position>| -> usize {
+        pos.and_then(|p| lines.orig_line.get((p.line() as usize).saturating_sub(1)))
+            .copied()
+            .unwrap_or(lines.header_line)
+    };
     // No `Trim` here: it would strip the line break an unterminated quote swallows, which
     // is how one is detected below. Cells and names are trimmed where they are read.
     let mut rdr = ::csv::ReaderBuilder::new()
         .has_headers(false)
         .flexible(true)
-        .from_reader(kept.as_slice());
+        .from_reader(lines.kept.as_slice());
 
     let mut header: Option<Vec<String>> = None;
     let mut cols = Columns::default();
     let mut samples: Vec<Sample> = Vec::new();
-    // Each sample's phi as written (for a wrap's duplicate message).
     let mut raw_phi: Vec<f64> = Vec::new();
     let mut channels: Vec<String> = Vec::new();
     let mut record = ::csv::ByteRecord::new();
     loop {
         let more = rdr.read_byte_record(&mut record).map_err(|e| {
             perr(
+                path,
                 line_of(e.position()),
                 "-".into(),
                 format!("unreadable CSV: {e}"),
@@ -192,6 +307,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
                 _ => format!("column {}", k + 1),
             };
             return Err(perr(
+                path,
                 line,
                 column,
                 "unterminated quoted field (a quote must close on the same line)".into(),
@@ -202,13 +318,14 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
                 .iter()
                 .map(|f| String::from_utf8_lossy(f).trim().to_ascii_lowercase())
                 .collect();
-            cols = Columns::from_header(&names, |c, m| perr(line, c, m))?;
+            cols = Columns::from_header(&names, |c, m| perr(path, line, c, m))?;
             header = Some(names);
             continue;
         };
         if record.len() != names.len() {
             let col = record.len().min(names.len()) + 1;
             return Err(perr(
+                path,
                 line,
                 format!("column {col}"),
                 format!(
@@ -218,50 +335,103 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
                 ),
             ));
         }
-        let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
-        let text = |i: usize| -> Result<&str> {
-            std::str::from_utf8(record.get(i).unwrap_or(b""))
-                .map(str::trim)
-                .map_err(|_| perr(line, label(i), "not valid UTF-8".into()))
+        let row = Row {
+            record: &record,
+            names,
+            cols: &cols,
+            line,
+            path,
         };
-        let number = |i: usize| -> Result<Option<f64>> {
-            let t = text(i)?;
-            if t.is_empty() {
-                return Ok(None);
-            }
-            parse_number(t)
-                .map(Some)
-                .map_err(|m| perr(line, label(i), m))
-        };
-        let angle = |i: usize| -> Result<f64> {
-            number(i)?.ok_or_else(|| perr(line, label(i), "missing angle".into()))
-        };
-        let theta = |i: usize| -> Result<f64> {
-            check_angle(&names[i], angle(i)?, 90.0).map_err(|m| perr(line, label(i), m))
-        };
-        let theta_i = theta(cols.theta_i)?;
-        let theta_r = convert_theta_r(opts, theta(cols.theta_r)?);
-        let phi_as_written = angle(cols.phi)?;
-        let phi = read_phi(&names[cols.phi], phi_as_written, opts)
-            .map_err(|m| perr(line, label(cols.phi), m))?;
-        let value = number(cols.value)?.unwrap_or(f64::NAN);
+        let (sample, phi_as_written) = row.sample(opts, &mut channels)?;
+        super::checks::check_sample_count(
+            samples.len(),
+            super::checks::MAX_READ_CELLS,
+            path,
+            line,
+        )?;
+        samples.push(sample);
+        raw_phi.push(phi_as_written);
+    }
+    Ok(Rows {
+        names: header.unwrap_or_default(),
+        cols,
+        samples,
+        raw_phi,
+        channels,
+    })
+}
+
+/// One data row being read, with what its errors name.
+struct Row<'a> {
+    record: &'a ::csv::ByteRecord,
+    names: &'a [String],
+    cols: &'a Columns,
+    line: usize,
+    path: &'a Path,
+}
+
+impl Row<'_> {
+    /// An error on column `i` of this row.
+    fn err(&self, i: usize, msg: String) -> Error {
+        perr(self.path, self.line, self.label(i), msg)
+    }
+
+    fn label(&self, i: usize) -> String {
+        format!("column {} ({})", i + 1, self.names[i])
+    }
+
+    /// Cell `i`, trimmed.
+    fn text(&self, i: usize) -> Result<&str> {
+        std::str::from_utf8(self.record.get(i).unwrap_or(b""))
+            .map(str::trim)
+            .map_err(|_| self.err(i, "not valid UTF-8".into()))
+    }
+
+    /// Cell `i` as a number (`None`: empty).
+    fn number(&self, i: usize) -> Result<Option<f64>> {
+        let t = self.text(i)?;
+        if t.is_empty() {
+            return Ok(None);
+        }
+        parse_number(t).map(Some).map_err(|m| self.err(i, m))
+    }
+
+    fn angle(&self, i: usize) -> Result<f64> {
+        self.number(i)?
+            .ok_or_else(|| self.err(i, "missing angle".into()))
+    }
+
+    fn theta(&self, i: usize) -> Result<f64> {
+        check_angle(&self.names[i], self.angle(i)?, 90.0).map_err(|m| self.err(i, m))
+    }
+
+    /// The row's sample (its channel numbered in `channels`, a new name added) and its
+    /// phi as written.
+    fn sample(&self, opts: &LoadOptions, channels: &mut Vec<String>) -> Result<(Sample, f64)> {
+        let cols = self.cols;
+        let theta_i = self.theta(cols.theta_i)?;
+        let theta_r = convert_theta_r(opts, self.theta(cols.theta_r)?);
+        let phi_as_written = self.angle(cols.phi)?;
+        let phi = read_phi(&self.names[cols.phi], phi_as_written, opts)
+            .map_err(|m| self.err(cols.phi, m))?;
+        let value = self.number(cols.value)?.unwrap_or(f64::NAN);
         // CSV's spellings of "none": an empty cell, and `nan` for sigma and phi_i (as
         // an npz's NaN).
         let sigma = match cols.sigma {
-            Some(i) => number(i)?.filter(|s| !s.is_nan()),
+            Some(i) => self.number(i)?.filter(|s| !s.is_nan()),
             None => None,
         };
         let phi_i = match cols.phi_i {
-            Some(i) => number(i)?.filter(|p| !p.is_nan()).map(|p| p + 0.0),
+            Some(i) => self.number(i)?.filter(|p| !p.is_nan()).map(|p| p + 0.0),
             None => None,
         };
         check_measured(value, sigma, phi_i)
-            .map_err(|(field, msg)| perr(line, label(cols.of(field)), msg))?;
+            .map_err(|(field, msg)| self.err(cols.of(field), msg))?;
         let channel = match cols.channel {
             None => 0,
             Some(i) => {
-                let name = text(i)?;
-                check_channel_name(name).map_err(|m| perr(line, label(i), m))?;
+                let name = self.text(i)?;
+                check_channel_name(name).map_err(|m| self.err(i, m))?;
                 match channels.iter().position(|c| c == name) {
                     Some(k) => k,
                     None => {
@@ -271,13 +441,7 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
                 }
             }
         };
-        super::checks::check_sample_count(
-            samples.len(),
-            super::checks::MAX_READ_CELLS,
-            path,
-            line,
-        )?;
-        samples.push(Sample {
+        let sample = Sample {
             theta_i,
             theta_r,
             phi,
@@ -285,48 +449,10 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
             sigma,
             channel,
             phi_i,
-            origin: Origin::at_line(line),
-        });
-        raw_phi.push(phi_as_written);
+            origin: Origin::at_line(self.line),
+        };
+        Ok((sample, phi_as_written))
     }
-    if samples.is_empty() {
-        return Err(Error::file(
-            path,
-            format!("no sample rows after the header on line {header_line}"),
-        ));
-    }
-    let names = header.unwrap_or_default();
-    let label = |i: usize| format!("column {} ({})", i + 1, names[i]);
-    let mut notes = dedupe_rows(
-        &mut samples,
-        &channels,
-        &raw_phi,
-        path,
-        opts,
-        &label(cols.phi),
-        &|f| label(cols.of(f)),
-    )?;
-    notes.extend(label_notes);
-    if separator_rows > 0 {
-        notes.push(format!(
-            "{separator_rows} row(s) holding only separators (e.g. a spreadsheet's ',,,') skipped"
-        ));
-    }
-    Ok((
-        Profile {
-            samples,
-            channels,
-            metadata,
-            source: Some(path.to_path_buf()),
-            files: vec![path.to_path_buf()],
-            layouts: vec![Layout::Rows {
-                value_column: label(cols.value),
-                sigma_column: cols.sigma.map(label),
-                phi_i_column: cols.phi_i.map(label),
-            }],
-        },
-        notes,
-    ))
 }
 
 /// Column indices found in the header.

@@ -61,19 +61,7 @@ pub(crate) fn theta_i_comment(c: &str) -> Option<&str> {
 
 /// Parse a Yan-2015 text file; `path` is used in error messages.
 pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, Vec<String>)> {
-    let perr = |line: usize, column: String, msg: String| Error::Parse {
-        file: path.to_path_buf(),
-        line,
-        column,
-        msg,
-    };
-    let label = |i: usize| format!("column {} ({})", i + 1, NAMES[i]);
-    let mut metadata = Vec::new();
-    let mut label_notes = Vec::new();
-    let mut file_theta_i: Option<(f64, usize)> = None;
-    let mut samples = Vec::new();
-    // Per sample: its line and its phi as written (for a wrap's duplicate message).
-    let mut raw_phi = Vec::new();
+    let mut r = Lines::default();
     // Until the first data (or column-name) line, which alone may name the columns.
     let mut before_data = true;
     for (k, raw) in split_lines(bytes).enumerate() {
@@ -83,7 +71,12 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             // Comments are not data: a Latin-1 note is read as CSV reads it.
             Err(_) if is_comment(raw) => String::from_utf8_lossy(raw),
             Err(_) => {
-                return Err(perr(line, "column 1".into(), "not valid UTF-8".into()));
+                return Err(perr(
+                    path,
+                    line,
+                    "column 1".into(),
+                    "not valid UTF-8".into(),
+                ));
             }
         };
         let t = text.trim().trim_start_matches('\u{feff}');
@@ -91,124 +84,245 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             continue;
         }
         if let Some(c) = t.strip_prefix('#') {
-            if let Some((key, val)) = c.split_once(':') {
-                let key = key.trim();
-                let val = val.trim();
-                if key.eq_ignore_ascii_case("theta_i") {
-                    let col = "theta_i comment".to_string();
-                    let v = parse_number(val).map_err(|m| perr(line, col.clone(), m))?;
-                    let v =
-                        check_angle("theta_i", v, 90.0).map_err(|m| perr(line, col.clone(), m))?;
-                    if let Some((old, l0)) = file_theta_i {
-                        if old != v {
-                            return Err(perr(
-                                line,
-                                col,
-                                format!(
-                                    "theta_i {} contradicts theta_i {} on line {l0}",
-                                    Num(v),
-                                    Num(old)
-                                ),
-                            ));
-                        }
-                    }
-                    file_theta_i = Some((v, line));
-                } else if !key.is_empty() {
-                    super::label::check_synthetic_label(key, val)
-                        .map_err(|m| perr(line, "metadata".into(), m))?;
-                    // Owned only when the lossy decoding above replaced bad bytes.
-                    if matches!(text, std::borrow::Cow::Owned(_)) {
-                        label_notes.push(super::label::non_utf8_metadata_note(line, key));
-                    }
-                    metadata.push((key.to_string(), val.to_string()));
-                } else {
-                    label_notes.extend(super::label::unlabelled_synthetic_note(line, c));
-                }
-            } else {
-                label_notes.extend(super::label::unlabelled_synthetic_note(line, c));
-            }
+            // Owned only when the lossy decoding above replaced bad bytes.
+            let lossy = matches!(text, std::borrow::Cow::Owned(_));
+            r.comment(c, line, lossy, path)?;
             continue;
         }
         let fields: Vec<&str> = t.split_whitespace().collect();
-        if std::mem::take(&mut before_data) {
-            if fields.len() == NAMES.len()
-                && fields
-                    .iter()
-                    .zip(NAMES)
-                    .all(|(f, n)| f.eq_ignore_ascii_case(n))
-            {
-                continue;
-            }
-            // Another column-name line: say what is read, not that 'theta' is no number.
-            let named = |f: &&str| NAMES.iter().any(|n| f.eq_ignore_ascii_case(n));
-            if fields
-                .first()
-                .is_some_and(|f| f.parse::<f64>().is_err() && *f != "?")
-                && fields.iter().any(named)
-            {
-                return Err(perr(
-                    line,
-                    "column 1".into(),
-                    format!(
-                        "column-name line {}: a Yan-2015 file may name its columns only as \
-                         'phi theta value' (in that order), or not at all",
-                        quoted(t)
-                    ),
-                ));
-            }
+        if std::mem::take(&mut before_data) && is_column_names(&fields, t, line, path)? {
+            continue;
         }
-        if fields.len() < 3 && t.contains(',') {
-            return Err(perr(
-                line,
-                "column 1".into(),
-                "fields separated by commas: a Yan-2015 file separates phi, theta and value \
-                 by spaces or tabs (a comma-separated profile is read as CSV when named .csv)"
-                    .into(),
-            ));
-        }
-        if fields.len() != 3 {
-            return Err(perr(
-                line,
-                format!("column {}", fields.len().min(3) + 1),
-                format!(
-                    "expected 3 fields (phi theta value), found {}",
-                    fields.len()
-                ),
-            ));
-        }
-        let num = |i: usize| -> Result<f64> {
-            parse_number(fields[i]).map_err(|m| perr(line, label(i), m))
-        };
-        let raw = num(0)?;
-        let phi = read_phi("phi", raw, opts).map_err(|m| perr(line, label(0), m))?;
-        let theta = check_angle("theta", num(1)?, 90.0).map_err(|m| perr(line, label(1), m))?;
-        let value = if fields[2] == "?" {
-            f64::NAN
-        } else {
-            let v = num(2)?;
-            if v.is_infinite() {
-                return Err(perr(
-                    line,
-                    label(2),
-                    format!("value {v} is infinite or beyond the f64 range, 1.8e308 (write ? for a missing value)"),
-                ));
-            }
-            v
-        };
+        let (s, raw_phi) = data_row(&fields, t, line, path, opts)?;
         // theta_i is set below, from the file's comment or --theta-i.
         super::checks::check_sample_count(
-            samples.len(),
+            r.samples.len(),
             super::checks::MAX_READ_CELLS,
             path,
             line,
         )?;
-        let mut s = Sample::new(0.0, convert_theta_r(opts, theta), phi, value);
-        s.origin = Origin::at_line(line);
-        samples.push(s);
-        raw_phi.push(raw);
+        r.samples.push(s);
+        r.raw_phi.push(raw_phi);
     }
+    let Lines {
+        metadata,
+        label_notes,
+        file_theta_i,
+        mut samples,
+        raw_phi,
+    } = r;
     let mut notes = Vec::new();
-    let opt_theta_i = match (&opts.theta_i, file_theta_i) {
+    let opt_theta_i = option_theta_i(opts, file_theta_i, path, &mut notes)?;
+    // Before the incident angle: a file without data says so, not that theta_i is missing.
+    if samples.is_empty() {
+        return Err(Error::file(path, "no data rows (phi theta value)"));
+    }
+    let theta_i = incident_angle(file_theta_i, opt_theta_i, path)?;
+    for s in &mut samples {
+        s.theta_i = theta_i;
+    }
+    notes.extend(dedupe_rows(
+        &mut samples,
+        &[],
+        &raw_phi,
+        path,
+        opts,
+        &label(0),
+        // Yan-2015 rows have only a value.
+        &|_| label(2),
+    )?);
+    notes.extend(label_notes);
+    Ok((
+        Profile {
+            samples,
+            channels: Vec::new(),
+            metadata,
+            source: Some(path.to_path_buf()),
+            files: vec![path.to_path_buf()],
+            layouts: vec![Layout::Rows {
+                value_column: label(2),
+                sigma_column: None,
+                phi_i_column: None,
+            }],
+        },
+        notes,
+    ))
+}
+
+/// A parse error of `path` at `line` (1-based) and `column`.
+fn perr(path: &Path, line: usize, column: String, msg: String) -> Error {
+    Error::Parse {
+        file: path.to_path_buf(),
+        line,
+        column,
+        msg,
+    }
+}
+
+/// The name of data column `i` in errors: `column 2 (theta)`.
+fn label(i: usize) -> String {
+    format!("column {} ({})", i + 1, NAMES[i])
+}
+
+/// What the lines of a file give, as they are read.
+#[derive(Default)]
+struct Lines {
+    /// The `# key: value` comments (but `theta_i`), in file order.
+    metadata: Vec<(String, String)>,
+    /// Notes on the comments (synthetic labels, non-UTF-8).
+    label_notes: Vec<String>,
+    /// The `# theta_i:` line's angle and line.
+    file_theta_i: Option<(f64, usize)>,
+    /// The data rows (theta_i not yet set).
+    samples: Vec<Sample>,
+    /// Per sample: its phi as written (for a wrap's duplicate message).
+    raw_phi: Vec<f64>,
+}
+
+impl Lines {
+    /// A comment line (`c`: the text after `#`, on `line`; `lossy`: its bad bytes were
+    /// replaced): the incident angle, metadata or a free comment.
+    fn comment(&mut self, c: &str, line: usize, lossy: bool, path: &Path) -> Result<()> {
+        let Some((key, val)) = c.split_once(':') else {
+            self.label_notes
+                .extend(super::label::unlabelled_synthetic_note(line, c));
+            return Ok(());
+        };
+        let key = key.trim();
+        let val = val.trim();
+        if key.eq_ignore_ascii_case("theta_i") {
+            let col = "theta_i comment".to_string();
+            let v = parse_number(val).map_err(|m| perr(path, line, col.clone(), m))?;
+            let v =
+                check_angle("theta_i", v, 90.0).map_err(|m| perr(path, line, col.clone(), m))?;
+            if let Some((old, l0)) = self.file_theta_i {
+                if old != v {
+                    return Err(perr(
+                        path,
+                        line,
+                        col,
+                        format!(
+                            "theta_i {} contradicts theta_i {} on line {l0}",
+                            Num(v),
+                            Num(old)
+                        ),
+                    ));
+                }
+            }
+            self.file_theta_i = Some((v, line));
+        } else if !key.is_empty() {
+            super::label::check_synthetic_label(key, val)
+                .map_err(|m| perr(path, line, "metadata".into(), m))?;
+            if lossy {
+                self.label_notes
+                    .push(super::label::non_utf8_metadata_note(line, key));
+            }
+            self.metadata.push((key.to_string(), val.to_string()));
+        } else {
+            self.label_notes
+                .extend(super::label::unlabelled_synthetic_note(line, c));
+        }
+        Ok(())
+    }
+}
+
+/// Whether the first data line (`t`, split into `fields`) is the column-name line
+/// `phi theta value`, to skip; another line naming columns is an error (saying what is
+/// read, not that 'theta' is no number).
+fn is_column_names(fields: &[&str], t: &str, line: usize, path: &Path) -> Result<bool> {
+    if fields.len() == NAMES.len()
+        && fields
+            .iter()
+            .zip(NAMES)
+            .all(|(f, n)| f.eq_ignore_ascii_case(n))
+    {
+        return Ok(true);
+    }
+    let named = |f: &&str| NAMES.iter().any(|n| f.eq_ignore_ascii_case(n));
+    if fields
+        .first()
+        .is_some_and(|f| f.parse::<f64>().is_err() && *f != "?")
+        && fields.iter().any(named)
+    {
+        return Err(perr(
+            path,
+            line,
+            "column 1".into(),
+            format!(
+                "column-name line {}: a Yan-2015 file may name its columns only as \
+                 'phi theta value' (in that order), or not at all",
+                quoted(t)
+            ),
+        ));
+    }
+    Ok(false)
+}
+
+/// A data row (`t`, split into `fields`) as a sample (theta_i not yet set) and its phi
+/// as written.
+fn data_row(
+    fields: &[&str],
+    t: &str,
+    line: usize,
+    path: &Path,
+    opts: &LoadOptions,
+) -> Result<(Sample, f64)> {
+    if fields.len() < 3 && t.contains(',') {
+        return Err(perr(
+            path,
+            line,
+            "column 1".into(),
+            "fields separated by commas: a Yan-2015 file separates phi, theta and value \
+             by spaces or tabs (a comma-separated profile is read as CSV when named .csv)"
+                .into(),
+        ));
+    }
+    if fields.len() != 3 {
+        return Err(perr(
+            path,
+            line,
+            format!("column {}", fields.len().min(3) + 1),
+            format!(
+                "expected 3 fields (phi theta value), found {}",
+                fields.len()
+            ),
+        ));
+    }
+    let num = |i: usize| -> Result<f64> {
+        parse_number(fields[i]).map_err(|m| perr(path, line, label(i), m))
+    };
+    let raw = num(0)?;
+    let phi = read_phi("phi", raw, opts).map_err(|m| perr(path, line, label(0), m))?;
+    let theta = check_angle("theta", num(1)?, 90.0).map_err(|m| perr(path, line, label(1), m))?;
+    let value = if fields[2] == "?" {
+        f64::NAN
+    } else {
+        let v = num(2)?;
+        if v.is_infinite() {
+            return Err(perr(
+                path,
+                line,
+                label(2),
+                format!("value {v} is infinite or beyond the f64 range, 1.8e308 (write ? for a missing value)"),
+            ));
+        }
+        v
+    };
+    let mut s = Sample::new(0.0, convert_theta_r(opts, theta), phi, value);
+    s.origin = Origin::at_line(line);
+    Ok((s, raw))
+}
+
+/// The incident angle `--theta-i` gives this file (`opts.theta_i`; `file`: its own
+/// `# theta_i:` line): one value, or none beside a lone .npy whose axis it is (with a
+/// note in `notes` when it differs from the file's line).
+fn option_theta_i(
+    opts: &LoadOptions,
+    file: Option<(f64, usize)>,
+    path: &Path,
+    notes: &mut Vec<String>,
+) -> Result<Option<f64>> {
+    Ok(match (&opts.theta_i, file) {
         // Beside a lone .npy the option is its axis; this file says its own angle.
         (Some(v), Some((f, l))) if opts.theta_i_for_npy => {
             if v.as_slice() != [f] {
@@ -239,61 +353,30 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
                 v.len()
             )));
         }
-    };
-    // Before the incident angle: a file without data says so, not that theta_i is missing.
-    if samples.is_empty() {
-        return Err(Error::file(path, "no data rows (phi theta value)"));
+    })
+}
+
+/// The file's incident angle: its `# theta_i:` line (`file`) or the option's (`opt`),
+/// which must agree when both are given.
+fn incident_angle(file: Option<(f64, usize)>, opt: Option<f64>, path: &Path) -> Result<f64> {
+    match (file, opt) {
+        (Some((f, l)), Some(o)) if f != o => Err(perr(
+            path,
+            l,
+            "theta_i comment".into(),
+            format!(
+                "the file says theta_i {} but --theta-i is {}",
+                Num(f),
+                Num(o)
+            ),
+        )),
+        (Some((f, _)), _) => Ok(f),
+        (None, Some(o)) => Ok(o),
+        (None, None) => Err(Error::file(
+            path,
+            "no incident angle: add a '# theta_i: <deg>' line or pass --theta-i <deg>",
+        )),
     }
-    let theta_i = match (file_theta_i, opt_theta_i) {
-        (Some((f, l)), Some(o)) if f != o => {
-            return Err(perr(
-                l,
-                "theta_i comment".into(),
-                format!(
-                    "the file says theta_i {} but --theta-i is {}",
-                    Num(f),
-                    Num(o)
-                ),
-            ))
-        }
-        (Some((f, _)), _) => f,
-        (None, Some(o)) => o,
-        (None, None) => {
-            return Err(Error::file(
-                path,
-                "no incident angle: add a '# theta_i: <deg>' line or pass --theta-i <deg>",
-            ))
-        }
-    };
-    for s in &mut samples {
-        s.theta_i = theta_i;
-    }
-    notes.extend(dedupe_rows(
-        &mut samples,
-        &[],
-        &raw_phi,
-        path,
-        opts,
-        &label(0),
-        // Yan-2015 rows have only a value.
-        &|_| label(2),
-    )?);
-    notes.extend(label_notes);
-    Ok((
-        Profile {
-            samples,
-            channels: Vec::new(),
-            metadata,
-            source: Some(path.to_path_buf()),
-            files: vec![path.to_path_buf()],
-            layouts: vec![Layout::Rows {
-                value_column: label(2),
-                sigma_column: None,
-                phi_i_column: None,
-            }],
-        },
-        notes,
-    ))
 }
 
 /// Is `raw` a `#` comment line (blanks and a byte-order mark before the `#`)?

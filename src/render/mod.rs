@@ -8,7 +8,9 @@
 //!   weigh), the environment by BCSDF sampling or with `--env-nee` by NEE + MIS, Russian
 //!   roulette, pixel footprint;
 //! * [`output`]: tone mapping, PNG/EXR/AOV writing, contact sheets;
-//! * [`study`]: convergence and culling studies.
+//! * [`study`]: convergence and culling studies; [`study_run`]: one
+//!   `furfit render-convergence` run (the study of its options, its report files);
+//! * [`batch`]: one `furfit render` run (its images, their files, the contact sheet).
 //!
 //! Determinism: every pixel has its own RNG seeded from (`seed`, pixel index), so an image
 //! depends on the seed only, not on the number of threads.
@@ -17,6 +19,7 @@
 // once, as the formulas do; iterator chains would obscure them.
 #![allow(clippy::needless_range_loop)]
 
+pub mod batch;
 pub mod bsdf;
 pub mod bvh;
 pub mod furnace;
@@ -31,6 +34,7 @@ pub mod select;
 pub mod strand;
 pub mod strand_train;
 pub mod study;
+pub mod study_run;
 
 #[cfg(test)]
 mod bsdf_tests;

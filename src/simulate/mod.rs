@@ -83,8 +83,10 @@
 //!   the seed and path count, not on the thread count.
 //!
 //! Measurement effects (noise models, detector floor, occluded wedge, dropped samples) are
-//! in [`measure`]; the CSV and metadata writers in [`output`].
+//! in [`measure`]; the CSV and metadata writers in [`output`]; a whole `furfit simulate`
+//! run from parsed options in [`job`].
 
+pub mod job;
 pub mod measure;
 pub mod optics;
 pub mod output;

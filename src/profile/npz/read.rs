@@ -278,7 +278,59 @@ fn grid_to_profile(
 ) -> Result<(Profile, Vec<String>)> {
     let shape = value.shape().to_vec();
     let (has_sigma, has_phi_i) = (extras.sigma.is_some(), extras.phi_i.is_some());
-    let lens = axes.lens();
+    let nc = check_shapes(path, &shape, axes.lens(), &extras)?;
+    let channels = channel_names(path, &shape, nc, meta.channels)?;
+    let (mut samples, cells) = grid_samples(path, &axes, &shape, nc, &value, &extras)?;
+    if samples.is_empty() {
+        return Err(arr_err(
+            path,
+            "value",
+            "no samples (every cell is NaN or marked absent)",
+        ));
+    }
+    // As many indices as `value` has axes.
+    let cell = |k: usize| format!("{:?}", &cells[k][..shape.len()]);
+    let raw_phi: Vec<f64> = cells.iter().map(|c| axes.phi_written[c[2]]).collect();
+    let what = "grid cell(s) repeating a direction with identical data";
+    let notes = dedupe_notes(&mut samples, &channels, &raw_phi, what, |c| {
+        let (pa, pb) = (cells[c.first][2], cells[c.repeat][2]);
+        let pair = format!(" in cells {} and {}", cell(c.first), cell(c.repeat));
+        let first_at = format!("element {pa}");
+        let (wa, wb) = (axes.phi_written[pa], axes.phi_written[pb]);
+        match wrap_conflict(wa, wb, &first_at, &c, &pair, opts) {
+            Some(m) => axes.phi_err(path, pb, m),
+            None => arr_err(
+                path,
+                c.field.name(),
+                format!(
+                    "{}: cells {} and {}",
+                    c.what(),
+                    cell(c.first),
+                    cell(c.repeat)
+                ),
+            ),
+        }
+    })?;
+    Ok((
+        Profile {
+            samples,
+            channels,
+            metadata: meta.metadata,
+            source: Some(path.to_path_buf()),
+            files: vec![path.to_path_buf()],
+            layouts: vec![Layout::Grid {
+                shape,
+                sigma: has_sigma,
+                phi_i: has_phi_i,
+            }],
+        },
+        notes,
+    ))
+}
+
+/// Check `value`'s shape against the axes' lengths (`lens`, optionally with a trailing
+/// channel axis) and the extra arrays' shapes against it; returns the channel count.
+fn check_shapes(path: &Path, shape: &[usize], lens: [usize; 3], extras: &Extras) -> Result<usize> {
     if !(shape.len() == 3 || shape.len() == 4) || shape[..3] != lens {
         return Err(arr_err(
             path,
@@ -298,7 +350,7 @@ fn grid_to_profile(
         ("phi_i", extras.phi_i.as_ref().map(|a| a.shape())),
     ] {
         if let Some(s) = s {
-            if s != shape.as_slice() {
+            if s != shape {
                 return Err(arr_err(
                     path,
                     name,
@@ -307,10 +359,22 @@ fn grid_to_profile(
             }
         }
     }
-    for (k, name) in meta.channels.iter().enumerate() {
+    Ok(nc)
+}
+
+/// The profile's channel names from `meta_json`'s `channels` (`names`), checked against
+/// `value`'s shape and its channel count `nc`: none for one unnamed channel, numbers for
+/// an unnamed channel axis.
+fn channel_names(
+    path: &Path,
+    shape: &[usize],
+    nc: usize,
+    names: Vec<String>,
+) -> Result<Vec<String>> {
+    for (k, name) in names.iter().enumerate() {
         check_channel_name(name)
             .map_err(|m| arr_err(path, "meta_json", format!("channels[{k}]: {m}")))?;
-        if let Some(j) = meta.channels[..k].iter().position(|c| c == name) {
+        if let Some(j) = names[..k].iter().position(|c| c == name) {
             return Err(arr_err(
                 path,
                 "meta_json",
@@ -318,36 +382,49 @@ fn grid_to_profile(
             ));
         }
     }
-    let channels = if shape.len() == 4 {
-        if meta.channels.is_empty() && nc == 1 {
+    if shape.len() == 4 {
+        if names.is_empty() && nc == 1 {
             // A trailing singleton axis is one unnamed channel, as for a 3-D `value`.
-            Vec::new()
-        } else if meta.channels.is_empty() {
-            (0..nc).map(|c| c.to_string()).collect()
-        } else if meta.channels.len() == nc {
-            meta.channels
+            Ok(Vec::new())
+        } else if names.is_empty() {
+            Ok((0..nc).map(|c| c.to_string()).collect())
+        } else if names.len() == nc {
+            Ok(names)
         } else {
-            return Err(arr_err(
+            Err(arr_err(
                 path,
                 "meta_json",
                 format!(
                     "{} channel names for a channel axis of length {nc}",
-                    meta.channels.len()
+                    names.len()
                 ),
-            ));
+            ))
         }
-    } else if meta.channels.len() <= 1 {
-        meta.channels
+    } else if names.len() <= 1 {
+        Ok(names)
     } else {
-        return Err(arr_err(
+        Err(arr_err(
             path,
             "meta_json",
             format!(
                 "{} channel names but value is 3-D (one channel)",
-                meta.channels.len()
+                names.len()
             ),
-        ));
-    };
+        ))
+    }
+}
+
+/// The samples of the grid's present cells (each checked), in row-major order over
+/// `value`, and each one's cell `[theta_i, theta_r, phi, channel]`.
+fn grid_samples(
+    path: &Path,
+    axes: &Axes,
+    shape: &[usize],
+    nc: usize,
+    value: &ArrayD<f64>,
+    extras: &Extras,
+) -> Result<(Vec<Sample>, Vec<[usize; 4]>)> {
+    let lens = axes.lens();
     let mut samples = Vec::new();
     let mut cells: Vec<[usize; 4]> = Vec::new();
     let opt = |a: &Option<ArrayD<f64>>, ix: &IxDyn| -> Option<f64> {
@@ -398,49 +475,5 @@ fn grid_to_profile(
             }
         }
     }
-    if samples.is_empty() {
-        return Err(arr_err(
-            path,
-            "value",
-            "no samples (every cell is NaN or marked absent)",
-        ));
-    }
-    // As many indices as `value` has axes.
-    let cell = |k: usize| format!("{:?}", &cells[k][..shape.len()]);
-    let raw_phi: Vec<f64> = cells.iter().map(|c| axes.phi_written[c[2]]).collect();
-    let what = "grid cell(s) repeating a direction with identical data";
-    let notes = dedupe_notes(&mut samples, &channels, &raw_phi, what, |c| {
-        let (pa, pb) = (cells[c.first][2], cells[c.repeat][2]);
-        let pair = format!(" in cells {} and {}", cell(c.first), cell(c.repeat));
-        let first_at = format!("element {pa}");
-        let (wa, wb) = (axes.phi_written[pa], axes.phi_written[pb]);
-        match wrap_conflict(wa, wb, &first_at, &c, &pair, opts) {
-            Some(m) => axes.phi_err(path, pb, m),
-            None => arr_err(
-                path,
-                c.field.name(),
-                format!(
-                    "{}: cells {} and {}",
-                    c.what(),
-                    cell(c.first),
-                    cell(c.repeat)
-                ),
-            ),
-        }
-    })?;
-    Ok((
-        Profile {
-            samples,
-            channels,
-            metadata: meta.metadata,
-            source: Some(path.to_path_buf()),
-            files: vec![path.to_path_buf()],
-            layouts: vec![Layout::Grid {
-                shape,
-                sigma: has_sigma,
-                phi_i: has_phi_i,
-            }],
-        },
-        notes,
-    ))
+    Ok((samples, cells))
 }
