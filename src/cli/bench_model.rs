@@ -7,12 +7,10 @@ pub struct Args {
     /// Output directory for far_field_error_vs_time.{csv,png,svg,md}.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
-    /// Only print the grid-synthesis throughput (4 x 61 x 181 samples), no error sweep
-    /// (writes nothing: --out and --force do not apply).
+    /// Only print the grid-synthesis throughput; writes nothing.
     #[arg(long, conflicts_with_all = ["out", "force"])]
     pub synth_only: bool,
-    /// Every registered model side by side: far-field throughput on the same grid, then a
-    /// blind fit of each on --species (writes nothing).
+    /// Every model side by side: far-field throughput, then a blind fit on --species; writes nothing.
     #[arg(long, conflicts_with_all = ["out", "force", "synth_only"])]
     pub models: bool,
     /// Fit wall time against samples and theta_i rows: writes

@@ -7,30 +7,22 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The fit file (`furfit fit`): a chiang2016 fit is mapped exactly; a fit of another
-    /// model (yan2017, ...) is exported as the closest chiang2016 material to its
-    /// prediction at its data's angles, and the NRMSE that costs is printed.
+    /// The fit file; a non-chiang2016 fit is exported as the closest chiang2016 material (NRMSE printed).
     #[arg(long)]
     pub params: PathBuf,
-    /// Target: mitsuba (Mitsuba 3 `<bsdf type="hair">` XML), pbrt (pbrt-v4 `Material
-    /// "hair"`), cycles (a Blender Python script building the Principled Hair BSDF),
-    /// materialx (a `.mtlx` document with `chiang_hair_bsdf`).
+    /// Target: mitsuba, pbrt (pbrt-v4), cycles (a Blender Python script) or materialx.
     #[arg(long)]
     pub to: String,
     /// Output file.
     #[arg(long)]
     pub out: PathBuf,
-    /// Folder of the measurements a non-Chiang fit's data are looked for in when its
-    /// recorded paths no longer hold them (`<folder>/<species>/`).
+    /// Where a non-Chiang fit's data are looked for (`<folder>/<species>/`) if not at their recorded paths.
     #[arg(long, default_value = "measurements")]
     pub measurements: PathBuf,
-    /// Write a whole scene for the renderer (mitsuba, pbrt): the preview's test lock as
-    /// curves, its camera, key light and environment, with the material; Mitsuba's lock
-    /// goes to `<stem>.curves.txt` beside --out.
+    /// Write a whole test-lock scene around the material (mitsuba, pbrt).
     #[arg(long)]
     pub scene: bool,
-    /// Replace --out if it is an earlier furfit export (without it an existing file is
-    /// never replaced; other files not even with it).
+    /// Replace --out if it is an earlier furfit export (never other files).
     #[arg(long)]
     pub force: bool,
 }

@@ -31,29 +31,21 @@ pub struct Args {
     /// Worker threads (default or 0: all cores), at most 1024.
     #[arg(long, allow_negative_numbers = true, value_parser = super::threads_parser())]
     pub threads: Option<usize>,
-    /// Fit every species folder under --measurements (one species after another, each
-    /// using all --threads, so the total thread count stays --threads). Unreadable data,
-    /// options the data cannot serve (e.g. --weighted without sigmas) and outputs in the
-    /// way stop the run before any fit; a species that cannot be fitted (no valid sample,
-    /// a solver error) is listed at the end, after the others are fitted, and the exit
-    /// status is non-zero.
+    /// Fit every species folder under --measurements, one after another.
     #[arg(long)]
     pub all: bool,
-    /// Replace an existing fit file that was made from other data (a refit of the same
-    /// data replaces it without this).
+    /// Replace a fit file made from other data (a refit of the same data needs no --force).
     #[arg(long)]
     pub force: bool,
     /// With --all: the folder of species folders to fit.
     #[arg(long, default_value = "measurements", requires = "all")]
     pub measurements: PathBuf,
-    /// The model fitted: yan2017 (the fur BCSDF), marschner2003, chiang2016, or all (each
-    /// in turn; the default model's fits go to --fits, the others' to --fits/<model>/).
+    /// Model: yan2017, marschner2003, chiang2016, or all; non-default models go to --fits/<model>/.
     #[arg(long, default_value = "yan2017")]
     pub model: String,
     #[command(flatten)]
     pub far: super::FarArgs,
-    /// Start point: a preset name of the model, a parameter JSON or a fit JSON of the model
-    /// (used as one of the starts).
+    /// An extra start: a preset of the model, a parameter JSON or a fit JSON.
     #[arg(long)]
     pub init: Option<String>,
     /// Fix a parameter, `name=value` in file units (e.g. `kappa=0`); repeatable.
@@ -73,20 +65,13 @@ pub struct Args {
     /// Iteration cap per LM run (at least 1).
     #[arg(long, allow_negative_numbers = true, default_value_t = 100)]
     pub max_iters: u64,
-    /// Profile-likelihood intervals (68 %, Delta RSS = s^2) of these free parameters after
-    /// the fit: a comma list of names or `all`. Each re-solves the other parameters at
-    /// typically under ten values per side (more when its linearised SE is far below the
-    /// step cap, as the steps then double out to the same reach), so it costs several fits;
-    /// recorded as uncertainty.profile.
+    /// Profile-likelihood intervals (68 %) of these parameters after the fit: names or `all` (costly).
     #[arg(long, value_name = "NAMES")]
     pub profile: Option<String>,
-    /// Leave out samples below this fraction of the channel's largest value, in [0, 1)
-    /// (0 keeps all). No goniometer resolves eight decades, while the tails of noise-free
-    /// model profiles (down to 1e-44) would outweigh the lobes in log space.
+    /// Leave out samples below this fraction of the channel's peak, in [0, 1) (0 keeps all).
     #[arg(long, allow_negative_numbers = true, default_value_t = crate::fit::DEFAULT_FLOOR, value_parser = super::unit_fraction)]
     pub floor: f64,
-    /// Weight residuals by sigma/value (every valid sample needs a sigma > 0, and none may
-    /// lie more than 1000 times below the channel's median sigma/value)
+    /// Weight residuals by sigma/value (every valid sample needs a sigma > 0).
     #[arg(long)]
     pub weighted: bool,
     /// Print timing figures (evaluations/s, share of time in the model).

@@ -22,13 +22,13 @@ pub struct Args {
     /// Monte Carlo samples per inclination (>= 2).
     #[arg(long, allow_negative_numbers = true, default_value_t = DEFAULT_SAMPLES)]
     pub samples: usize,
+    /// Seed of the Monte Carlo (same seed, same figures).
     #[arg(long, allow_negative_numbers = true, default_value_t = 1)]
     pub seed: u64,
     /// Strand weights file (default: the weights built into the binary).
     #[arg(long)]
     pub energy_weights: Option<PathBuf>,
-    /// Also write DIR/furnace.{md,csv,png} for every fit in --fits-dir and its lossless
-    /// variant, in the three energy modes.
+    /// Also write DIR/furnace.{md,csv,png}: every fit of --fits-dir, lossless too, in all energy modes.
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// Fits of --report.

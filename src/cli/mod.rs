@@ -43,11 +43,7 @@ pub(crate) fn out_line(args: std::fmt::Arguments) {
 /// convention conversions applied to every format.
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct LoadArgs {
-    /// Incident angle (deg) for Yan-2015 files without a `# theta_i:` line; for a lone .npy,
-    /// its theta_i axis grid (e.g. `0,15,30`). An error if no input is one of those. A Yan
-    /// file with its own `# theta_i:` line must agree with it, unless a lone .npy is among
-    /// the inputs: then the grid is the .npy's and such a file keeps its own line (noted).
-    /// A Yan file without the line takes a single value.
+    /// Incident angle (deg) of Yan-2015 files without `# theta_i:`; a lone .npy's theta_i axis grid.
     #[arg(long, allow_hyphen_values = true)]
     pub theta_i: Option<String>,
     /// theta_r axis grid (deg) of a lone .npy, e.g. `-60:60:2`. An error without a lone .npy.
@@ -56,8 +52,7 @@ pub struct LoadArgs {
     /// phi axis grid (deg) of a lone .npy, e.g. `-180:180:2`. An error without a lone .npy.
     #[arg(long, allow_hyphen_values = true)]
     pub phi: Option<String>,
-    /// Degrees (within [-360, 360]) added to every file's phi (after --flip-phi) before
-    /// wrapping to (-180, 180] (data in another azimuth convention; any format).
+    /// Degrees in [-360, 360] added to every file's phi (after --flip-phi), any format.
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true, value_parser = number)]
     pub phi_offset: f64,
     /// Negate every file's phi (any format; applied before --phi-offset).
@@ -165,19 +160,13 @@ pub fn threads_parser() -> clap::builder::RangedU64ValueParser<usize> {
 /// Far-field settings of `synth` and `fit` (one parser, so the two agree).
 #[derive(clap::Args, Debug, Clone, Default)]
 pub struct FarArgs {
-    /// Initial segments `N,M` (unscattered, scattered); a single `N` means `N,N`; default
-    /// 8,5 (seed Sec. 5.1). With `--tol none` they are the fixed segmentation.
+    /// Initial far-field segments `N,M` (unscattered, scattered); default 8,5.
     #[arg(long, allow_negative_numbers = true)]
     pub segments: Option<String>,
-    /// Refinement tolerance of the far field, relative to each lobe's peak (default 1e-4,
-    /// at least 1e-8); `none` for the fixed segmentation of `--segments` (the paper's 8,5
-    /// by default).
+    /// Far-field tolerance relative to each lobe's peak (default 1e-4, >= 1e-8); `none`: fixed segments.
     #[arg(long, allow_negative_numbers = true)]
     pub tol: Option<String>,
-    /// Tolerance mode: largest change of the scattered direction per node-quadrature
-    /// segment, in radians, or `strict` (0.001). Only the one-bin TRTs segments at a
-    /// caustic of the scattered direction use node quadrature (elsewhere the medulla
-    /// table is integrated exactly), so the default 0.15 leaves them whole.
+    /// Largest scattered-direction change per node-quadrature segment, radians, or `strict`; default 0.15.
     #[arg(long, allow_negative_numbers = true)]
     pub scattered_step: Option<String>,
 }

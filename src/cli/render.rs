@@ -71,51 +71,35 @@ pub struct Args {
     /// each in 0..=1e6.
     #[arg(long, default_value = "0.34,0.10", allow_hyphen_values = true)]
     pub env: String,
-    /// Per-channel absorption ratios r,g,b applied to sigma_c_a and sigma_m_a, or
-    /// `melanin` (eumelanin-like) or `grey`. Default: a fit with r, g, b channels gives
-    /// each colour channel its own fitted absorption; anything else gets `melanin`.
+    /// Absorption ratios r,g,b, `melanin` or `grey` (default: a fit's own r, g, b channels, else melanin).
     #[arg(long, allow_hyphen_values = true)]
     pub tint: Option<String>,
-    /// Exposure in photographic stops (EV: x 2^EV) applied before the tone map, -64..=64;
-    /// not a fit file's exposure k, which scales measurements, not light.
+    /// Exposure in stops (EV) before the tone map, -64..=64 (PNGs only; not a fit's exposure k).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub exposure: f64,
-    /// Number of fibers in the test lock, 1..=100000 (building the scene takes about 45 KB
-    /// of memory per fiber: 4.5 GB at the cap).
+    /// Fibers in the test lock, 1..=100000 (about 45 KB of memory each).
     #[arg(long, allow_negative_numbers = true, default_value_t = 1500, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_FIBERS as u64))]
     pub fibers: usize,
     /// Longest path in fiber vertices, 1..=1024.
     #[arg(long, allow_negative_numbers = true, default_value_t = 16, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_DEPTH as u64))]
     pub max_depth: usize,
-    /// Multiplier of the pixel coverage in --mode multiscale, finite and >= 0 (0 = near
-    /// field, large = far field); default 1.
+    /// Multiplier of the pixel coverage in multiscale mode, >= 0 (0 = near field); default 1.
     #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub footprint_scale: Option<f64>,
-    /// Evaluate the far field / multi-scale term with the analytic engine at every query
-    /// instead of the per-render table (exact, much slower).
+    /// Evaluate the far field exactly at every query instead of the per-render table (slow).
     #[arg(long)]
     pub exact_far: bool,
-    /// Also sample the environment at every fiber vertex (next-event estimation, MIS with
-    /// BCSDF sampling). Off by default: on the test lock it costs more time than it removes
-    /// noise (see `render::integrator`).
+    /// Also sample the environment at every vertex (NEE + MIS); off: it costs more than it gains here.
     #[arg(long)]
     pub env_nee: bool,
-    /// How the scattered lobes' energy is read: `strand` (default: the fitted lobes scaled
-    /// so the fiber's directional albedo is the physical one of the project's Monte Carlo,
-    /// learnt by a small network; a lossless fiber returns what it receives), `fit` (as
-    /// fitted, the light incident; its tables are not reciprocal, so a fiber with a medulla
-    /// returns more light than it receives under a uniform environment, and again at each
-    /// bounce) or `conserve` (each camera-side column scaled to hold at most 1: no gain,
-    /// scattered lobes dimmer than fitted where a column held more)
+    /// Scattered lobes' energy: strand (physical albedo), fit (as fitted) or conserve (capped at 1).
     #[arg(long, default_value = "strand")]
     pub medulla_energy: String,
     /// Weights of `--medulla-energy strand` (default: built into the binary; rebuilt by
     /// `furfit tables strand`).
     #[arg(long)]
     pub energy_weights: Option<PathBuf>,
-    /// BCSDF sampling: `ishair` (default: Cauchy proposals of Ou et al. 2012, the better
-    /// of the two in reports/render_convergence.md), `lobes` (truncated and wrapped
-    /// Gaussians, the lobes' own shapes) or `uniform` (the sphere; a baseline).
+    /// BCSDF sampling: ishair (Cauchy proposals), lobes (the lobes' Gaussians) or uniform (baseline).
     #[arg(long, default_value = "ishair")]
     pub sampling: String,
     /// Skip the per-lobe AOV images.

@@ -24,12 +24,10 @@ pub struct Args {
     /// Full frame the patch is cut from (sets the pixel footprint), each side 1..=8192.
     #[arg(long, default_value = "512x512")]
     pub frame: String,
-    /// Largest spp of the curves (powers of two from 1; below --ref-spp), or with
-    /// --culling-study the spp of its renders; at most 1048576.
+    /// Largest spp of the curves (powers of two, below --ref-spp), at most 1048576.
     #[arg(long, allow_negative_numbers = true, default_value_t = 64, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_SPP as u64))]
     pub max_spp: usize,
-    /// spp of each mode's reference image: more than --max-spp (a reference no better
-    /// than the curve measures nothing), at most 1048576.
+    /// spp of each mode's reference image, above --max-spp, at most 1048576.
     #[arg(long, allow_negative_numbers = true, default_value_t = 512, value_parser = RangedU64ValueParser::<usize>::new().range(2..=MAX_SPP as u64))]
     pub ref_spp: usize,
     /// Modes to compare, each once: near, far, multiscale.
@@ -41,9 +39,7 @@ pub struct Args {
     /// Replace existing output files that furfit did not write (or that changed since).
     #[arg(long)]
     pub force: bool,
-    /// Independent renders (seeds) per spp: the speedup is reported pooled over them and
-    /// per repeat, since one 48x48 patch gives a ratio that swings by tens of percent;
-    /// 1..=1000.
+    /// Independent renders (seeds) per spp, pooled in the speedup, 1..=1000.
     #[arg(long, allow_negative_numbers = true, default_value_t = 4, value_parser = RangedU64ValueParser::<usize>::new().range(1..=MAX_REPEATS as u64))]
     pub repeats: usize,
     /// Worker threads (0 = all cores), at most 1024.
@@ -52,26 +48,19 @@ pub struct Args {
     /// Render with next-event estimation of the environment (MIS with BCSDF sampling).
     #[arg(long)]
     pub env_nee: bool,
-    /// Run the culling study instead (writes render_culling.md to --out): multi-scale
-    /// only, one seed, at --max-spp; --modes, --ref-spp and --repeats do not apply.
+    /// Run the culling study instead (render_culling.md).
     #[arg(long, conflicts_with_all = ["modes", "ref_spp", "repeats"])]
     pub culling_study: bool,
-    /// Run the noise budget instead (writes render_noise_budget.md to --out): near,
-    /// multi-scale and far-field curves under three lightings (the default scene, key
-    /// light only, key light direct), which shows how much of the near field's noise an
-    /// integration over h can remove; --modes does not apply.
+    /// Run the noise budget instead (render_noise_budget.md): three lightings, near/multiscale/far.
     #[arg(long, conflicts_with_all = ["modes", "culling_study", "env_nee"])]
     pub noise_budget: bool,
     /// Output directory.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
-    /// BCSDF samplers to compare, each once: ishair, lobes, uniform. The first one's curves
-    /// are the report's; with more than one the report adds their equal-quality ratios and
-    /// writes render_samplers.csv.
+    /// BCSDF samplers to compare (ishair, lobes, uniform); the first one's curves are the report's.
     #[arg(long, default_value = "ishair")]
     pub samplings: String,
-    /// Also time the full --frame at 64 spp in multi-scale and in near field with the first
-    /// sampler (the preview's cost as a ratio to the same render in near-field mode).
+    /// Also time the full --frame at 64 spp, multiscale against near field.
     #[arg(long, conflicts_with_all = ["culling_study", "noise_budget"])]
     pub preview: bool,
 }

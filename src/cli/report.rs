@@ -4,15 +4,10 @@ use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Folder of fit files (`<species>.json`, the fur model's); the other models' fits in
-    /// its subfolders `<model>/` (as `fit --model` writes them) make the model comparison.
+    /// Folder of the fur model's fit files; its subfolders `<model>/` hold the other models' fits.
     #[arg(long, default_value = "fits")]
     pub fits: PathBuf,
-    /// Folder of species folders (profiles + metadata.json): the species of
-    /// `model_vs_simulation.md`. A fit's own figure and NRMSE use the data it recorded,
-    /// from the first place holding exactly those data (SHA-256): its files as given to
-    /// `fit` (from the current folder), as recorded relative to the fit file, under the
-    /// folder above the fits folder, then `<this folder>/<species>/`.
+    /// Folder of species folders (for model_vs_simulation.md, and a fit's data not found elsewhere).
     #[arg(long, default_value = "measurements")]
     pub measurements: PathBuf,
     /// Output folder.

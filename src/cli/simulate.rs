@@ -16,12 +16,10 @@ pub struct Args {
     /// Incidence angles (degrees), list or start:stop:step.
     #[arg(long, default_value = "0,15,30,45", allow_hyphen_values = true)]
     pub theta_i: String,
-    /// Outgoing inclinations (degrees): bin centres; bin width = grid step, or for an uneven
-    /// list the distance to the nearer neighbour (at least two values).
+    /// Outgoing inclinations (degrees), bin centres (at least two values).
     #[arg(long, default_value = "-80:80:2", allow_hyphen_values = true)]
     pub theta_r: String,
-    /// Relative azimuths (degrees): bin centres; bin width = grid step, or for an uneven
-    /// list the distance to the nearer neighbour around the circle (at least two values).
+    /// Relative azimuths (degrees), bin centres (at least two values).
     #[arg(long, default_value = "-180:180:2", allow_hyphen_values = true)]
     pub phi: String,
     /// Paths traced per incidence angle.
@@ -32,12 +30,10 @@ pub struct Args {
         conflicts_with = "rel_noise"
     )]
     pub paths: u64,
-    /// Instead of --paths: choose the path count (from a pilot run) so that the median
-    /// relative standard error of bins above --noise-above x peak is this fraction.
+    /// Instead of --paths: paths chosen for this median relative error of the bins above --noise-above.
     #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub rel_noise: Option<f64>,
-    /// Threshold (fraction of the peak) of the bins whose median relative error
-    /// --rel-noise aims at and the run reports (printed and in metadata.json).
+    /// Fraction of the peak above which bins count for --rel-noise and the reported error.
     #[arg(long, default_value_t = 1e-3, allow_negative_numbers = true, value_parser = super::number)]
     pub noise_above: f64,
     /// Upper bound on the paths per incidence angle of --rel-noise, its pilot run
@@ -54,8 +50,7 @@ pub struct Args {
     /// Detector floor: values below this fraction of the peak are invalid (0 = off).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub floor: f64,
-    /// Half-angle (degrees) of the cone around the light direction where the camera would
-    /// occlude the beam; samples there are invalid (0 = off).
+    /// Half-angle (degrees) of the cone around the light where samples are occluded (0 = off).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = super::number)]
     pub wedge: f64,
     /// Fraction of samples dropped at random (invalid).
@@ -76,24 +71,19 @@ pub struct Args {
     /// Output directory (e.g. measurements/red-fox/).
     #[arg(long, required_unless_present = "bench")]
     pub out: Option<PathBuf>,
-    /// Profile file name inside --out (a plain name); .csv or .npz, the extension picks
-    /// the format.
+    /// Profile file name inside --out; .csv or .npz by extension.
     #[arg(long, default_value = "profile.csv")]
     pub file: String,
-    /// Replace the profile and metadata.json of an earlier furfit simulation in --out
-    /// (without it, existing files are never replaced; files not written by furfit simulate
-    /// are not replaced even with it).
+    /// Replace an earlier furfit simulation's profile and metadata.json in --out (never other files).
     #[arg(long)]
     pub force: bool,
-    /// For a fit file with several channels (e.g. r, g, b): the channel to simulate
-    /// (default: the fit's primary channel, its top level).
+    /// The channel of a multi-channel fit to simulate (default: its primary channel).
     #[arg(long)]
     pub channel: Option<String>,
     /// Species label for the metadata (default: the preset name, if --params is one).
     #[arg(long)]
     pub species: Option<String>,
-    /// Print throughput figures (paths/s) of three fixed cases instead of simulating a
-    /// profile (only --threads applies: the profile options are refused, not ignored).
+    /// Print throughput (paths/s) of three fixed cases instead of simulating (only --threads).
     #[arg(long, conflicts_with_all = [
         "params", "theta_i", "theta_r", "phi", "paths", "rel_noise", "noise_above",
         "max_paths", "seed", "floor", "wedge", "drop", "shot_photons", "mult_noise",

@@ -12,8 +12,7 @@ pub struct Args {
     /// model: the file names it).
     #[arg(long)]
     pub params: String,
-    /// The model of a preset, or the model the file must be of: yan2017 (default for
-    /// presets), marschner2003, chiang2016.
+    /// Model of a preset, or the model the file must be of: yan2017 (default), marschner2003, chiang2016.
     #[arg(long)]
     pub model: Option<String>,
     /// Incident inclinations, degrees (`start:stop:step` or a comma list).
@@ -25,16 +24,13 @@ pub struct Args {
     /// Relative azimuths, degrees.
     #[arg(long, allow_hyphen_values = true)]
     pub phi: String,
-    /// Integral over the fiber offset: `far` (the model's far field) or `near-quadrature`
-    /// (the near field by adaptive quadrature: the reference, slow).
+    /// Integral over the fiber offset: far (far field) or near-quadrature (the slow reference).
     #[arg(long, default_value = "far")]
     pub integral: String,
     /// Lobes to include, by the model's names (yan2017: R,TT,TRT,TTs,TRTs), or all.
     #[arg(long, default_value = "all")]
     pub lobes: String,
-    /// For a fit file with several channels (e.g. r, g, b): the channel to synthesize, or
-    /// `all` (the default: one output channel per fitted channel, each with its own
-    /// parameters and exposure).
+    /// The channel of a multi-channel fit, or `all` (default: one output channel per fitted channel).
     #[arg(long)]
     pub channel: Option<String>,
     /// Exposure scale k (default: the parameter file's, else 1).
@@ -45,8 +41,7 @@ pub struct Args {
     /// Output file (.csv or .npz; the extension picks the format).
     #[arg(long)]
     pub out: PathBuf,
-    /// Replace --out if it is an earlier furfit synth profile (without it, an existing file
-    /// is never replaced; other files, measured profiles among them, not even with it).
+    /// Replace --out if it is an earlier furfit synth profile (never other files).
     #[arg(long)]
     pub force: bool,
 }

@@ -30,8 +30,7 @@ pub struct BuildArgs {
     /// RNG seed (the shipped file uses 2017).
     #[arg(long, allow_negative_numbers = true, default_value_t = 2017)]
     pub seed: u64,
-    /// Nominal photon paths per table cell (optically thick cells stop earlier, see
-    /// `McBudget::from_paths`).
+    /// Nominal photon paths per table cell (optically thick cells stop earlier).
     #[arg(long, allow_negative_numbers = true, default_value_t = 16_000)]
     pub paths: usize,
     /// Use exactly this CP rank for every tensor instead of trying 16, 32, 48.
@@ -59,8 +58,7 @@ pub struct InfoArgs {
     /// Photon paths per hold-out point.
     #[arg(long, allow_negative_numbers = true, default_value_t = 200_000)]
     pub paths: usize,
-    /// Put the hold-out points on the nearest table nodes (no interpolation: the error is
-    /// CP compression plus the build's MC noise), to separate interpolation error.
+    /// Put the hold-out points on table nodes (no interpolation error).
     #[arg(long)]
     pub on_grid: bool,
     /// Seed of the hold-out Monte Carlo (must differ from the build seed).

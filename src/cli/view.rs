@@ -27,8 +27,7 @@ pub struct Args {
     /// Render the page's view on the CPU into --out (PNG), through the same textures.
     #[arg(long)]
     pub still: bool,
-    /// Path-trace the reference of the same fibers and write PRT-vs-reference errors
-    /// (yan2017 fits) into the --out folder.
+    /// Path-trace the same fibers and write PRT-vs-reference errors into --out (yan2017 fits).
     #[arg(long)]
     pub reference: bool,
     /// Species shown by --still: index into --params (0-based) or name.
@@ -52,6 +51,7 @@ pub struct Args {
     /// Texels per tile side of the shell textures.
     #[arg(long, default_value_t = 128)]
     pub res: usize,
+    /// Shells of the fur volume.
     #[arg(long, default_value_t = 32)]
     pub shells: usize,
     /// Fibers per tile.
@@ -66,6 +66,7 @@ pub struct Args {
     /// Comb tilt from the vertical, degrees.
     #[arg(long, default_value_t = 30.0, allow_negative_numbers = true)]
     pub tilt: f64,
+    /// Seed of the fur tile's fibers.
     #[arg(long, default_value_t = 3)]
     pub seed: u64,
     /// Transfer sweep directions NZxNPHI (even NZ).
