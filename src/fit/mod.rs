@@ -236,12 +236,17 @@ pub struct FitOutcome {
     pub uncertainty: Uncertainty,
     pub iterations: u64,
     pub evaluations: u64,
+    /// Analytic Jacobians of the solve ([`crate::models::ModelTerms::jacobian`]; 0 for a
+    /// model differentiated by finite differences, whose columns are in `evaluations`).
+    pub jacobians: u64,
+    /// How the Jacobians were taken: `analytic` or `finite differences`.
+    pub jacobian: &'static str,
     /// Model evaluations x samples (for throughput figures).
     pub sample_evaluations: u64,
     /// Estimated seconds inside the model: evaluations x the wall time of one evaluation
     /// measured alone after the solve (fastest of three), a finite-difference column
     /// counted at the mean column cost of the final Jacobian (most recompute only the
-    /// terms their parameter changes). Summed over evaluations that may run side by side
+    /// terms their parameter changes), an analytic Jacobian at the final one's cost. Summed over evaluations that may run side by side
     /// on several threads, so it can exceed the wall time (`model_time_share` > 1).
     pub model_time_s: f64,
     pub starts_global: usize,
@@ -274,6 +279,7 @@ struct RunResult {
     trace: Vec<TracePoint>,
     evals: u64,
     fd_columns: u64,
+    jacobians: u64,
 }
 
 /// One LM run from `u0` on `shared`'s data. The run gets its own problem instance (its own
@@ -322,6 +328,7 @@ fn run_lm(
         u,
         evals: prob.evals.load(Ordering::Relaxed),
         fd_columns: prob.fd_columns.load(Ordering::Relaxed),
+        jacobians: prob.jacobians.load(Ordering::Relaxed),
     })
 }
 
@@ -489,11 +496,12 @@ fn finish(
         (
             p.evals.load(Ordering::Relaxed),
             p.fd_columns.load(Ordering::Relaxed),
+            p.jacobians.load(Ordering::Relaxed),
         )
     };
-    let (full_evals, full_cols) = counts(full);
-    let (sub_evals, sub_cols) = if std::ptr::eq(full, sub) {
-        (0, 0)
+    let (full_evals, full_cols, full_jacs) = counts(full);
+    let (sub_evals, sub_cols, sub_jacs) = if std::ptr::eq(full, sub) {
+        (0, 0, 0)
     } else {
         counts(sub)
     };
@@ -507,6 +515,7 @@ fn finish(
         full.jacobian_at(&u)
     };
     let t_jac = t_jac.elapsed().as_secs_f64();
+    let analytic = full.jacobians.load(Ordering::Relaxed) > full_jacs;
     let mut unc = uncertainty::estimate(&opts.layout, &u, &jac, &r);
     let held = uncertainty::bound_effects(full, &u, &r, &unc);
     uncertainty::flag_coupled(&mut unc, &jac, &held);
@@ -535,13 +544,19 @@ fn finish(
     // the Jacobian's time above per column, a share `col_cost` of a full evaluation
     // (taken as the same share on the subsample).
     let t_sub = if sub_evals > 0 { time_min3(sub).0 } else { 0.0 };
-    let col_cost = if u.is_empty() || t_full <= 0.0 {
-        1.0
+    // An analytic Jacobian: the final one's time, in evaluations.
+    let (col_cost, jac_cost) = if u.is_empty() || t_full <= 0.0 {
+        (1.0, 1.0)
+    } else if analytic {
+        (1.0, t_jac / t_full)
     } else {
-        (t_jac / u.len() as f64 / t_full).min(1.0)
+        ((t_jac / u.len() as f64 / t_full).min(1.0), 0.0)
     };
-    let cost = |evals: u64, cols: u64| (evals - cols) as f64 + cols as f64 * col_cost;
-    let model_time_s = cost(full_evals, full_cols) * t_full + cost(sub_evals, sub_cols) * t_sub;
+    let cost = |evals: u64, cols: u64, jacs: u64| {
+        (evals - cols) as f64 + cols as f64 * col_cost + jacs as f64 * jac_cost
+    };
+    let model_time_s = cost(full_evals, full_cols, full_jacs) * t_full
+        + cost(sub_evals, sub_cols, sub_jacs) * t_sub;
     Ok(FitOutcome {
         params,
         exposure: lk.exp(),
@@ -550,6 +565,12 @@ fn finish(
         uncertainty: unc,
         iterations,
         evaluations: full_evals + sub_evals,
+        jacobians: full_jacs + sub_jacs,
+        jacobian: if analytic || full_jacs + sub_jacs > 0 {
+            "analytic"
+        } else {
+            "finite differences"
+        },
         sample_evaluations,
         model_time_s,
         starts_global,

@@ -149,6 +149,10 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             "name": "Levenberg-Marquardt (argmin), multi-start",
             "iterations": out.iterations,
             "evaluations": out.evaluations,
+            // Analytic Jacobians (not in `evaluations`), or "finite differences", whose
+            // columns are.
+            "jacobian": out.jacobian,
+            "jacobians": out.jacobians,
             "sample_evaluations": out.sample_evaluations,
             "starts": {"global": out.starts_global, "lm": out.starts_lm, "subsample": opts.n_sub},
             "max_iters": opts.max_iters,

@@ -212,6 +212,7 @@ fn second_polish_starts(
 fn count(full: &LogResidualProblem, run: &RunResult) {
     full.evals.fetch_add(run.evals, Ordering::Relaxed);
     full.fd_columns.fetch_add(run.fd_columns, Ordering::Relaxed);
+    full.jacobians.fetch_add(run.jacobians, Ordering::Relaxed);
 }
 
 /// Profile-likelihood intervals of [`FitOptions::profile`] for the fit `out` at `solved`

@@ -231,6 +231,11 @@ pub struct LogResidualProblem<'a> {
     pub evals: AtomicU64,
     /// Of those, finite-difference columns (most recompute only part of the model).
     pub fd_columns: AtomicU64,
+    /// Analytic Jacobians computed ([`ModelTerms::jacobian`]; not counted in `evals`).
+    pub jacobians: AtomicU64,
+    /// Use the model's analytic Jacobian where it provides one (default); `false` forces
+    /// finite differences (tests, comparisons).
+    pub analytic: bool,
     /// Last `(u, r, terms)` computed, so the Jacobian reuses the residuals and model terms
     /// of its base point.
     last: Mutex<Option<Cached>>,
@@ -253,6 +258,8 @@ impl<'a> LogResidualProblem<'a> {
             far,
             evals: AtomicU64::new(0),
             fd_columns: AtomicU64::new(0),
+            jacobians: AtomicU64::new(0),
+            analytic: true,
             last: Mutex::new(None),
             cancel: Cancel::default(),
         }
@@ -265,8 +272,10 @@ impl<'a> LogResidualProblem<'a> {
 
     /// This problem at another far-field setting, with its own counters and cache.
     pub fn with_far(&self, far: FarOptions) -> LogResidualProblem<'a> {
-        LogResidualProblem::new(self.data, self.layout.clone(), far)
-            .with_cancel(self.cancel.clone())
+        let mut p = LogResidualProblem::new(self.data, self.layout.clone(), far)
+            .with_cancel(self.cancel.clone());
+        p.analytic = self.analytic;
+        p
     }
 
     /// This problem, its solver runs ended by `cancel` once it is set.
@@ -365,6 +374,55 @@ impl<'a> LogResidualProblem<'a> {
         DMatrix::from_columns(&cols)
     }
 
+    /// The Jacobian `d r / d u` from the model's analytic derivatives at `base` (the
+    /// terms at `u`), `None` when the model provides none. The same matrix as
+    /// [`Self::jacobian_forward`] differentiates, exactly rather than to the step's
+    /// truncation: with `m_i` the model values and `p_k` the parameters (internal units),
+    /// `d ln m_i / d u_j = (d m_i / d p_k) (d p_k / d u_j) / m_i` (zero where
+    /// [`ln_model`] floors `m_i`), `d p_k / d u_j` the bounded map's derivative
+    /// ([`reparam::derivative`], zero beyond its clamp) in internal units, and the
+    /// closed-form exposure's `d ln k / d u_j = -sum w_i (d ln m_i / d u_j) / sum w_i`, so
+    /// `d r_i / d u_j = sqrt(w_i) (d ln m_i / d u_j + d ln k / d u_j) / range`.
+    pub fn jacobian_analytic(
+        &self,
+        u: &DVector<f64>,
+        base: &dyn ModelTerms,
+    ) -> Option<DMatrix<f64>> {
+        let vj = base.jacobian(&self.data.points)?;
+        self.jacobians.fetch_add(1, Ordering::Relaxed);
+        let d = self.data;
+        let free = self.layout.free();
+        let k = vj.n_params;
+        let sw: f64 = d.w.iter().sum();
+        let inv = 1.0 / d.range;
+        let cols: Vec<DVector<f64>> = free
+            .iter()
+            .enumerate()
+            .map(|(j, id)| {
+                let scale = id.spec().to_internal(reparam::derivative(*id, u[j]));
+                let (pk, mut s) = (id.index(), 0.0);
+                let mut col = DVector::from_iterator(
+                    d.len(),
+                    vj.values.iter().enumerate().map(|(i, &m)| {
+                        let dl = if m.is_finite() && m > f64::MIN_POSITIVE {
+                            vj.d[i * k + pk] * scale / m
+                        } else {
+                            0.0
+                        };
+                        s += d.w[i] * dl;
+                        dl
+                    }),
+                );
+                let mean = if sw > 0.0 { s / sw } else { 0.0 };
+                for (i, c) in col.iter_mut().enumerate() {
+                    *c = d.w[i].sqrt() * (*c - mean) * inv;
+                }
+                col
+            })
+            .collect();
+        Some(DMatrix::from_columns(&cols))
+    }
+
     /// Residuals, `ln k` and model terms at `u`, remembered for the Jacobian at the same
     /// point.
     fn evaluate(&self, u: &DVector<f64>) -> (DVector<f64>, f64, Arc<dyn ModelTerms>) {
@@ -425,8 +483,10 @@ impl Jacobian for LogResidualProblem<'_> {
 }
 
 impl LogResidualProblem<'_> {
-    /// Forward-difference Jacobian at `u`, reusing the residuals and terms of the last
-    /// evaluation when it was at `u` (the solver evaluates a point before its Jacobian).
+    /// The Jacobian at `u`: analytic when the model provides it and [`Self::analytic`]
+    /// is set ([`Self::jacobian_analytic`]), else by forward differences. Reuses the
+    /// residuals and terms of the last evaluation when it was at `u` (the solver
+    /// evaluates a point before its Jacobian).
     pub fn jacobian_at(&self, u: &DVector<f64>) -> DMatrix<f64> {
         let cached = self
             .last
@@ -442,6 +502,11 @@ impl LogResidualProblem<'_> {
                 (r, t)
             }
         };
+        if self.analytic {
+            if let Some(j) = self.jacobian_analytic(u, &*base) {
+                return j;
+            }
+        }
         self.jacobian_forward(u, &r0, &*base)
     }
 }

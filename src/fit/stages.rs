@@ -138,6 +138,8 @@ pub(super) fn multi_start(
         .fetch_add(runs.iter().map(|r| r.evals).sum(), Ordering::Relaxed);
     sub.fd_columns
         .fetch_add(runs.iter().map(|r| r.fd_columns).sum(), Ordering::Relaxed);
+    sub.jacobians
+        .fetch_add(runs.iter().map(|r| r.jacobians).sum(), Ordering::Relaxed);
     let best = (0..runs.len())
         .min_by(|&a, &b| runs[a].cost.total_cmp(&runs[b].cost).then(a.cmp(&b)))
         .expect("at least one start");

@@ -386,3 +386,113 @@ fn cancel_from_another_thread_stops_a_running_fit() {
     assert!(matches!(r, Err(Error::Interrupted)), "{r:?}");
     assert!(t.elapsed().as_secs_f64() < 20.0, "{:?}", t.elapsed());
 }
+
+/// Worst column of `a` against the central differences `c` (both n x p), in units of
+/// the column's allowance `1e-5 |c_j| + 1e-8 |r|` (see
+/// [`analytic_jacobians_match_central_differences`]); above 1 fails.
+fn worst_column(
+    a: &nalgebra::DMatrix<f64>,
+    c: &nalgebra::DMatrix<f64>,
+    r_norm: f64,
+) -> (usize, f64) {
+    (0..a.ncols())
+        .map(|j| {
+            let err = (a.column(j) - c.column(j)).norm();
+            (j, err / (1e-5 * c.column(j).norm() + 1e-8 * r_norm))
+        })
+        .max_by(|x, y| x.1.total_cmp(&y.1))
+        .expect("columns")
+}
+
+/// The analytic Jacobian (forward-mode derivatives through the model, the bounded maps
+/// and the closed-form exposure) against central differences of the residuals, for
+/// every model that provides one, at random parameter points in the plausible box (and
+/// one next to the bounds, as the red fox's fit ends), with weights.
+///
+/// Tolerance per column: `1e-5 |column| + 1e-8 |r|`. Central differences with the step
+/// `h = 1e-6 max(1, |u|)` are off by the truncation `h^2 r''' / 6`, ~1e-12 relative on
+/// these smooth functions, and by rounding: each residual carries ~1e-14 relative error
+/// (sums over thousands of far-field nodes), which the quotient divides by `2h`:
+/// ~1e-8 `|r|`. The analytic columns are exact to rounding. A column that is wrong (a
+/// missed chain factor, a sign, a term) is off by its own size, 1e5 times the allowance;
+/// one scaled by 1 + 1e-3 fails too (checked).
+#[test]
+fn analytic_jacobians_match_central_differences() {
+    use rand::{Rng, SeedableRng};
+    let tr: Vec<f64> = (0..9).map(|k| -60.0 + 15.0 * k as f64).collect();
+    let phi: Vec<f64> = (0..37).map(|j| -180.0 + 10.0 * j as f64).collect();
+    let pts = Points::grid_degrees(&[-30.0, 0.0, 25.0, 50.0], &tr, &phi);
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(60);
+    let mut checked = 0;
+    for &model in crate::models::MODELS.iter() {
+        let layout = ParamLayout::all_free(model);
+        let far = FarOptions::default();
+        let n = model.specs().len();
+        let truth = model.presets()[0].values.to_vec();
+        let p_truth = layout.internal(&layout.to_u(&truth));
+        let y: Vec<f64> = model
+            .predict(
+                &p_truth,
+                &pts,
+                &far,
+                LobeSet::ALL,
+                crate::models::Integral::Far,
+            )
+            .lobes
+            .iter()
+            .map(|l| l.sum())
+            .collect();
+        // Weights from a made-up relative sigma, so the weighted exposure is exercised.
+        let rel: Vec<f64> = (0..y.len()).map(|i| 0.02 + 0.01 * (i % 7) as f64).collect();
+        let data = FitData::new(pts.clone(), &y, Some(&rel));
+        let prob = LogResidualProblem::new(&data, layout.clone(), far);
+        let mut starts: Vec<Vec<f64>> = (0..4)
+            .map(|_| {
+                (0..n)
+                    .map(|i| {
+                        let (lo, hi, log) = model.plausible_box(i);
+                        let t: f64 = rng.random();
+                        if log {
+                            (lo.ln() + t * (hi.ln() - lo.ln())).exp()
+                        } else {
+                            lo + t * (hi - lo)
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        if model.name() == "chiang2016" {
+            // Where the red fox's fit ends: eta and alpha next to their bounds.
+            starts.push(vec![1.0003, 0.9358, 0.9248, -19.99, 1.546]);
+        }
+        for file in starts {
+            let u = nalgebra::DVector::from_vec(layout.to_u(&file));
+            let (r, _, terms) = prob.evaluate_terms_at(&u);
+            let Some(ja) = prob.jacobian_analytic(&u, &*terms) else {
+                break;
+            };
+            let jc = prob.jacobian_central(&u, 1e-6);
+            let (j, worst) = worst_column(&ja, &jc, r.norm());
+            assert!(
+                worst <= 1.0,
+                "{} at {file:?}: column {j} ({}) off by {worst} allowances: analytic {} central {}",
+                model.name(),
+                layout.free()[j].name(),
+                ja.column(j),
+                jc.column(j)
+            );
+            // jacobian_at takes the analytic path for this model.
+            assert_eq!(prob.jacobian_at(&u), ja);
+            // The check is sharp enough to see one column scaled by 1 + 1e-3.
+            for k in 0..ja.ncols() {
+                if jc.column(k).norm() > 1e-3 * r.norm() {
+                    let mut bad = ja.clone();
+                    bad.column_mut(k).scale_mut(1.0 + 1e-3);
+                    assert!(worst_column(&bad, &jc, r.norm()).1 > 1.0, "column {k}");
+                }
+            }
+            checked += 1;
+        }
+    }
+    assert!(checked >= 5, "{checked} points checked");
+}

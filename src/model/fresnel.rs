@@ -3,20 +3,29 @@
 //!
 //! Shared with the virtual goniometer as a low-level optics helper (not as "the model").
 
+use crate::models::dual::Real;
+
 /// Unpolarised Fresnel reflectance of a smooth dielectric interface (the mean of the s and
 /// p reflectances): `cos_i = cos(angle of incidence)`, `eta = n_transmitted / n_incident`.
 /// Returns 1 at grazing incidence and under total internal reflection (`eta < 1`, as for
 /// the goniometer's rays leaving the fiber).
 pub fn fresnel_dielectric(cos_i: f64, eta: f64) -> f64 {
+    fresnel_dielectric_generic(cos_i, eta)
+}
+
+/// [`fresnel_dielectric`] generic over [`Real`] (forward-mode derivatives; the `f64`
+/// instance is that function, operation for operation).
+pub fn fresnel_dielectric_generic<T: Real>(cos_i: T, eta: T) -> T {
+    let one = T::cst(1.0);
     let cos_i = cos_i.clamp(0.0, 1.0);
-    let sin2_t = (1.0 - cos_i * cos_i) / (eta * eta);
-    if sin2_t >= 1.0 {
-        return 1.0;
+    let sin2_t = (one - cos_i * cos_i) / (eta * eta);
+    if sin2_t.value() >= 1.0 {
+        return one;
     }
-    let cos_t = (1.0 - sin2_t).sqrt();
+    let cos_t = (one - sin2_t).sqrt();
     let rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t);
     let rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t);
-    0.5 * (rs * rs + rp * rp)
+    (rs * rs + rp * rp) * 0.5
 }
 
 /// Pile-of-plates reflectance of `l` cuticle interfaces, each with reflectance `f`

@@ -26,6 +26,7 @@
 //! [`ParamSpec::to_internal`] converts.
 
 pub mod chiang2016;
+pub mod dual;
 pub mod marschner2003;
 mod params;
 mod points;
@@ -283,6 +284,23 @@ pub trait ModelTerms: Send + Sync {
 
     /// `(capped, slices)` as in [`Prediction::capped`].
     fn capped_slices(&self) -> (usize, usize);
+
+    /// The model values at these terms' parameters and their derivatives with respect to
+    /// every parameter (internal units), computed analytically (forward-mode derivatives,
+    /// [`dual`]); `None` (the default) when the model does not provide them, and the
+    /// fitter differentiates by finite differences ([`ModelTerms::with_change`]).
+    fn jacobian(&self, _points: &Points) -> Option<ValueJacobian> {
+        None
+    }
+}
+
+/// What [`ModelTerms::jacobian`] returns: the values (as [`ModelTerms::values`]) and the
+/// derivatives `d[i * n_params + k] = d value_i / d p_k`, `p` in internal units.
+#[derive(Clone, Debug)]
+pub struct ValueJacobian {
+    pub values: Vec<f64>,
+    pub n_params: usize,
+    pub d: Vec<f64>,
 }
 
 /// [`ModelTerms`] that keep only the values: every change recomputes them in full.

@@ -1,7 +1,7 @@
 //! Goniometer points with the grid structures models find in them, kept between
 //! evaluations (a fit evaluates the same points hundreds of times).
 
-use super::{LobeSet, LobeValues, ModelTerms};
+use super::{LobeSet, LobeValues, ModelTerms, ValueJacobian};
 use crate::model::far::FarOptions;
 use crate::synth::GridPlan;
 use std::any::Any;
@@ -167,6 +167,21 @@ pub trait Factored<const L: usize>: Sized + Send + Sync + 'static {
     /// The longitudinal term of every pair of `plan`.
     fn longitudinal_terms(&self, plan: &SlicePlan) -> Vec<[f64; L]>;
 
+    /// The derivatives of [`Self::azimuthal_terms`] with respect to every parameter
+    /// (internal units), per slice `phis.len() * n_params` entries, entry
+    /// `phi * n_params + k` the derivative by parameter `k` (zero for one the terms do not
+    /// read). `None` (the default): not provided, and the fitter differentiates by
+    /// finite differences.
+    fn azimuthal_gradients(&self, _plan: &SlicePlan) -> Option<Vec<Vec<[f64; L]>>> {
+        None
+    }
+
+    /// The derivatives of [`Self::longitudinal_terms`] likewise: `pairs.len() * n_params`
+    /// entries, `pair * n_params + k`.
+    fn longitudinal_gradients(&self, _plan: &SlicePlan) -> Option<Vec<[f64; L]>> {
+        None
+    }
+
     fn factors(&self, plan: &SlicePlan) -> Factors<L> {
         Factors {
             n: self.azimuthal_terms(plan),
@@ -212,9 +227,15 @@ impl<const L: usize> Factors<L> {
 
 /// [`ModelTerms`] of a [`Factored`] model: a step in one of its `LONGITUDINAL`
 /// parameters recomputes only the longitudinal terms, any other only the azimuthal ones.
+///
+/// When the model provides both factors' gradients ([`Factored::azimuthal_gradients`],
+/// [`Factored::longitudinal_gradients`]), [`ModelTerms::jacobian`] combines them by the
+/// product rule: `d(sum_p M_p N_p) = sum_p (dM_p N_p + M_p dN_p)`.
 pub struct FactoredTerms<M, const L: usize> {
     pub plan: Arc<SlicePlan>,
     pub factors: Factors<L>,
+    /// The parameters (internal units) the factors were computed at.
+    params: Vec<f64>,
     model: PhantomData<fn() -> M>,
 }
 
@@ -224,6 +245,7 @@ impl<M: Factored<L>, const L: usize> FactoredTerms<M, L> {
         FactoredTerms {
             plan,
             factors,
+            params: p.to_vec(),
             model: PhantomData,
         }
     }
@@ -258,7 +280,36 @@ impl<M: Factored<L>, const L: usize> ModelTerms for FactoredTerms<M, L> {
         Box::new(FactoredTerms::<M, L> {
             plan: self.plan.clone(),
             factors,
+            params: p.to_vec(),
             model: PhantomData,
+        })
+    }
+
+    fn jacobian(&self, _points: &Points) -> Option<ValueJacobian> {
+        let model = M::from_params(&self.params);
+        let (dn, dm) = rayon::join(
+            || model.azimuthal_gradients(&self.plan),
+            || model.longitudinal_gradients(&self.plan),
+        );
+        let (dn, dm) = (dn?, dm?);
+        let k = self.params.len();
+        let plan = &self.plan;
+        let mut values = vec![0.0; plan.index.len()];
+        let mut d = vec![0.0; plan.index.len() * k];
+        for (i, &(s, f, pr)) in plan.index.iter().enumerate() {
+            let (s, f, pr) = (s as usize, f as usize, pr as usize);
+            let n = &self.factors.n[s][f];
+            let m = &self.factors.m[pr];
+            values[i] = (0..L).map(|p| m[p] * n[p]).sum();
+            for j in 0..k {
+                let (dn, dm) = (&dn[s][f * k + j], &dm[pr * k + j]);
+                d[i * k + j] = (0..L).map(|p| dm[p] * n[p] + m[p] * dn[p]).sum();
+            }
+        }
+        Some(ValueJacobian {
+            values,
+            n_params: k,
+            d,
         })
     }
 

@@ -12,6 +12,7 @@
 //! - `sigma_a` is per unit fiber radius: the path inside is `2 cos gamma_t / cos theta_t`
 //!   radii (pbrt-v4 `HairBxDF::f`), as MODEL.md's `sigma_c_a`.
 
+use crate::models::dual::Real;
 use std::f64::consts::PI;
 
 /// pbrt-v4 / Mitsuba 3 use `p_max = 3`: R, TT, TRT and the residual TRRT+.
@@ -20,28 +21,32 @@ pub const P_MAX: usize = 3;
 /// Longitudinal variance `v_p` per lobe from `beta_m` in (0, 1] (Chiang 2016 Eq. 7,
 /// pbrt-v4 `HairBxDF::HairBxDF`): `v_0 = (0.726 b + 0.812 b^2 + 3.7 b^20)^2`,
 /// `v_1 = v_0 / 4`, `v_2 = v_3 = 4 v_0`.
-pub fn variances(beta_m: f64) -> [f64; P_MAX + 1] {
-    let v0 = (0.726 * beta_m + 0.812 * beta_m * beta_m + 3.7 * beta_m.powi(20)).powi(2);
-    [v0, 0.25 * v0, 4.0 * v0, 4.0 * v0]
+///
+/// Generic over [`Real`] (values or forward-mode derivatives); every constant is on the
+/// right of its operation, which is commutative, so the `f64` path is the same
+/// arithmetic as the expression above (likewise below).
+pub fn variances<T: Real>(beta_m: T) -> [T; P_MAX + 1] {
+    let v0 = (beta_m * 0.726 + beta_m * 0.812 * beta_m + beta_m.powi(20) * 3.7).powi(2);
+    [v0, v0 * 0.25, v0 * 4.0, v0 * 4.0]
 }
 
 /// Logistic scale `s` from `beta_n` in (0, 1] (Chiang 2016 Eq. 8):
 /// `s = sqrt(pi/8) (0.265 b + 1.194 b^2 + 5.372 b^22)`.
-pub fn logistic_scale(beta_n: f64) -> f64 {
-    (PI / 8.0).sqrt() * (0.265 * beta_n + 1.194 * beta_n * beta_n + 5.372 * beta_n.powi(22))
+pub fn logistic_scale<T: Real>(beta_n: T) -> T {
+    (beta_n * 0.265 + beta_n * 1.194 * beta_n + beta_n.powi(22) * 5.372) * (PI / 8.0).sqrt()
 }
 
 /// The cuticle tilt applied to `theta_o` per lobe (Chiang 2016 Sec. 4.1): R by `-2 alpha`,
 /// TT by `+alpha`, TRT by `+4 alpha`, the residual not at all. Returns the shifted
 /// `(sin, |cos|)` of pbrt-v4's `sinThetap_o`, `cosThetap_o`.
-pub fn tilted(theta_o: f64, alpha: f64, p: usize) -> (f64, f64) {
+pub fn tilted<T: Real>(theta_o: f64, alpha: T, p: usize) -> (T, T) {
     let shift = match p {
-        0 => -2.0 * alpha,
+        0 => alpha * -2.0,
         1 => alpha,
-        2 => 4.0 * alpha,
-        _ => 0.0,
+        2 => alpha * 4.0,
+        _ => T::cst(0.0),
     };
-    let t = theta_o + shift;
+    let t = shift + theta_o;
     (t.sin(), t.cos().abs())
 }
 
@@ -49,29 +54,30 @@ pub fn tilted(theta_o: f64, alpha: f64, p: usize) -> (f64, f64) {
 /// ~1e-15 relative for `x >= 0`: its power series below 30, the asymptotic series
 /// (`sum ((2k-1)!!)^2 / (k! (8x)^k)`, whose smallest term near `k = 2x` is far below
 /// rounding at `x >= 30`) above.
-pub fn ln_i0_scaled(x: f64) -> f64 {
-    if x < 30.0 {
-        let q = 0.25 * x * x;
-        let (mut term, mut sum) = (1.0f64, 1.0f64);
+/// (Its derivatives are the series' term by term, cut where the values' are.)
+pub fn ln_i0_scaled<T: Real>(x: T) -> T {
+    if x.value() < 30.0 {
+        let q = x * 0.25 * x;
+        let (mut term, mut sum) = (T::cst(1.0), T::cst(1.0));
         for k in 1..200 {
             term *= q / (k * k) as f64;
             sum += term;
-            if term < 1e-17 * sum {
+            if term.value() < 1e-17 * sum.value() {
                 break;
             }
         }
         sum.ln() - x
     } else {
-        let (mut term, mut sum) = (1.0f64, 1.0f64);
+        let (mut term, mut sum) = (T::cst(1.0), T::cst(1.0));
         for k in 1..30 {
             let odd = (2 * k - 1) as f64;
-            term *= odd * odd / (k as f64 * 8.0 * x);
+            term *= T::cst(odd * odd) / (x * (k as f64 * 8.0));
             sum += term;
-            if term < 1e-17 {
+            if term.value() < 1e-17 {
                 break;
             }
         }
-        sum.ln() - 0.5 * (2.0 * PI * x).ln()
+        sum.ln() - (x * (2.0 * PI)).ln() * 0.5
     }
 }
 
@@ -83,23 +89,23 @@ pub fn ln_i0_scaled(x: f64) -> f64 {
 /// `(cos(theta_i + theta_o'') - 1) / v` (`theta_o''` the tilted direction reflected into
 /// [-90, 90] deg when its cosine was folded), so that `v -> 0` neither overflows nor
 /// cancels (pbrt switches to a log form below `v = 0.1` for the same reason).
-pub fn longitudinal(sin_i: f64, cos_i: f64, sin_o: f64, cos_o: f64, v: f64) -> f64 {
-    let a = cos_i * cos_o / v;
+pub fn longitudinal<T: Real>(sin_i: f64, cos_i: f64, sin_o: T, cos_o: T, v: T) -> T {
+    let a = cos_o * cos_i / v;
     // cos(theta_i + theta_o'') - 1 = -2 sin^2((theta_i + theta_o'') / 2), stable.
-    let half = 0.5 * (sin_i.atan2(cos_i) + sin_o.atan2(cos_o));
-    let exponent = -2.0 * half.sin().powi(2) / v;
+    let half = (sin_o.atan2(cos_o) + sin_i.atan2(cos_i)) * 0.5;
+    let exponent = half.sin().powi(2) * -2.0 / v;
     // 2 v sinh(1/v) = v e^{1/v} (1 - e^{-2/v}); the e^{1/v} is inside `exponent`.
-    let log_norm = v.ln() + (-(-2.0 / v).exp()).ln_1p();
+    let log_norm = v.ln() + (-(T::cst(-2.0) / v).exp()).ln_1p();
     (exponent + ln_i0_scaled(a) - log_norm).exp()
 }
 
 /// The longitudinal lobes of all `p` for light at `theta_i`, camera at `theta_o`.
-pub fn longitudinal_lobes(
+pub fn longitudinal_lobes<T: Real>(
     theta_i: f64,
     theta_o: f64,
-    alpha: f64,
-    v: &[f64; P_MAX + 1],
-) -> [f64; P_MAX + 1] {
+    alpha: T,
+    v: &[T; P_MAX + 1],
+) -> [T; P_MAX + 1] {
     let (sin_i, cos_i) = theta_i.sin_cos();
     std::array::from_fn(|p| {
         let (so, co) = tilted(theta_o, alpha, p);
@@ -108,25 +114,26 @@ pub fn longitudinal_lobes(
 }
 
 /// What the azimuthal terms of one `theta_o` share: the Bravais index, the refracted
-/// inclination and the absorption coefficient along the path.
+/// inclination and the absorption coefficient along the path. Generic over [`Real`]:
+/// `Slice<Dual<N>>` carries the derivatives with respect to `eta` and `sigma_a`.
 #[derive(Clone, Copy, Debug)]
-pub struct Slice {
-    pub eta: f64,
+pub struct Slice<T = f64> {
+    pub eta: T,
     pub cos_theta_o: f64,
     /// `eta' = sqrt(eta^2 - sin^2 theta_o) / cos theta_o` (pbrt's `etap`).
-    pub eta_prime: f64,
+    pub eta_prime: T,
     /// `sigma_a / cos theta_t`, so that `T = exp(-2 cos(gamma_t) * sigma_path)`.
-    pub sigma_path: f64,
+    pub sigma_path: T,
 }
 
-impl Slice {
-    pub fn new(eta: f64, sigma_a: f64, theta_o: f64) -> Slice {
+impl<T: Real> Slice<T> {
+    pub fn new(eta: T, sigma_a: T, theta_o: f64) -> Slice<T> {
         let (sin_o, cos_o) = theta_o.sin_cos();
         // At exactly grazing theta_o, cos -> 0: a floor keeps eta' finite (it only enters
         // through asin(h / eta') and the A_p, both bounded).
         let cos_o = cos_o.max(1e-12);
-        let sin_t = sin_o / eta;
-        let cos_t = (1.0 - sin_t * sin_t).max(0.0).sqrt();
+        let sin_t = T::cst(sin_o) / eta;
+        let cos_t = (T::cst(1.0) - sin_t * sin_t).max(T::cst(0.0)).sqrt();
         Slice {
             eta,
             cos_theta_o: cos_o,
@@ -136,27 +143,27 @@ impl Slice {
     }
 
     /// `gamma_t = asin(sin(gamma) / eta')` (Snell in the normal plane, Bravais index).
-    pub fn gamma_t(&self, gamma: f64) -> f64 {
+    pub fn gamma_t(&self, gamma: T) -> T {
         (gamma.sin() / self.eta_prime).clamp(-1.0, 1.0).asin()
     }
 
     /// `Phi(p, h) = 2 p gamma_t - 2 gamma_o + p pi` (Chiang 2016 Eq. 9, Marschner 2003
     /// Eq. 3), with `gamma_o = asin(h)` written `gamma`.
-    pub fn phi(&self, p: usize, gamma: f64) -> f64 {
-        2.0 * p as f64 * self.gamma_t(gamma) - 2.0 * gamma + p as f64 * PI
+    pub fn phi(&self, p: usize, gamma: T) -> T {
+        self.gamma_t(gamma) * (2.0 * p as f64) - gamma * 2.0 + p as f64 * PI
     }
 
     /// `dPhi/dgamma = 2 p cos(gamma) / sqrt(eta'^2 - sin^2 gamma) - 2`.
-    pub fn dphi(&self, p: usize, gamma: f64) -> f64 {
+    pub fn dphi(&self, p: usize, gamma: T) -> T {
         let (s, c) = gamma.sin_cos();
-        2.0 * p as f64 * c / (self.eta_prime * self.eta_prime - s * s).sqrt() - 2.0
+        c * (2.0 * p as f64) / (self.eta_prime * self.eta_prime - s * s).sqrt() - 2.0
     }
 
     /// `d^2 Phi / dgamma^2 = -2 p sin(gamma) (eta'^2 - 1) / (eta'^2 - sin^2 gamma)^(3/2)`.
-    pub fn ddphi(&self, p: usize, gamma: f64) -> f64 {
+    pub fn ddphi(&self, p: usize, gamma: T) -> T {
         let s = gamma.sin();
         let e = self.eta_prime * self.eta_prime - s * s;
-        -2.0 * p as f64 * s * (self.eta_prime * self.eta_prime - 1.0) / (e * e.sqrt())
+        s * (-2.0 * p as f64) * (self.eta_prime * self.eta_prime - 1.0) / (e * e.sqrt())
     }
 
     /// The attenuations `A_p` of the camera ray at offset `h = sin(gamma)` (Chiang 2016
@@ -164,16 +171,21 @@ impl Slice {
     /// residual `A_3 = A_2 f T / (1 - f T)`, the geometric series of every longer path.
     /// `f` is the unpolarised Fresnel of `eta` at `cos(theta_o) cos(gamma)` (the incidence
     /// angle in 3-D), `T = exp(-2 sigma_a cos(gamma_t) / cos(theta_t))`.
-    pub fn attenuation(&self, gamma: f64) -> [f64; P_MAX + 1] {
-        let f = crate::model::fresnel::fresnel_dielectric(
-            self.cos_theta_o * gamma.cos().max(0.0),
+    pub fn attenuation(&self, gamma: T) -> [T; P_MAX + 1] {
+        let f = crate::model::fresnel::fresnel_dielectric_generic(
+            gamma.cos().max(T::cst(0.0)) * self.cos_theta_o,
             self.eta,
         );
-        let t = (-2.0 * self.sigma_path * self.gamma_t(gamma).cos()).exp();
-        let a1 = (1.0 - f) * (1.0 - f) * t;
+        let t = (self.sigma_path * -2.0 * self.gamma_t(gamma).cos()).exp();
+        let one = T::cst(1.0);
+        let a1 = (one - f) * (one - f) * t;
         let a2 = a1 * t * f;
-        let d = 1.0 - f * t;
-        let a3 = if d > 0.0 { a2 * f * t / d } else { 0.0 };
+        let d = one - f * t;
+        let a3 = if d.value() > 0.0 {
+            a2 * f * t / d
+        } else {
+            T::cst(0.0)
+        };
         [f, a1, a2, a3]
     }
 }
@@ -192,15 +204,31 @@ pub fn trimmed_logistic(x: f64, s: f64, norm: f64) -> f64 {
 }
 
 /// `CDF(pi) - CDF(-pi) = tanh(pi / (2 s))` of the logistic with scale `s`.
-pub fn trimmed_norm(s: f64) -> f64 {
-    (PI / (2.0 * s)).tanh()
+pub fn trimmed_norm<T: Real>(s: T) -> T {
+    (T::cst(PI) / (s * 2.0)).tanh()
 }
 
-/// `x` wrapped into [-pi, pi].
+/// `x` wrapped into [-pi, pi]: `(x + pi).rem_euclid(2 pi) - pi`, bit for bit, without
+/// the division for `x + pi` in (-2 pi, 4 pi), as every difference of two wrapped angles
+/// is (the far field's inner loop; `fmod` was a tenth of a fit's time). There
+/// `rem_euclid(a)` is `a` on [0, 2 pi), `a - 2 pi` on [2 pi, 4 pi) (exact in both: `fmod`
+/// is, and so is that subtraction by Sterbenz's lemma) and `a + 2 pi` rounded once on
+/// (-2 pi, 0), as `rem_euclid` adds it to `fmod(a) = a` (tested).
 pub fn wrap(x: f64) -> f64 {
-    let y = (x + PI).rem_euclid(2.0 * PI) - PI;
+    const TAU: f64 = 2.0 * PI;
+    let a = x + PI;
+    let r = if (0.0..TAU).contains(&a) {
+        a
+    } else if (TAU..2.0 * TAU).contains(&a) {
+        a - TAU
+    } else if a < 0.0 && a > -TAU {
+        a + TAU
+    } else {
+        a.rem_euclid(TAU)
+    };
+    let y = r - PI;
     if y < -PI {
-        y + 2.0 * PI
+        y + TAU
     } else {
         y
     }

@@ -232,3 +232,50 @@ fn melanin_gives_the_deon_coefficients() {
         assert!((s[c] - want).abs() < 1e-15);
     }
 }
+
+/// The division-free [`wrap`] is the `rem_euclid` formula bit for bit, on its branch
+/// edges and on random angles of every range it meets (and beyond, where it falls back).
+#[test]
+fn wrap_is_the_rem_euclid_formula_bit_for_bit() {
+    use rand::{Rng, SeedableRng};
+    let old = |x: f64| {
+        let y = (x + PI).rem_euclid(2.0 * PI) - PI;
+        if y < -PI {
+            y + 2.0 * PI
+        } else {
+            y
+        }
+    };
+    let tau = 2.0 * PI;
+    let mut xs = vec![
+        0.0,
+        -0.0,
+        PI,
+        -PI,
+        3.0 * PI,
+        -3.0 * PI,
+        5.0 * PI,
+        1e300,
+        -1e-300,
+    ];
+    for edge in [-tau, 0.0, tau, 2.0 * tau] {
+        let a = edge - PI;
+        let mut x = a;
+        for _ in 0..4 {
+            x = x.next_down();
+        }
+        for _ in 0..9 {
+            xs.push(x);
+            x = x.next_up();
+        }
+    }
+    let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+    for _ in 0..200_000 {
+        let r: f64 = rng.random();
+        xs.push((r - 0.5) * 16.0 * PI);
+    }
+    for x in xs {
+        assert_eq!(wrap(x).to_bits(), old(x).to_bits(), "x = {x:e}");
+    }
+    assert!(wrap(f64::NAN).is_nan());
+}
