@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/bobcat.json (NRMSE 4.754% against its data), parameters mapped exactly
-# chiang2016: eta=1.000110040338805 beta_m=0.9614220550935173 beta_n=0.9584049262849405 alpha=-19.999999999953562 deg sigma_a=2.7497155852297412, 2.7497155852297412, 2.7497155852297412 per unit fiber radius (r, g, b)
-# the fit's exposure 14.664559252359082 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.0001100345427139 beta_m=0.9614219169512687 beta_n=0.9584049368260044 alpha=-19.999999999920202 deg sigma_a=2.749788633148597, 2.749788633148597, 2.749788633148597 per unit fiber radius (r, g, b)
+# the fit's exposure 14.66538598135149 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_bobcat" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9614220550935173,
-    "beta_n": 0.9584049262849405,
-    "eta": 1.000110040338805,
-    "alpha_deg": -19.999999999953562,
-    "sigma_a": (2.7497155852297412, 2.7497155852297412, 2.7497155852297412),
+    "beta_m": 0.9614219169512687,
+    "beta_n": 0.9584049368260044,
+    "eta": 1.0001100345427139,
+    "alpha_deg": -19.999999999920202,
+    "sigma_a": (2.749788633148597, 2.749788633148597, 2.749788633148597),
 }
 
 

@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/cat.json (NRMSE 3.639% against its data), parameters mapped exactly
-# chiang2016: eta=1.000036634074192 beta_m=0.9778999675628577 beta_n=0.9536349774982146 alpha=-19.99999971484908 deg sigma_a=1.655419988649438, 1.655419988649438, 1.655419988649438 per unit fiber radius (r, g, b)
-# the fit's exposure 9.12261806703044 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.0000366344400822 beta_m=0.9778999394335682 beta_n=0.9536349756337885 alpha=-19.99999971129937 deg sigma_a=1.655418193842354, 1.655418193842354, 1.655418193842354 per unit fiber radius (r, g, b)
+# the fit's exposure 9.122598827367097 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_cat" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9778999675628577,
-    "beta_n": 0.9536349774982146,
-    "eta": 1.000036634074192,
-    "alpha_deg": -19.99999971484908,
-    "sigma_a": (1.655419988649438, 1.655419988649438, 1.655419988649438),
+    "beta_m": 0.9778999394335682,
+    "beta_n": 0.9536349756337885,
+    "eta": 1.0000366344400822,
+    "alpha_deg": -19.99999971129937,
+    "sigma_a": (1.655418193842354, 1.655418193842354, 1.655418193842354),
 }
 
 

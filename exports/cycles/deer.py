@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/deer.json (NRMSE 4.036% against its data), parameters mapped exactly
-# chiang2016: eta=1.0001263248768755 beta_m=0.9822856517136376 beta_n=0.9999999943615927 alpha=-19.99999999997951 deg sigma_a=2.2362292082268183, 2.2362292082268183, 2.2362292082268183 per unit fiber radius (r, g, b)
-# the fit's exposure 10.158841435301609 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.0001237481198808 beta_m=0.9822776018028784 beta_n=0.9999999999896645 alpha=-19.999999999999932 deg sigma_a=2.2585169294575116, 2.2585169294575116, 2.2585169294575116 per unit fiber radius (r, g, b)
+# the fit's exposure 10.374131557543462 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_deer" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9822856517136376,
-    "beta_n": 0.9999999943615927,
-    "eta": 1.0001263248768755,
-    "alpha_deg": -19.99999999997951,
-    "sigma_a": (2.2362292082268183, 2.2362292082268183, 2.2362292082268183),
+    "beta_m": 0.9822776018028784,
+    "beta_n": 0.9999999999896645,
+    "eta": 1.0001237481198808,
+    "alpha_deg": -19.999999999999932,
+    "sigma_a": (2.2585169294575116, 2.2585169294575116, 2.2585169294575116),
 }
 
 

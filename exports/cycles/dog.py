@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/dog.json (NRMSE 3.912% against its data), parameters mapped exactly
-# chiang2016: eta=1.0001000809765606 beta_m=0.9965063738411609 beta_n=0.9999999924501767 alpha=-19.999999967957564 deg sigma_a=1.696933545040454, 1.696933545040454, 1.696933545040454 per unit fiber radius (r, g, b)
-# the fit's exposure 13.40538308653388 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.0000980717496233 beta_m=0.9962957840155034 beta_n=0.999999985684711 alpha=-19.99999983177426 deg sigma_a=1.6970007830349594, 1.6970007830349594, 1.6970007830349594 per unit fiber radius (r, g, b)
+# the fit's exposure 13.400678936649037 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_dog" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9965063738411609,
-    "beta_n": 0.9999999924501767,
-    "eta": 1.0001000809765606,
-    "alpha_deg": -19.999999967957564,
-    "sigma_a": (1.696933545040454, 1.696933545040454, 1.696933545040454),
+    "beta_m": 0.9962957840155034,
+    "beta_n": 0.999999985684711,
+    "eta": 1.0000980717496233,
+    "alpha_deg": -19.99999983177426,
+    "sigma_a": (1.6970007830349594, 1.6970007830349594, 1.6970007830349594),
 }
 
 

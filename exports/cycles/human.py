@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/human.json (NRMSE 8.182% against its data), parameters mapped exactly
-# chiang2016: eta=1.9903249680901023 beta_m=0.860393536948282 beta_n=0.9343942872224257 alpha=-19.999999999999932 deg sigma_a=9.357622968840175e-14, 9.357622968840175e-14, 9.357622968840175e-14 per unit fiber radius (r, g, b)
-# the fit's exposure 0.19548742275335604 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.9904446506725195 beta_m=0.8603897474892768 beta_n=0.9343894227315064 alpha=-19.999999999999932 deg sigma_a=9.357622968840175e-14, 9.357622968840175e-14, 9.357622968840175e-14 per unit fiber radius (r, g, b)
+# the fit's exposure 0.1954881129493218 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_human" and returns it from build_material().
@@ -10,9 +10,9 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.860393536948282,
-    "beta_n": 0.9343942872224257,
-    "eta": 1.9903249680901023,
+    "beta_m": 0.8603897474892768,
+    "beta_n": 0.9343894227315064,
+    "eta": 1.9904446506725195,
     "alpha_deg": -19.999999999999932,
     "sigma_a": (9.357622968840175e-14, 9.357622968840175e-14, 9.357622968840175e-14),
 }

@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/mouse.json (NRMSE 6.513% against its data), parameters mapped exactly
-# chiang2016: eta=1.001459544205043 beta_m=0.9261310729861659 beta_n=0.9468952061996577 alpha=-19.999999999999932 deg sigma_a=1.2630195478798383, 1.2630195478798383, 1.2630195478798383 per unit fiber radius (r, g, b)
-# the fit's exposure 5.224008564696428 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.001459586647251 beta_m=0.9260960333984065 beta_n=0.9468905102774823 alpha=-19.999999999999932 deg sigma_a=1.2626509977029892, 1.2626509977029892, 1.2626509977029892 per unit fiber radius (r, g, b)
+# the fit's exposure 5.2211001093583675 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_mouse" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9261310729861659,
-    "beta_n": 0.9468952061996577,
-    "eta": 1.001459544205043,
+    "beta_m": 0.9260960333984065,
+    "beta_n": 0.9468905102774823,
+    "eta": 1.001459586647251,
     "alpha_deg": -19.999999999999932,
-    "sigma_a": (1.2630195478798383, 1.2630195478798383, 1.2630195478798383),
+    "sigma_a": (1.2626509977029892, 1.2626509977029892, 1.2626509977029892),
 }
 
 

@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/rabbit.json (NRMSE 7.207% against its data), parameters mapped exactly
-# chiang2016: eta=1.0011680627573618 beta_m=0.9334753877893485 beta_n=0.9606625438553913 alpha=-19.999999999999932 deg sigma_a=1.2375125835769787, 1.2375125835769787, 1.2375125835769787 per unit fiber radius (r, g, b)
-# the fit's exposure 3.6257487150876693 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.0011680900759157 beta_m=0.933476192538014 beta_n=0.9606621980837299 alpha=-19.999999999999932 deg sigma_a=1.2375368634007669, 1.2375368634007669, 1.2375368634007669 per unit fiber radius (r, g, b)
+# the fit's exposure 3.6258829329375697 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_rabbit" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9334753877893485,
-    "beta_n": 0.9606625438553913,
-    "eta": 1.0011680627573618,
+    "beta_m": 0.933476192538014,
+    "beta_n": 0.9606621980837299,
+    "eta": 1.0011680900759157,
     "alpha_deg": -19.999999999999932,
-    "sigma_a": (1.2375125835769787, 1.2375125835769787, 1.2375125835769787),
+    "sigma_a": (1.2375368634007669, 1.2375368634007669, 1.2375368634007669),
 }
 
 

@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/raccoon.json (NRMSE 10.414% against its data), parameters mapped exactly
-# chiang2016: eta=2.674595230594143 beta_m=0.7493588027341751 beta_n=0.9999989922932805 alpha=-19.999999999999932 deg sigma_a=9.357622968840175e-14, 9.357622968840175e-14, 9.357622968840175e-14 per unit fiber radius (r, g, b)
-# the fit's exposure 0.38759357455943116 is the goniometer's scale, not part of the material
+# chiang2016: eta=2.6745920314291705 beta_m=0.7493585440984915 beta_n=0.9999989991017827 alpha=-19.999999999999932 deg sigma_a=9.357622968840175e-14, 9.357622968840175e-14, 9.357622968840175e-14 per unit fiber radius (r, g, b)
+# the fit's exposure 0.3875936460982314 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_raccoon" and returns it from build_material().
@@ -10,9 +10,9 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.7493588027341751,
-    "beta_n": 0.9999989922932805,
-    "eta": 2.674595230594143,
+    "beta_m": 0.7493585440984915,
+    "beta_n": 0.9999989991017827,
+    "eta": 2.6745920314291705,
     "alpha_deg": -19.999999999999932,
     "sigma_a": (9.357622968840175e-14, 9.357622968840175e-14, 9.357622968840175e-14),
 }

@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/red-fox.json (NRMSE 4.456% against its data), parameters mapped exactly
-# chiang2016: eta=1.0003146388881052 beta_m=0.9357651453332078 beta_n=0.9248270285000417 alpha=-19.999999999999932 deg sigma_a=1.545714713886922, 1.545714713886922, 1.545714713886922 per unit fiber radius (r, g, b)
-# the fit's exposure 4.781139023493521 is the goniometer's scale, not part of the material
+# chiang2016: eta=1.0003146363360875 beta_m=0.9357652073154065 beta_n=0.9248270267070523 alpha=-19.999999999999932 deg sigma_a=1.5457182722677922, 1.5457182722677922, 1.5457182722677922 per unit fiber radius (r, g, b)
+# the fit's exposure 4.781160908711314 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_red_fox" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.9357651453332078,
-    "beta_n": 0.9248270285000417,
-    "eta": 1.0003146388881052,
+    "beta_m": 0.9357652073154065,
+    "beta_n": 0.9248270267070523,
+    "eta": 1.0003146363360875,
     "alpha_deg": -19.999999999999932,
-    "sigma_a": (1.545714713886922, 1.545714713886922, 1.545714713886922),
+    "sigma_a": (1.5457182722677922, 1.5457182722677922, 1.5457182722677922),
 }
 
 

@@ -1,7 +1,7 @@
-# written by furfit export (furfit 0.1.0 (git 9efddcc32506)) for Blender Cycles
+# written by furfit export (furfit 0.1.0 (git c55d513acf09+dirty)) for Blender Cycles
 # from the chiang2016 fit fits/chiang2016/springbok.json (NRMSE 15.111% against its data), parameters mapped exactly
-# chiang2016: eta=2.8669856174409585 beta_m=0.6946163706507127 beta_n=0.9997562613583456 alpha=-19.9999909575592 deg sigma_a=3.536153326408623e-13, 3.536153326408623e-13, 3.536153326408623e-13 per unit fiber radius (r, g, b)
-# the fit's exposure 0.23433247688673217 is the goniometer's scale, not part of the material
+# chiang2016: eta=2.866982614037798 beta_m=0.694616303717982 beta_n=0.9997562507693101 alpha=-19.99999095659461 deg sigma_a=3.5369218471570625e-13, 3.5369218471570625e-13, 3.5369218471570625e-13 per unit fiber radius (r, g, b)
+# the fit's exposure 0.2343324920864065 is the goniometer's scale, not part of the material
 #
 # Run inside Blender (Text Editor, or `blender --python THIS_FILE`), or with the `bpy`
 # module: it creates the material "furfit_springbok" and returns it from build_material().
@@ -10,11 +10,11 @@ import math
 import bpy
 
 PARAMS = {
-    "beta_m": 0.6946163706507127,
-    "beta_n": 0.9997562613583456,
-    "eta": 2.8669856174409585,
-    "alpha_deg": -19.9999909575592,
-    "sigma_a": (3.536153326408623e-13, 3.536153326408623e-13, 3.536153326408623e-13),
+    "beta_m": 0.694616303717982,
+    "beta_n": 0.9997562507693101,
+    "eta": 2.866982614037798,
+    "alpha_deg": -19.99999095659461,
+    "sigma_a": (3.5369218471570625e-13, 3.5369218471570625e-13, 3.5369218471570625e-13),
 }
 
 
