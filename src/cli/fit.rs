@@ -55,9 +55,10 @@ pub struct Args {
     /// most 1000000.
     #[arg(long, allow_negative_numbers = true, default_value_t = 128)]
     pub starts: usize,
-    /// Best-scored starts that run Levenberg-Marquardt, 1..=1024 (--init runs in addition).
-    #[arg(long, allow_negative_numbers = true, default_value_t = 4)]
-    pub lm_starts: usize,
+    /// Best-scored starts that run Levenberg-Marquardt, 1..=1024 (--init runs in addition);
+    /// default: the model's (4; marschner2003 8).
+    #[arg(long, allow_negative_numbers = true)]
+    pub lm_starts: Option<usize>,
     /// Samples in the subsample of the global stage, 10..=10000000 (more than the data
     /// holds: all of it).
     #[arg(long, allow_negative_numbers = true, default_value_t = 1500)]
@@ -139,7 +140,12 @@ fn check_counts(a: &Args) -> anyhow::Result<()> {
     let max_sub = crate::grid::MAX_GRID_SAMPLES as u64;
     for (name, v, min, max) in [
         ("--starts", a.starts as u64, 0, MAX_STARTS),
-        ("--lm-starts", a.lm_starts as u64, 1, MAX_LM_STARTS),
+        (
+            "--lm-starts",
+            a.lm_starts.unwrap_or(1) as u64,
+            1,
+            MAX_LM_STARTS,
+        ),
         ("--subsample", a.subsample as u64, 10, max_sub),
         ("--max-iters", a.max_iters, 1, u64::MAX),
     ] {
@@ -159,12 +165,14 @@ fn options(a: &Args, model: &'static dyn FiberModel) -> anyhow::Result<FitOption
         seed: a.seed,
         n_global: a.starts,
         n_sub: a.subsample,
-        n_best: a.lm_starts,
         max_iters: a.max_iters,
         weighted: a.weighted,
         floor: a.floor,
         ..FitOptions::for_model(model)
     };
+    if let Some(n) = a.lm_starts {
+        opts.n_best = n;
+    }
     opts.far = a.far.options()?;
     for w in a.far.ignored(&opts.far, None) {
         eprintln!("warning: {w}");

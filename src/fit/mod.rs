@@ -136,6 +136,7 @@ impl FitOptions {
     pub fn for_model(model: &'static dyn FiberModel) -> FitOptions {
         FitOptions {
             layout: ParamLayout::all_free(model),
+            n_best: model.lm_starts(),
             ..FitOptions::default()
         }
     }

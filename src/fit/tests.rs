@@ -472,6 +472,12 @@ fn analytic_jacobians_match_central_differences() {
                 break;
             };
             let jc = prob.jacobian_central(&u, 1e-6);
+            // A NaN would slip past the comparison below (a negative NaN sorts first).
+            assert!(
+                ja.iter().all(|x| x.is_finite()),
+                "{} at {file:?}: non-finite analytic Jacobian entries",
+                model.name()
+            );
             let (j, worst) = worst_column(&ja, &jc, r.norm());
             assert!(
                 worst <= 1.0,

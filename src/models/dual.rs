@@ -40,6 +40,9 @@ pub trait Real:
     + SubAssign
     + 'static
 {
+    /// Whether this type carries derivatives (`false` for `f64`): lets generic code skip
+    /// work that only the derivatives need, such as lifting a root found on the values.
+    const DIFFERENTIATES: bool;
     /// A constant (zero derivative).
     fn cst(v: f64) -> Self;
     /// The value.
@@ -73,6 +76,7 @@ pub trait Real:
 }
 
 impl Real for f64 {
+    const DIFFERENTIATES: bool = false;
     #[inline]
     fn cst(v: f64) -> f64 {
         v
@@ -305,6 +309,7 @@ impl<const N: usize> MulAssign for Dual<N> {
 }
 
 impl<const N: usize> Real for Dual<N> {
+    const DIFFERENTIATES: bool = true;
     #[inline]
     fn cst(v: f64) -> Self {
         Dual { v, g: [0.0; N] }

@@ -237,6 +237,12 @@ pub trait FiberModel: Send + Sync + 'static {
         (Vec::new(), "")
     }
 
+    /// Starts that run Levenberg-Marquardt by default ([`crate::fit::FitOptions::n_best`]):
+    /// 4, more for a model whose cost has many basins.
+    fn lm_starts(&self) -> usize {
+        4
+    }
+
     /// Does [`FarOptions::tol`] change this model's far field (adaptive refinement)? The
     /// fitter's coarse screens ([`crate::fit`]) are pointless for a model that ignores it.
     fn refines(&self) -> bool {

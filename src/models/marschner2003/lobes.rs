@@ -22,14 +22,23 @@
 //! - `g(x, w)` is the normalised Gaussian of standard deviation `w`, of `x` wrapped to
 //!   `(-pi, pi]` (its mass beyond `pi` is below 1e-10 for `w <= 45 deg`).
 
+//!
+//! The functions are generic over [`Real`]: `f64` gives the values (the same operations in
+//! the same order as the plain formulas, bit for bit: every constant sits on the right of
+//! a commutative operation), [`crate::models::dual::Dual`] their derivatives for the
+//! fitter's analytic Jacobian. Roots are found on the values and lifted
+//! ([`Section::lift_root`]).
+
+use crate::models::dual::Real;
 use std::f64::consts::{PI, TAU};
 
 /// R, TT, TRT (the seed ignores `p > 2`).
 pub const LOBES: usize = 3;
 
 /// The normalised Gaussian `g(w; x)` of standard deviation `w` (Sec. 5.1).
-pub fn gaussian(x: f64, w: f64) -> f64 {
-    (-0.5 * (x / w) * (x / w)).exp() / (w * (TAU).sqrt())
+pub fn gaussian<T: Real>(x: T, w: T) -> T {
+    let q = x / w;
+    (q * -0.5 * q).exp() / (w * TAU.sqrt())
 }
 
 /// `x` wrapped to `(-pi, pi]`.
@@ -42,25 +51,30 @@ pub fn wrap(x: f64) -> f64 {
     }
 }
 
+/// [`wrap`] of a value, its derivatives kept (a shift by a multiple of `2 pi`).
+fn wrapped<T: Real>(x: T) -> T {
+    x.with_value(wrap(x.value()))
+}
+
 /// The longitudinal shifts and widths of R, TT, TRT from `alpha_R`, `beta_R` by the
 /// seed's Table 1 relations: shifts `alpha_R, -alpha_R / 2, -3 alpha_R / 2`, widths
 /// `beta_R, beta_R / 2, 2 beta_R`.
-pub fn shifts_widths(alpha_r: f64, beta_r: f64) -> [(f64, f64); LOBES] {
+pub fn shifts_widths<T: Real>(alpha_r: T, beta_r: T) -> [(T, T); LOBES] {
     [
         (alpha_r, beta_r),
-        (-0.5 * alpha_r, 0.5 * beta_r),
-        (-1.5 * alpha_r, 2.0 * beta_r),
+        (alpha_r * -0.5, beta_r * 0.5),
+        (alpha_r * -1.5, beta_r * 2.0),
     ]
 }
 
 /// `M_p(theta_h) = g(beta_p; theta_h - alpha_p)` of each lobe (Sec. 5.1).
-pub fn longitudinal(theta_h: f64, lobes: &[(f64, f64); LOBES]) -> [f64; LOBES] {
-    lobes.map(|(a, b)| gaussian(theta_h - a, b))
+pub fn longitudinal<T: Real>(theta_h: f64, lobes: &[(T, T); LOBES]) -> [T; LOBES] {
+    lobes.map(|(a, b)| gaussian(T::cst(theta_h) - a, b))
 }
 
 /// Bravais's indices at inclination `theta` (Appendix B): `eta'` for the perpendicular
 /// polarisation, `eta''` for the parallel one.
-pub fn bravais(eta: f64, theta: f64) -> (f64, f64) {
+pub fn bravais<T: Real>(eta: T, theta: f64) -> (T, T) {
     let (s, c) = theta.sin_cos();
     let root = (eta * eta - s * s).sqrt();
     (root / c, eta * eta * c / root)
@@ -70,30 +84,31 @@ pub fn bravais(eta: f64, theta: f64) -> (f64, f64) {
 /// the perpendicular reflectance with index `eta'` and the parallel one with `eta''` at
 /// incidence `gamma` in the projection plane. Indices below 1 (inside the fiber) can reach
 /// total internal reflection, which gives 1.
-pub fn fresnel(eta_p: f64, eta_pp: f64, gamma: f64) -> f64 {
+pub fn fresnel<T: Real>(eta_p: T, eta_pp: T, gamma: T) -> T {
+    let one = T::cst(1.0);
     let (s, ci) = gamma.sin_cos();
     let ci = ci.abs();
     let perp = {
         let st2 = s * s / (eta_p * eta_p);
-        if st2 >= 1.0 {
-            1.0
+        if st2.value() >= 1.0 {
+            one
         } else {
-            let ct = (1.0 - st2).sqrt();
+            let ct = (one - st2).sqrt();
             let r = (ci - eta_p * ct) / (ci + eta_p * ct);
             r * r
         }
     };
     let par = {
         let st2 = s * s / (eta_pp * eta_pp);
-        if st2 >= 1.0 {
-            1.0
+        if st2.value() >= 1.0 {
+            one
         } else {
-            let ct = (1.0 - st2).sqrt();
+            let ct = (one - st2).sqrt();
             let r = (eta_pp * ci - ct) / (eta_pp * ci + ct);
             r * r
         }
     };
-    0.5 * (perp + par)
+    (perp + par) * 0.5
 }
 
 /// How [`Section::roots`] finds the roots of `Phi(p, h) = phi`.
@@ -112,84 +127,116 @@ pub const SCAN_CELLS: usize = 20_000;
 
 /// One `theta_d` of one lobe family: the Bravais indices and the lengthened absorption.
 #[derive(Clone, Copy, Debug)]
-pub struct Section {
+pub struct Section<T = f64> {
     /// `eta'` and `eta''` at `theta_d`.
-    pub eta_p: f64,
-    pub eta_pp: f64,
+    pub eta_p: T,
+    pub eta_pp: T,
     /// `sigma_a / cos theta_t` (Sec. 4.3).
-    pub sigma: f64,
+    pub sigma: T,
 }
 
-impl Section {
+impl<T: Real> Section<T> {
     /// The section of a fiber of index `eta` and absorption `sigma_a` at `theta_d`.
-    pub fn new(eta: f64, sigma_a: f64, theta_d: f64) -> Section {
+    pub fn new(eta: T, sigma_a: T, theta_d: f64) -> Section<T> {
         let (eta_p, eta_pp) = bravais(eta, theta_d);
-        let st = theta_d.sin() / eta;
+        let st = T::cst(theta_d.sin()) / eta;
         Section {
             eta_p,
             eta_pp,
-            sigma: sigma_a / (1.0 - st * st).sqrt(),
+            sigma: sigma_a / (T::cst(1.0) - st * st).sqrt(),
+        }
+    }
+
+    /// The section's values (its derivatives dropped), where roots are found.
+    pub fn values(&self) -> Section<f64> {
+        Section {
+            eta_p: self.eta_p.value(),
+            eta_pp: self.eta_pp.value(),
+            sigma: self.sigma.value(),
         }
     }
 
     /// `gamma_t = asin(h / eta')` (Snell in the projection plane).
-    pub fn gamma_t(&self, h: f64) -> f64 {
+    pub fn gamma_t(&self, h: T) -> T {
         (h / self.eta_p).asin()
     }
 
     /// `Phi(p, h) = 2 p gamma_t - 2 gamma_i + p pi` (Eq. 3), not wrapped.
-    pub fn phi(&self, p: usize, h: f64) -> f64 {
+    pub fn phi(&self, p: usize, h: T) -> T {
         let p = p as f64;
-        2.0 * p * self.gamma_t(h) - 2.0 * h.asin() + p * PI
+        self.gamma_t(h) * (2.0 * p) - h.asin() * 2.0 + p * PI
     }
 
     /// `dPhi / dh = 2 p / sqrt(eta'^2 - h^2) - 2 / sqrt(1 - h^2)`.
-    pub fn dphi(&self, p: usize, h: f64) -> f64 {
-        2.0 * p as f64 / (self.eta_p * self.eta_p - h * h).sqrt() - 2.0 / (1.0 - h * h).sqrt()
+    pub fn dphi(&self, p: usize, h: T) -> T {
+        T::cst(2.0 * p as f64) / (self.eta_p * self.eta_p - h * h).sqrt()
+            - T::cst(2.0) / (T::cst(1.0) - h * h).sqrt()
     }
 
     /// `d^2 Phi / dh^2`.
-    pub fn ddphi(&self, p: usize, h: f64) -> f64 {
+    pub fn ddphi(&self, p: usize, h: T) -> T {
         let e = self.eta_p * self.eta_p - h * h;
-        let o = 1.0 - h * h;
-        2.0 * p as f64 * h / (e * e.sqrt()) - 2.0 * h / (o * o.sqrt())
+        let o = T::cst(1.0) - h * h;
+        h * (2.0 * p as f64) / (e * e.sqrt()) - h * 2.0 / (o * o.sqrt())
     }
 
     /// The attenuation `A(p, h)` (Sec. 4.3, generalised to 3-D): `F(eta', eta'', gamma_i)`
     /// for R, else `(1 - F)^2 F(1/eta', 1/eta'', gamma_t)^(p-1) T^p` with
     /// `T = exp(-2 sigma_a' (1 + cos 2 gamma_t))`.
-    pub fn attenuation(&self, p: usize, h: f64) -> f64 {
+    pub fn attenuation(&self, p: usize, h: T) -> T {
+        let one = T::cst(1.0);
         let gi = h.asin();
         let f = fresnel(self.eta_p, self.eta_pp, gi);
         if p == 0 {
             return f;
         }
         let gt = self.gamma_t(h);
-        let inner = fresnel(1.0 / self.eta_p, 1.0 / self.eta_pp, gt);
-        let t = (-2.0 * self.sigma * (1.0 + (2.0 * gt).cos())).exp();
-        (1.0 - f) * (1.0 - f) * inner.powi(p as i32 - 1) * t.powi(p as i32)
+        let inner = fresnel(one / self.eta_p, one / self.eta_pp, gt);
+        let t = (self.sigma * -2.0 * ((gt * 2.0).cos() + 1.0)).exp();
+        (one - f) * (one - f) * inner.powi(p as i32 - 1) * t.powi(p as i32)
     }
 
     /// The offsets where `Phi(p, .)` turns (Descartes, Eq. 4): `h_c` with
     /// `h_c^2 = (4 - eta'^2) / 3` for TRT below the merge (`eta' < 2`), else none.
-    pub fn caustic(&self, p: usize) -> Option<f64> {
-        let h2 = (4.0 - self.eta_p * self.eta_p) / 3.0;
-        (p == 2 && h2 > 0.0).then(|| h2.sqrt())
+    pub fn caustic(&self, p: usize) -> Option<T> {
+        let h2 = (T::cst(4.0) - self.eta_p * self.eta_p) / 3.0;
+        (p == 2 && h2.value() > 0.0).then(|| h2.sqrt())
     }
 
     /// `Phi` in the variable `gamma_i` (`h = sin gamma_i`), smooth up to the rim where
     /// `dPhi/dh` is infinite: `2 p asin(sin(gamma) / eta') - 2 gamma + p pi`.
-    pub fn phi_of_gamma(&self, p: usize, gamma: f64) -> f64 {
+    pub fn phi_of_gamma(&self, p: usize, gamma: T) -> T {
         let p = p as f64;
-        2.0 * p * (gamma.sin() / self.eta_p).asin() - 2.0 * gamma + p * PI
+        (gamma.sin() / self.eta_p).asin() * (2.0 * p) - gamma * 2.0 + p * PI
     }
 
     /// `dPhi / dgamma_i = 2 p cos(gamma) / sqrt(eta'^2 - sin^2 gamma) - 2`.
-    pub fn dphi_of_gamma(&self, p: usize, gamma: f64) -> f64 {
+    pub fn dphi_of_gamma(&self, p: usize, gamma: T) -> T {
         let (s, c) = gamma.sin_cos();
-        2.0 * p as f64 * c / (self.eta_p * self.eta_p - s * s).sqrt() - 2.0
+        c * (2.0 * p as f64) / (self.eta_p * self.eta_p - s * s).sqrt() - 2.0
     }
 
+    /// A root `h` of `Phi(p, h) = phi` found on [`Self::values`], with its derivatives:
+    /// by the implicit function theorem in `gamma_i = asin h`,
+    /// `d gamma / d x = -(dPhi/dx) / (dPhi/dgamma)` (`phi` does not move), and
+    /// `dh = cos(gamma) d gamma`. The value stays `h` exactly; with `f64` nothing is done.
+    /// At a fold (`dPhi/dgamma = 0`) the root's derivative is unbounded and is left out.
+    pub fn lift_root(&self, p: usize, h: f64) -> T {
+        if !T::DIFFERENTIATES {
+            return T::cst(h);
+        }
+        let g = h.asin();
+        let slope = self.dphi_of_gamma(p, T::cst(g)).value();
+        if slope == 0.0 || !slope.is_finite() {
+            return T::cst(h);
+        }
+        let f = self.phi_of_gamma(p, T::cst(g));
+        // `f - f.value()` is 0 with the derivatives of Phi at fixed gamma.
+        T::cst(h) + (f - f.value()) * (-g.cos() / slope)
+    }
+}
+
+impl Section<f64> {
     /// Every root `h` of `Phi(p, h) = phi (mod 2 pi)` in `[-1, 1]`, into `out`: on each
     /// interval of `gamma_i` where `Phi` is monotone (split at the caustic's
     /// `asin h_c`) the targets `phi + 2 pi k` its range covers, each by safeguarded
@@ -286,7 +333,9 @@ impl Section {
         }
         g
     }
+}
 
+impl<T: Real> Section<T> {
     /// `weight * N_p(p, phi)` with `N_p = sum_r A(p, h_r) |2 dPhi/dh(h_r)|^-1` (Eq. 8);
     /// `weight` is the caustic's damping at `phi` (1 for the plain sum). With weight 0 a
     /// root at a fold (`dPhi/dh = 0`) adds 0, its limit.
@@ -296,39 +345,43 @@ impl Section {
         phi: f64,
         roots: &mut Vec<f64>,
         finder: RootFinder,
-        weight: f64,
-    ) -> f64 {
-        self.roots(p, phi, finder, roots);
-        if weight == 0.0 {
-            return 0.0;
+        weight: T,
+    ) -> T {
+        self.values().roots(p, phi, finder, roots);
+        if weight.value() == 0.0 {
+            return T::cst(0.0);
         }
-        roots
-            .iter()
-            .map(|&h| {
-                let d = self.dphi(p, h).abs();
-                if d == 0.0 {
-                    return f64::INFINITY;
-                }
-                weight * self.attenuation(p, h) / (2.0 * d)
-            })
-            .sum()
+        // From -0.0, as `f64`'s `Sum` (an empty sum is -0.0, bit for bit as before).
+        roots.iter().fold(T::cst(-0.0), |sum, &h| {
+            let h = self.lift_root(p, h);
+            let d = self.dphi(p, h).abs();
+            if d.value() == 0.0 {
+                return sum + f64::INFINITY;
+            }
+            if d.value().is_infinite() {
+                // A path at the rim (h = +-1): its term is 0 and stays 0 nearby; its
+                // derivatives would be 0 * inf.
+                return sum + 0.0;
+            }
+            sum + weight * self.attenuation(p, h) / (d * 2.0)
+        })
     }
 }
 
 /// The caustic model's parameters (Table 1 "Glints"; widths in radians).
 #[derive(Clone, Copy, Debug)]
-pub struct Glints {
-    pub k_g: f64,
-    pub w_c: f64,
-    pub delta_eta: f64,
-    pub delta_h_m: f64,
+pub struct Glints<T = f64> {
+    pub k_g: T,
+    pub w_c: T,
+    pub delta_eta: T,
+    pub delta_h_m: T,
 }
 
 /// `1` below `a`, `0` above `b`, the cubic smoothstep between (Sec. 5.2.2's
 /// `smoothstep(a, b, x)`, which the seed defines as 1 for `x < a`).
-pub fn fade(a: f64, b: f64, x: f64) -> f64 {
+pub fn fade<T: Real>(a: T, b: T, x: T) -> T {
     let u = ((x - a) / (b - a)).clamp(0.0, 1.0);
-    1.0 - u * u * (3.0 - 2.0 * u)
+    T::cst(1.0) - u * u * (T::cst(3.0) - u * 2.0)
 }
 
 /// `N_TRT` with the caustic replaced by smooth lobes (the procedure of Sec. 5.2.2):
@@ -336,34 +389,42 @@ pub fn fade(a: f64, b: f64, x: f64) -> f64 {
 /// plus `t k_G A(2, h_c) Delta_h (g(phi - phi_c) + g(phi + phi_c))`, with
 /// `Delta_h = min(Delta_h_M, 2 sqrt(2 w_c / |Phi''(h_c)|))` below the merge and `Delta_h_M`
 /// past it, where the caustic sits at `phi_c = 0` and fades over `Delta eta'`.
-pub fn trt(sec: &Section, phi: f64, gl: &Glints, roots: &mut Vec<f64>, finder: RootFinder) -> f64 {
+pub fn trt<T: Real>(
+    sec: &Section<T>,
+    phi: f64,
+    gl: &Glints<T>,
+    roots: &mut Vec<f64>,
+    finder: RootFinder,
+) -> T {
+    let zero = T::cst(0.0);
     let (phi_c, dh, t, h_c) = match sec.caustic(2) {
         Some(hc) => {
-            let dh = (2.0 * (2.0 * gl.w_c / sec.ddphi(2, hc).abs()).sqrt()).min(gl.delta_h_m);
-            (wrap(sec.phi(2, hc)), dh, 1.0, hc)
+            let dh = ((gl.w_c * 2.0 / sec.ddphi(2, hc).abs()).sqrt() * 2.0).min(gl.delta_h_m);
+            (wrapped(sec.phi(2, hc)), dh, T::cst(1.0), hc)
         }
         None => (
-            0.0,
+            zero,
             gl.delta_h_m,
-            fade(2.0, 2.0 + gl.delta_eta, sec.eta_p),
-            0.0,
+            fade(T::cst(2.0), gl.delta_eta + 2.0, sec.eta_p),
+            zero,
         ),
     };
-    let g0 = gaussian(0.0, gl.w_c);
-    let damp = |x: f64| 1.0 - t * gaussian(wrap(x), gl.w_c) / g0;
+    let g0 = gaussian(zero, gl.w_c);
+    let damp = |x: T| T::cst(1.0) - t * gaussian(wrapped(x), gl.w_c) / g0;
     // The damping, a function of phi alone, goes in as the weight so that a root at the
     // fold, where the plain term is infinite, adds 0.
-    let d = damp(phi - phi_c) * damp(phi + phi_c);
+    let d = damp(T::cst(phi) - phi_c) * damp(phi_c + phi);
     let plain = sec.azimuthal(2, phi, roots, finder, d);
-    let glint = gaussian(wrap(phi - phi_c), gl.w_c) + gaussian(wrap(phi + phi_c), gl.w_c);
+    let glint =
+        gaussian(wrapped(T::cst(phi) - phi_c), gl.w_c) + gaussian(wrapped(phi_c + phi), gl.w_c);
     plain + t * gl.k_g * sec.attenuation(2, h_c) * dh * glint
 }
 
 /// The eccentric fiber's TRT index (Sec. 5.2.3): `eta*_1 = 2 (eta - 1) a^2 - eta + 2`,
 /// `eta*_2 = 2 (eta - 1) a^-2 - eta + 2`, interpolated as
 /// `((eta*_1 + eta*_2) + cos(2 phi_h) (eta*_1 - eta*_2)) / 2`.
-pub fn eta_star(eta: f64, a: f64, phi_h: f64) -> f64 {
-    let e1 = 2.0 * (eta - 1.0) * a * a - eta + 2.0;
-    let e2 = 2.0 * (eta - 1.0) / (a * a) - eta + 2.0;
-    0.5 * ((e1 + e2) + (2.0 * phi_h).cos() * (e1 - e2))
+pub fn eta_star<T: Real>(eta: T, a: T, phi_h: f64) -> T {
+    let e1 = (eta - 1.0) * 2.0 * a * a - eta + 2.0;
+    let e2 = (eta - 1.0) * 2.0 / (a * a) - eta + 2.0;
+    ((e1 + e2) + (e1 - e2) * (2.0 * phi_h).cos()) * 0.5
 }
