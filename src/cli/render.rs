@@ -355,7 +355,59 @@ fn load_jobs(a: &Args) -> anyhow::Result<Vec<batch::RenderJob>> {
 /// which takes fit files too), and where they come from (for the images' text: a fit says
 /// whether its data were synthetic), from one read of the file. The fit's exposure k is a
 /// measurement scale, not a light level: not used here.
-fn load_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, String)> {
+fn load_with_colour(spec: &str) -> anyhow::Result<(batch::JobParams, Option<Tint>, String)> {
+    // The file names its model (absent: yan2017); another model's fit is rendered through
+    // the model interface.
+    if let Ok((mp, _, Some(v))) = crate::models::ModelParams::load(spec, None) {
+        if mp.fur().is_none() {
+            return load_model_job(spec, mp, &v);
+        }
+    }
+    let (p, colour, about) = load_fur_with_colour(spec)?;
+    Ok((batch::JobParams::Fur(p), colour, about))
+}
+
+/// The job of a fit or parameter file `spec` of a model other than the fur model: its r,
+/// g, b channels when it has them, else its parameters on all three (grey).
+fn load_model_job(
+    spec: &str,
+    mp: crate::models::ModelParams,
+    v: &serde_json::Value,
+) -> anyhow::Result<(batch::JobParams, Option<Tint>, String)> {
+    let channels = crate::models::fit_channels(v, spec).with_context(|| format!("--fit {spec}"))?;
+    let pick = |names: [&str; 2]| {
+        channels
+            .iter()
+            .find(|c| names.iter().any(|n| c.name.eq_ignore_ascii_case(n)))
+            .map(|c| c.params.clone())
+    };
+    let rgb = match (
+        pick(["r", "red"]),
+        pick(["g", "green"]),
+        pick(["b", "blue"]),
+    ) {
+        (Some(r), Some(g), Some(b)) => [r, g, b],
+        _ => [mp.clone(), mp.clone(), mp],
+    };
+    let names: Vec<&str> = channels.iter().map(|c| c.name.as_str()).collect();
+    let chans = if names.is_empty() {
+        String::new()
+    } else {
+        format!(", channels {}", names.join(", "))
+    };
+    let model = rgb[0].model.name();
+    let about = match v["species"].as_str() {
+        Some(sp) if v.get("solver").is_some() => {
+            format!("{model} fit file {spec} (species {sp}{chans})")
+        }
+        _ if v.get("solver").is_some() => format!("{model} fit file {spec}{chans}"),
+        _ => format!("{model} parameter file {spec}"),
+    };
+    Ok((batch::JobParams::Model(Box::new(rgb)), None, about))
+}
+
+/// [`load_with_colour`] of the fur model's parameters.
+fn load_fur_with_colour(spec: &str) -> anyhow::Result<(FurParams, Option<Tint>, String)> {
     let (p, _, json) = super::load_params(spec)?;
     let Some(v) = json else {
         return Ok((p, None, format!("preset {spec} (seed Table 4)")));

@@ -25,6 +25,7 @@
 //! (degrees for angles) at the boundary, *internal units* (radians) inside, as
 //! [`ParamSpec::to_internal`] converts.
 
+mod bsdf;
 pub mod chiang2016;
 pub mod dual;
 pub mod marschner2003;
@@ -32,6 +33,7 @@ mod params;
 mod points;
 pub mod yan2017;
 
+pub use bsdf::{LobeRgb, NearBsdf};
 pub use params::{fit_channels, select_channel, Channel, ModelParams};
 pub use points::{Factored, FactoredTerms, Factors, Points, SlicePlan};
 
@@ -269,6 +271,14 @@ pub trait FiberModel: Send + Sync + 'static {
     /// The terms of the far-field prediction of all lobes at `p`, kept so that the
     /// fitter's finite-difference columns recompute only what a parameter changes.
     fn terms(&self, p: &[f64], points: &Points, far: &FarOptions) -> Box<dyn ModelTerms>;
+
+    /// The near field as a path tracer's BCSDF ([`NearBsdf`]) for the parameters of the
+    /// r, g and b channels (internal units, each within the hard bounds), or `None` when
+    /// the model has none: `furfit render` then refuses it, naming the model. (The fur
+    /// model's renderer is [`crate::render::bsdf`], with its far field and multi-scale.)
+    fn render_bsdf(&self, _rgb: [&[f64]; 3]) -> Option<Box<dyn NearBsdf>> {
+        None
+    }
 }
 
 /// A model's far-field prediction at one parameter set, kept by the fitter

@@ -17,11 +17,44 @@ pub struct RenderJob {
     /// several, the file name.
     pub name: String,
     /// The parameters rendered.
-    pub params: FurParams,
+    pub params: JobParams,
     /// The fit file's r, g, b channels' colour, when it has them.
     pub colour: Option<Tint>,
     /// Where the parameters come from (for the images' text).
     pub about: String,
+}
+
+/// The parameters of one image: the fur model's (rendered by [`super::bsdf`], every
+/// option read), or another model's per channel r, g, b (rendered through the model
+/// interface, [`super::render_model_scene`]: near field, all lobes, no AOVs).
+#[derive(Clone, Debug)]
+pub enum JobParams {
+    Fur(FurParams),
+    Model(Box<[crate::models::ModelParams; 3]>),
+}
+
+impl JobParams {
+    /// The `params` JSON (file units) the images record; a model's channels that differ
+    /// as `{"r": .., "g": .., "b": ..}`.
+    pub fn to_json_value(&self) -> serde_json::Value {
+        match self {
+            JobParams::Fur(p) => p.to_json_value(),
+            JobParams::Model(rgb) if rgb[0] == rgb[1] && rgb[1] == rgb[2] => rgb[0].to_json_value(),
+            JobParams::Model(rgb) => serde_json::json!({
+                "r": rgb[0].to_json_value(),
+                "g": rgb[1].to_json_value(),
+                "b": rgb[2].to_json_value(),
+            }),
+        }
+    }
+
+    /// The model's name.
+    pub fn model(&self) -> &'static str {
+        match self {
+            JobParams::Fur(_) => "yan2017",
+            JobParams::Model(rgb) => rgb[0].model.name(),
+        }
+    }
 }
 
 /// What a run takes besides its images: the settings and the output options.
@@ -125,7 +158,8 @@ pub fn plan(o: &BatchOptions, jobs: &[RenderJob]) -> Result<Plan> {
     }
     for (j, out) in jobs.iter().zip(&outs) {
         let name = j.name.as_str();
-        for (_, p) in outputs(out, &o.settings, o.aovs) {
+        let aovs = o.aovs && matches!(j.params, JobParams::Fur(_));
+        for (_, p) in outputs(out, &o.settings, aovs) {
             if let Some((_, owner)) = taken.iter().find(|(q, _)| *q == p) {
                 return Err(Error::Invalid(format!(
                     "--out {}: {} of fit '{name}' would overwrite {owner}; rename the fit \
@@ -215,7 +249,11 @@ fn render_one(
     say: &mut impl FnMut(&str),
     note: &mut impl FnMut(&str),
 ) -> Result<RenderOutput> {
-    let (name, p) = (&job.name, &job.params);
+    let name = &job.name;
+    let p = match &job.params {
+        JobParams::Fur(p) => p,
+        JobParams::Model(rgb) => return render_one_model(o, scene, job, rgb, out, say, note),
+    };
     for n in crate::model::FurModel::model_notes(p) {
         note(&format!("note: {name}: {n}"));
     }
@@ -240,6 +278,77 @@ fn render_one(
         (None, _) => {}
     }
     let r = render_scene(scene, p, &s)?;
+    write_one(o, &s, job, &r, out, o.aovs, say, note)?;
+    Ok(r)
+}
+
+/// [`render_one`] for another model than the fur model: its renderer BSDF, near field,
+/// every lobe; its colour is its fit's r, g, b channels or, for one channel, grey (as the
+/// exports give Mitsuba 3 and the other renderers: one `sigma_a` for r, g and b).
+fn render_one_model(
+    o: &BatchOptions,
+    scene: &Scene,
+    job: &RenderJob,
+    rgb: &[crate::models::ModelParams; 3],
+    out: &Path,
+    say: &mut impl FnMut(&str),
+    note: &mut impl FnMut(&str),
+) -> Result<RenderOutput> {
+    let (name, model) = (&job.name, rgb[0].model);
+    if model
+        .render_bsdf([&rgb[0].values, &rgb[1].values, &rgb[2].values])
+        .is_none()
+    {
+        return Err(Error::Invalid(format!(
+            "furfit render cannot render model {}: it has no renderer BSDF (renderable: {})",
+            model.name(),
+            super::renderable_models().join(", ")
+        )));
+    }
+    if let Some(t) = o.tint.as_deref().filter(|t| !matches!(*t, "grey" | "gray")) {
+        return Err(Error::Invalid(format!(
+            "--tint {t} scales the fur model's absorption; a {} fit renders its own r, g, b \
+             channels, or grey for one channel",
+            model.name()
+        )));
+    }
+    let mut s = o.settings.clone();
+    if s.mode != super::bsdf::Mode::Near {
+        note(&format!(
+            "note: {name}: model {} is rendered near field (the hit's own offset, as pbrt-v4 \
+             and Mitsuba 3 render hair): --mode {} is the fur model's",
+            model.name(),
+            s.mode.name()
+        ));
+        s.mode = super::bsdf::Mode::Near;
+    }
+    for n in model.notes(&rgb[1].values) {
+        note(&format!("note: {name}: {n}"));
+    }
+    if o.aovs {
+        note(&format!(
+            "note: {name}: no per-lobe AOVs for model {} (they are the fur model's lobes)",
+            model.name()
+        ));
+    }
+    let r = super::render_model_scene(scene, rgb, &s)?;
+    write_one(o, &s, job, &r, out, false, say, note)?;
+    Ok(r)
+}
+
+/// Write one render's files (all or none) and say so.
+#[allow(clippy::too_many_arguments)]
+fn write_one(
+    o: &BatchOptions,
+    s: &RenderSettings,
+    job: &RenderJob,
+    r: &RenderOutput,
+    out: &Path,
+    aovs: bool,
+    say: &mut impl FnMut(&str),
+    note: &mut impl FnMut(&str),
+) -> Result<()> {
+    let name = &job.name;
     say(&format!(
         "{name}: {:.2} s wall ({:.2} s setup + {:.2} s tracing), {} rays, \
          {:.3} Mrays/s (tracing)",
@@ -250,10 +359,10 @@ fn render_one(
         r.rays_per_second() / 1e6
     ));
     // The PNG, the EXR and the AOVs are written as one: all or none.
-    let files = outputs(out, &s, o.aovs)
+    let files = outputs(out, s, aovs)
         .into_iter()
         .map(|(image, path)| {
-            let text = |what: &str, linear: bool| image_text(o, &s, job, what, linear);
+            let text = |what: &str, linear: bool| image_text(o, s, job, what, linear);
             let bytes = match image {
                 OutFile::Png => {
                     output::png_bytes(&r.beauty, o.exposure, &text("image", false), &path)?
@@ -280,13 +389,13 @@ fn render_one(
         note(&format!("note: {n}"));
     }
     say(&format!("wrote {} (+ .exr)", out.display()));
-    if o.aovs {
+    if aovs {
         say(&format!(
             "wrote per-lobe AOVs {} (+ linear .exr)",
             with_suffix(out, "_<lobe>", "png").display()
         ));
     }
-    Ok(r)
+    Ok(())
 }
 
 /// What made an image, in its PNG's text chunks or EXR's header (`s`: the settings it
@@ -299,27 +408,41 @@ fn image_text(
     what: &str,
     linear: bool,
 ) -> Vec<(&'static str, String)> {
+    let (lobes, medulla, colour) = match &job.params {
+        JobParams::Fur(_) => (
+            s.lobes
+                .iter()
+                .map(|l| l.name())
+                .collect::<Vec<_>>()
+                .join(","),
+            format!(", medulla energy {}", s.medulla_energy.name()),
+            s.tint.to_string(),
+        ),
+        JobParams::Model(rgb) => (
+            rgb[0].model.lobe_names().join(","),
+            String::new(),
+            if rgb[0] == rgb[1] && rgb[1] == rgb[2] {
+                "grey (one channel's parameters for r, g and b)".to_string()
+            } else {
+                "the fit's r, g, b channels".to_string()
+            },
+        ),
+    };
     vec![
         ("Software", crate::TOOL_VERSION.to_string()),
         ("Source", o.command.clone()),
         (
             "Description",
             format!(
-                "{what} rendered by furfit from {}; mode {}, {}x{}, {} spp, \
-                 seed {}, lobes {}, medulla energy {}; colour: {}; {}",
+                "{what} rendered by furfit from {}; model {}; mode {}, {}x{}, {} spp, \
+                 seed {}, lobes {lobes}{medulla}; colour: {colour}; {}",
                 job.about,
+                job.params.model(),
                 s.mode.name(),
                 s.width,
                 s.height,
                 s.spp,
                 s.seed,
-                s.lobes
-                    .iter()
-                    .map(|l| l.name())
-                    .collect::<Vec<_>>()
-                    .join(","),
-                s.medulla_energy.name(),
-                s.tint,
                 if linear {
                     "linear scene radiance (the ACES tone map and --exposure apply \
                      to the PNGs only)"

@@ -19,7 +19,7 @@
 //! huge = far field everywhere) for tests and studies.
 
 use super::bsdf::{
-    lobe_sum, CameraSide, FiberBsdf, Frame, HRange, LobeRgb, MisPrep, Mode, MIN_COS,
+    lobe_sum, BsdfSample, CameraSide, FiberBsdf, Frame, HRange, LobeRgb, MisPrep, Mode, MIN_COS,
 };
 use super::bvh::{Bvh, DirTree};
 use super::math::{luminance, Rgb, V3};
@@ -29,12 +29,50 @@ use rand::Rng;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::f64::consts::PI;
 
+/// What a path needs of a fiber's BCSDF (units and arguments: [`super::bsdf`]'s module
+/// doc): the fur model's [`FiberBsdf`], or another model's near field through the model
+/// interface ([`super::model_bsdf::ModelBsdf`]).
+pub trait Bcsdf: Sync {
+    /// What sampling and the MIS pdf share at one vertex, from `theta_o` alone.
+    type Side: Copy;
+    /// The MIS pdf's state at one vertex.
+    type Mis: Copy;
+    fn camera_side(&self, theta_o: f64) -> Self::Side;
+    /// Per-lobe values for camera-side `theta_o`, light side `(theta, phi)`, offsets `hr`.
+    fn eval(&self, theta_o: f64, theta: f64, phi: f64, hr: HRange) -> LobeRgb;
+    fn mis_prepare(&self, side: &Self::Side, hr: HRange) -> Self::Mis;
+    /// The pdf MIS weighs a direction by (`(theta, phi)` measure).
+    fn pdf_mis_prepared(&self, mp: &Self::Mis, theta: f64, phi: f64) -> f64;
+    /// A light-side direction from four uniforms, its weight `value / pdf`.
+    fn sample(&self, side: &Self::Side, hr: HRange, u: [f64; 4]) -> Option<BsdfSample>;
+}
+
+impl Bcsdf for FiberBsdf {
+    type Side = CameraSide;
+    type Mis = MisPrep;
+    fn camera_side(&self, theta_o: f64) -> CameraSide {
+        FiberBsdf::camera_side(self, theta_o)
+    }
+    fn eval(&self, theta_o: f64, theta: f64, phi: f64, hr: HRange) -> LobeRgb {
+        FiberBsdf::eval(self, theta_o, theta, phi, hr)
+    }
+    fn mis_prepare(&self, side: &CameraSide, hr: HRange) -> MisPrep {
+        FiberBsdf::mis_prepare(self, side, hr)
+    }
+    fn pdf_mis_prepared(&self, mp: &MisPrep, theta: f64, phi: f64) -> f64 {
+        FiberBsdf::pdf_mis_prepared(self, mp, theta, phi)
+    }
+    fn sample(&self, side: &CameraSide, hr: HRange, u: [f64; 4]) -> Option<BsdfSample> {
+        FiberBsdf::sample(self, side, hr, u)
+    }
+}
+
 /// Everything a path needs, borrowed.
-pub struct Integrator<'a> {
+pub struct Integrator<'a, B: Bcsdf = FiberBsdf> {
     pub bvh: &'a Bvh,
     /// Shadow-ray tree along `light`'s direction ([`DirTree`]); `None` uses `bvh`.
     pub light_tree: Option<&'a DirTree>,
-    pub bsdf: &'a FiberBsdf,
+    pub bsdf: &'a B,
     pub camera: &'a Camera,
     pub light: Option<DirectionalLight>,
     pub env: Environment,
@@ -69,16 +107,16 @@ fn power_heuristic(a: f64, b: f64) -> f64 {
 }
 
 /// Where the last BCSDF sample came from, to compute its MIS pdf on an env hit.
-struct PrevSample {
+struct PrevSample<B: Bcsdf> {
     theta: f64,
     phi: f64,
     /// The vertex's MIS state, if its environment sample already prepared it.
-    mis: Option<MisPrep>,
-    side: CameraSide,
+    mis: Option<B::Mis>,
+    side: B::Side,
     hr: HRange,
 }
 
-impl Integrator<'_> {
+impl<B: Bcsdf> Integrator<'_, B> {
     fn hrange(&self, h: f64, width: f64, radius: f64, cos_look: f64) -> HRange {
         match self.mode {
             Mode::Near => HRange::At(h),
@@ -100,7 +138,7 @@ impl Integrator<'_> {
         let mut origin = cam.eye;
         let mut thr: Rgb = [1.0; 3];
         let mut split: Option<[f64; 5]> = None;
-        let mut prev: Option<PrevSample> = None;
+        let mut prev: Option<PrevSample<B>> = None;
         let mut skip = None;
         let (mut w0, mut spread) = (0.0, cam.pixel_angle());
         let env_nee = self.env_nee && !self.env.is_black();
@@ -141,7 +179,7 @@ impl Integrator<'_> {
                 if depth == 0 { cos_look } else { 1.0 },
             );
             let skip_me = Some(hit.fiber);
-            let mut mis: Option<MisPrep> = None;
+            let mut mis: Option<B::Mis> = None;
 
             // Next-event estimation: directional light.
             if let Some(light) = &self.light {

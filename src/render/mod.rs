@@ -26,6 +26,7 @@ pub mod furnace;
 pub mod integrator;
 pub mod ishair;
 pub mod math;
+pub mod model_bsdf;
 pub mod ntable;
 pub mod output;
 pub mod sampler_study;
@@ -43,7 +44,7 @@ use crate::model::LobeSet;
 use crate::params::FurParams;
 use bsdf::{FiberBsdf, Mode, Tint};
 use bvh::{Bvh, DirTree};
-use integrator::Integrator;
+use integrator::{Bcsdf, Integrator};
 use math::{Rgb, V3};
 use rand::SeedableRng;
 use rand_xoshiro::Xoshiro256PlusPlus;
@@ -411,6 +412,116 @@ fn render_in_pool(
         secondary_spread: s.secondary_spread,
         env_nee: s.env_nee,
     };
+    trace_frame(&integ, s, setup_seconds)
+}
+
+/// Render `rgb`, the parameters of the r, g and b channels of a model other than the fur
+/// model, through its renderer BSDF ([`crate::models::FiberModel::render_bsdf`],
+/// [`model_bsdf`]): near field only, every lobe, the settings' fur-model options (tint,
+/// tables, medulla energy, sampling) unread. A model without a renderer BSDF is an
+/// error naming it.
+pub fn render_model_scene(
+    scene: &Scene,
+    rgb: &[crate::models::ModelParams; 3],
+    s: &RenderSettings,
+) -> crate::Result<RenderOutput> {
+    let model = rgb[0].model;
+    for p in rgb {
+        p.validate()?;
+        if p.model.name() != model.name() {
+            return Err(crate::Error::Invalid(format!(
+                "render: channels of two models ({} and {})",
+                model.name(),
+                p.model.name()
+            )));
+        }
+    }
+    let inner = model
+        .render_bsdf([&rgb[0].values, &rgb[1].values, &rgb[2].values])
+        .ok_or_else(|| {
+            crate::Error::Invalid(format!(
+                "furfit render cannot render model {}: it has no renderer BSDF \
+                 (renderable: {})",
+                model.name(),
+                renderable_models().join(", ")
+            ))
+        })?;
+    if s.mode != Mode::Near {
+        return Err(crate::Error::Invalid(format!(
+            "model {} renders its near field only (--mode near), not --mode {}",
+            model.name(),
+            s.mode.name()
+        )));
+    }
+    if s.lobes != LobeSet::ALL {
+        return Err(crate::Error::Invalid(format!(
+            "--lobes names the fur model's lobes: a render of model {} has all of its own",
+            model.name()
+        )));
+    }
+    if s.width == 0 || s.height == 0 || s.spp == 0 {
+        return Err(crate::Error::Invalid(
+            "image size and spp must be positive".into(),
+        ));
+    }
+    let bsdf = model_bsdf::ModelBsdf { inner };
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(s.threads)
+        .build()
+        .map_err(|e| crate::Error::Invalid(format!("thread pool: {e}")))?;
+    pool.install(|| {
+        let setup = Instant::now();
+        let light_tree = s.light.map(|l| scene.light_tree(l.dir));
+        let setup_seconds = setup.elapsed().as_secs_f64();
+        let camera = Camera::look_at(
+            V3::new(0.0, 0.0, 0.0),
+            s.camera.dist,
+            s.camera.elev_deg,
+            s.camera.azim_deg,
+            s.camera.fov_deg,
+            s.width,
+            s.height,
+        );
+        let integ = Integrator {
+            bvh: &scene.bvh,
+            light_tree: light_tree.as_deref(),
+            bsdf: &bsdf,
+            camera: &camera,
+            light: s.light,
+            env: s.env,
+            mode: Mode::Near,
+            max_depth: s.max_depth,
+            roulette_from: s.roulette_from,
+            footprint_scale: s.footprint_scale,
+            secondary_spread: s.secondary_spread,
+            env_nee: s.env_nee,
+        };
+        trace_frame(&integ, s, setup_seconds)
+    })
+}
+
+/// The registered models `furfit render` renders: the fur model and every model with a
+/// renderer BSDF (probed at its first preset).
+pub fn renderable_models() -> Vec<&'static str> {
+    crate::models::MODELS
+        .iter()
+        .filter(|m| {
+            m.name() == "yan2017"
+                || m.presets().first().is_some_and(|p| {
+                    crate::models::ModelParams::from_file_units(**m, p.values)
+                        .is_ok_and(|q| m.render_bsdf([&q.values, &q.values, &q.values]).is_some())
+                })
+        })
+        .map(|m| m.name())
+        .collect()
+}
+
+/// Trace every pixel of the settings' frame (or region) with `integ`.
+fn trace_frame<B: Bcsdf>(
+    integ: &Integrator<'_, B>,
+    s: &RenderSettings,
+    setup_seconds: f64,
+) -> crate::Result<RenderOutput> {
     let (x0, y0, w, h) = s.region.unwrap_or((0, 0, s.width, s.height));
     if x0 + w > s.width || y0 + h > s.height || w == 0 || h == 0 {
         return Err(crate::Error::Invalid(format!(

@@ -11,6 +11,7 @@
 //! sum by `|cos theta_i|` so that `f |cos theta_i|` is the sum, the integrand in solid
 //! angle, and solid angle is `cos(theta_i) dtheta_i dphi_i`.
 
+pub mod bsdf;
 pub mod far;
 pub mod lobes;
 #[cfg(test)]
@@ -192,6 +193,11 @@ impl FiberModel for Chiang2016 {
     fn terms(&self, p: &[f64], points: &Points, _far: &FarOptions) -> Box<dyn ModelTerms> {
         let plan = plan(points);
         Box::new(FactoredTerms::<Chiang, { lobes::P_MAX + 1 }>::new(p, plan))
+    }
+
+    /// pbrt-v4's `HairBxDF` at the camera ray's offset ([`bsdf::ChiangBsdf`]).
+    fn render_bsdf(&self, rgb: [&[f64]; 3]) -> Option<Box<dyn super::NearBsdf>> {
+        Some(Box::new(bsdf::ChiangBsdf::new(rgb)))
     }
 }
 
