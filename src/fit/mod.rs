@@ -3,8 +3,9 @@
 //!
 //! Pipeline of [`fit_data`]:
 //! 1. **Global stage**: a seeded, scrambled Halton design of `n_global` points over a
-//!    plausible box ([`starts::plausible_box`]), the ten seed Table 4 presets and an optional
-//!    user start, each scored on a seeded subsample of `n_sub` samples.
+//!    plausible box ([`crate::models::FiberModel::plausible_box`], drawn by [`starts`]),
+//!    the ten seed Table 4 presets and an optional user start, each scored on a seeded
+//!    subsample of `n_sub` samples.
 //! 2. **Multi-start LM**: the best `n_best` starts run Levenberg-Marquardt ([`lm`]) on the
 //!    subsample in parallel (rayon); the best result is polished by LM on all samples.
 //!    (When the profile is not much larger than the subsample, step 2 runs directly on all
@@ -13,8 +14,8 @@
 //!
 //! Cost: Jacobians are forward differences, one column per free parameter in parallel,
 //! each recomputing only the model terms its parameter can change
-//! ([`forward::ModelTerms::with_change`]: `alpha` and `beta_m` touch only `M_p`, `g` only
-//! the scattered lobes). Between accepted steps the LM runs update the Jacobian by
+//! ([`crate::models::ModelTerms::with_change`]: `alpha` and `beta_m` touch only `M_p`,
+//! `g` only the scattered lobes). Between accepted steps the LM runs update the Jacobian by
 //! Broyden's secant formula ([`FitOptions::broyden`]); a run stops only on a step taken with
 //! a freshly differenced Jacobian, and the uncertainty always uses one.
 //!
@@ -251,8 +252,8 @@ pub struct FitOutcome {
     pub trace: Vec<TraceEntry>,
     pub n_used: usize,
     /// `(capped, slices)` of the far field at the result
-    /// ([`forward::ModelTerms::capped_slices`]): capped slices are not guaranteed to the
-    /// tolerance.
+    /// ([`crate::models::ModelTerms::capped_slices`]): capped slices are not guaranteed
+    /// to the tolerance.
     pub capped_slices: (usize, usize),
     /// Profile-likelihood intervals of [`FitOptions::profile`] (not part of the fit's
     /// timing: they take `profile_time_s` after it).

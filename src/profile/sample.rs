@@ -307,7 +307,7 @@ impl Profile {
 pub enum Format {
     /// DATA.md CSV (`.csv`).
     Csv,
-    /// Dense grid archive (`.npz`), see [`npz`].
+    /// Dense grid archive (`.npz`), see [`super::npz`].
     Npz,
     /// A lone `value` array (`.npy`); the axes come from [`LoadOptions`].
     Npy,
