@@ -18,26 +18,21 @@ pub mod cancel;
 #[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod cli;
 pub mod error;
-#[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod export;
 #[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod fit;
 pub mod grid;
-#[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod io;
 pub mod model;
 #[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod models;
 pub mod params;
-#[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod profile;
 #[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod render;
-#[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod report;
 #[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod simulate;
-#[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod synth;
 pub mod text;
 pub mod timing;

@@ -312,6 +312,7 @@ pub fn write(
 /// What [`write_fit_reports`] wrote and what it had to skip.
 #[derive(Debug, Default)]
 pub struct ReportSummary {
+    /// Files written.
     pub written: Vec<PathBuf>,
     /// `(species, reason)` for figures or entries that could not be made.
     pub skipped: Vec<(String, String)>,
