@@ -19,7 +19,6 @@ pub mod cancel;
 pub mod cli;
 pub mod error;
 pub mod export;
-#[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod fit;
 pub mod grid;
 pub mod io;
@@ -31,7 +30,6 @@ pub mod profile;
 #[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod render;
 pub mod report;
-#[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod simulate;
 pub mod synth;
 pub mod text;

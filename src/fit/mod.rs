@@ -36,6 +36,7 @@ pub mod likelihood;
 pub mod lm;
 pub mod output;
 mod polish;
+#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod problem;
 pub mod reparam;
 mod stages;
@@ -69,6 +70,7 @@ pub const STEP_SE: f64 = 0.25;
 /// Settings of one fit.
 #[derive(Clone, Debug)]
 pub struct FitOptions {
+    /// Seed of the Halton scramble and the subsample (the fit is deterministic given it).
     pub seed: u64,
     /// Halton points in the global stage.
     pub n_global: usize,
@@ -226,6 +228,7 @@ pub struct TraceEntry {
 /// The result of fitting one channel.
 #[derive(Clone, Debug)]
 pub struct FitOutcome {
+    /// The fitted parameters.
     pub params: ModelParams,
     /// Exposure `k` of the solve (weighted when `weighted`).
     pub exposure: f64,
@@ -234,8 +237,11 @@ pub struct FitOutcome {
     /// The exposure that NRMSE is taken at: `exposure` itself for an unweighted fit, the
     /// unweighted optimum for a weighted one (whose `exposure` minimises the weighted cost).
     pub nrmse_exposure: f64,
+    /// Standard errors, flags and correlations at the optimum.
     pub uncertainty: Uncertainty,
+    /// LM iterations of the final solve.
     pub iterations: u64,
+    /// Model evaluations of the solve.
     pub evaluations: u64,
     /// Model evaluations x samples (for throughput figures).
     pub sample_evaluations: u64,
@@ -245,11 +251,17 @@ pub struct FitOutcome {
     /// terms their parameter changes). Summed over evaluations that may run side by side
     /// on several threads, so it can exceed the wall time (`model_time_share` > 1).
     pub model_time_s: f64,
+    /// Starting points scored in the global stage.
     pub starts_global: usize,
+    /// Starts that ran the multi-start LM.
     pub starts_lm: usize,
+    /// Wall seconds of the fit (the profile intervals aside).
     pub wall_time_s: f64,
+    /// Why the final LM run stopped (argmin's termination status).
     pub termination: String,
+    /// Convergence trace of every stage.
     pub trace: Vec<TraceEntry>,
+    /// Samples the fit used (valid, at or above the floor).
     pub n_used: usize,
     /// `(capped, slices)` of the far field at the result
     /// ([`crate::models::ModelTerms::capped_slices`]): capped slices are not guaranteed
@@ -258,6 +270,7 @@ pub struct FitOutcome {
     /// Profile-likelihood intervals of [`FitOptions::profile`] (not part of the fit's
     /// timing: they take `profile_time_s` after it).
     pub profile: Vec<likelihood::Interval>,
+    /// Wall seconds of the profile intervals.
     pub profile_time_s: f64,
     /// Profile re-solves the solver failed on (scored at their start, so an interval end
     /// beside them may lie too far out).

@@ -115,6 +115,7 @@ pub const SCAN_CELLS: usize = 20_000;
 pub struct Section {
     /// `eta'` and `eta''` at `theta_d`.
     pub eta_p: f64,
+    /// `eta''` (Bravais's index for the longitudinal plane).
     pub eta_pp: f64,
     /// `sigma_a / cos theta_t` (Sec. 4.3).
     pub sigma: f64,
@@ -318,9 +319,13 @@ impl Section {
 /// The caustic model's parameters (Table 1 "Glints"; widths in radians).
 #[derive(Clone, Copy, Debug)]
 pub struct Glints {
+    /// Glint scale factor `k_G`.
     pub k_g: f64,
+    /// Azimuthal width of the caustic, `w_c` (radians).
     pub w_c: f64,
+    /// Fade range of the caustic merge, `Delta eta'`.
     pub delta_eta: f64,
+    /// Caustic intensity limit, `Delta h_M`.
     pub delta_h_m: f64,
 }
 
