@@ -15,7 +15,6 @@
 #![warn(missing_docs)]
 
 pub mod cancel;
-#[allow(missing_docs)] // docs: TODO (#64, in progress)
 pub mod cli;
 pub mod error;
 pub mod export;
