@@ -335,7 +335,8 @@ pub struct FurParams {
     /// Cuticle scale tilt, radians (lobe `p` peaks shifted by a multiple of it, seed
     /// Table 2).
     pub alpha: f64,
-    /// Longitudinal roughness, radians (the Gaussian width of `M_p`).
+    /// Longitudinal roughness, radians: the width of R's `M_p` (TT and TRT take
+    /// `beta_m / 2` and `3 beta_m / 2`, seed Table 2).
     pub beta_m: f64,
     /// Azimuthal roughness, radians (the width of `N_p`).
     pub beta_n: f64,
@@ -703,7 +704,8 @@ fn check_bound(id: ParamId, v: f64) -> Result<()> {
 /// a unit circle"; we take the numbers as they stand, per unit radius, as MODEL.md says.
 #[derive(Clone, Copy, Debug)]
 pub struct Preset {
-    /// Species name as the paper's Table 4 column heads it (`--preset` key).
+    /// The species of the Table 4 column, lower-case and hyphenated (`red-fox`): the name
+    /// [`FurParams::preset`] looks up.
     pub name: &'static str,
     /// The ten values in file units, in [`ParamId::ALL`] order.
     pub values: [f64; N_PARAMS],

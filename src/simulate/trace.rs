@@ -65,7 +65,7 @@ pub struct Fiber {
     pub l: f64,
     /// Semi-axes of the outer cross-section (x, y); (1, 1) for the circular fiber.
     pub ax: f64,
-    /// Semi-axis y.
+    /// Semi-axis of the outer cross-section along y (1 for the circular fiber).
     pub ay: f64,
     /// Random rotation of the cross-section about the axis (only for an ellipse).
     pub rotate: bool,

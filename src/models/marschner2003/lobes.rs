@@ -113,9 +113,10 @@ pub const SCAN_CELLS: usize = 20_000;
 /// One `theta_d` of one lobe family: the Bravais indices and the lengthened absorption.
 #[derive(Clone, Copy, Debug)]
 pub struct Section {
-    /// `eta'` and `eta''` at `theta_d`.
+    /// `eta'` at `theta_d`: Bravais's index for the perpendicular polarisation
+    /// (Appendix B, [`bravais`]).
     pub eta_p: f64,
-    /// `eta''` (Bravais's index for the longitudinal plane).
+    /// `eta''` at `theta_d`: the index for the parallel polarisation.
     pub eta_pp: f64,
     /// `sigma_a / cos theta_t` (Sec. 4.3).
     pub sigma: f64,
