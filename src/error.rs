@@ -14,29 +14,51 @@ pub enum Error {
     /// The OS error is part of the message, not a `#[source]`: `{:#}` printing of the
     /// chain would otherwise say it twice.
     #[error("{}: {err}", path.display())]
-    Io { path: PathBuf, err: std::io::Error },
+    Io {
+        /// The file or directory the operation was on.
+        path: PathBuf,
+        /// What the OS said.
+        err: std::io::Error,
+    },
     /// A text file is malformed at a known line (1-based) and column.
     /// `column` is a human label: "column 3 (phi)" or "column 12".
     #[error("{}:{line}: {column}: {msg}", file.display())]
     Parse {
+        /// The file, as the user named it.
         file: PathBuf,
+        /// Line number, 1-based.
         line: usize,
+        /// Human label of the column ("column 3 (phi)").
         column: String,
+        /// What is wrong there.
         msg: String,
     },
     /// A binary array file (npy/npz) is malformed; `array` names the array.
     #[error("{}: array '{array}': {msg}", file.display())]
     Array {
+        /// The `.npy` or `.npz` file.
         file: PathBuf,
+        /// The array's name in the archive (`value`, `theta_i`, ...).
         array: String,
+        /// What is wrong with it.
         msg: String,
     },
     /// A parameter is outside its hard bound, or a parameter file is malformed.
     #[error("parameter '{key}': {msg}")]
-    Param { key: String, msg: String },
+    Param {
+        /// The parameter's file key (`beta_m`) or the offending key of the file.
+        key: String,
+        /// What is wrong (the bound it breaks, ...).
+        msg: String,
+    },
     /// A file as a whole is unusable (empty, unknown format, no valid sample ...).
     #[error("{}: {msg}", file.display())]
-    File { file: PathBuf, msg: String },
+    File {
+        /// The file.
+        file: PathBuf,
+        /// Why it cannot be used.
+        msg: String,
+    },
     /// Invalid option or argument that is not tied to a file.
     #[error("{0}")]
     Invalid(String),

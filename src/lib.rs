@@ -12,6 +12,7 @@
 //! The crate is an application's library: its API docs are read with
 //! `cargo doc --document-private-items`, so public items may link to private ones.
 #![allow(rustdoc::private_intra_doc_links)]
+#![warn(missing_docs)]
 
 pub mod cancel;
 pub mod cli;
@@ -21,15 +22,18 @@ pub mod fit;
 pub mod grid;
 pub mod io;
 pub mod model;
+#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod models;
 pub mod params;
 pub mod profile;
+#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod render;
 pub mod report;
 pub mod simulate;
 pub mod synth;
 pub mod text;
 pub mod timing;
+#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod view;
 
 pub use error::{Error, Result};

@@ -14,15 +14,29 @@ pub const N_PARAMS: usize = 10;
 /// One of the ten parameters, in the fixed order used by vectors and tables.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ParamId {
+    /// `eta`: index of refraction of cortex and medulla, in (1, 3].
     Eta,
+    /// `kappa`: medulla radius over fiber radius, in [0, 1).
     Kappa,
+    /// `alpha`: cuticle scale tilt, which shifts the R/TT/TRT longitudinal peaks (seed
+    /// Table 2); degrees in [-20, 20] in files.
     Alpha,
+    /// `beta_m`: longitudinal roughness (the lobes' width in theta), degrees in (0, 60] in
+    /// files.
     BetaM,
+    /// `beta_n`: azimuthal roughness (the lobes' width in phi), degrees in (0, 90] in
+    /// files.
     BetaN,
+    /// `sigma_c_a`: cortex absorption coefficient, per unit fiber radius, >= 0.
     SigmaCA,
+    /// `sigma_m_s`: medulla scattering coefficient, per unit fiber radius, >= 0.
     SigmaMS,
+    /// `sigma_m_a`: medulla absorption coefficient, per unit fiber radius, >= 0.
     SigmaMA,
+    /// `g`: Henyey-Greenstein anisotropy of the medulla's scattering, in (-1, 1).
     G,
+    /// `l`: number of cuticle layers in the layered cuticle reflectance (seed Eq. 13-14),
+    /// in (0, 10].
     L,
 }
 
@@ -61,12 +75,19 @@ impl ParamId {
 /// angles); `lower_open`/`upper_open` say whether the bound itself is excluded.
 #[derive(Clone, Copy, Debug)]
 pub struct ParamSpec {
+    /// File key (`eta`, `beta_m`, ...), as parameter and fit files spell it.
     pub name: &'static str,
+    /// What the parameter means, in a few words (for tables and messages).
     pub meaning: &'static str,
+    /// Unit in files: `deg`, `1/radius` or `-` (dimensionless).
     pub unit: &'static str,
+    /// Lower hard bound, file units.
     pub lower: f64,
+    /// Whether `lower` itself is excluded.
     pub lower_open: bool,
+    /// Upper hard bound, file units (may be infinite).
     pub upper: f64,
+    /// Whether `upper` itself is excluded.
     pub upper_open: bool,
     /// Angle in degrees in files, radians inside.
     pub is_angle: bool,
@@ -307,15 +328,27 @@ const fn spec(
 /// hard bounds are enforced once, at the boundary.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FurParams {
+    /// Index of refraction of cortex and medulla (seed Table 1 `eta`).
     pub eta: f64,
+    /// Medulla radius / fiber radius (seed Table 1 `kappa`).
     pub kappa: f64,
+    /// Cuticle scale tilt, radians (lobe `p` peaks shifted by a multiple of it, seed
+    /// Table 2).
     pub alpha: f64,
+    /// Longitudinal roughness, radians: the width of R's `M_p` (TT and TRT take
+    /// `beta_m / 2` and `3 beta_m / 2`, seed Table 2).
     pub beta_m: f64,
+    /// Azimuthal roughness, radians (the width of `N_p`).
     pub beta_n: f64,
+    /// Cortex absorption coefficient, per unit fiber radius.
     pub sigma_c_a: f64,
+    /// Medulla scattering coefficient, per unit fiber radius.
     pub sigma_m_s: f64,
+    /// Medulla absorption coefficient, per unit fiber radius.
     pub sigma_m_a: f64,
+    /// Henyey-Greenstein anisotropy of medulla scattering.
     pub g: f64,
+    /// Cuticle layers of the layered cuticle reflectance (seed Eq. 13-14).
     pub l: f64,
 }
 
@@ -567,7 +600,9 @@ pub fn preset_shadow_note(spec: &str) -> Option<String> {
 pub struct FitChannel {
     /// The channel's name (`data.channel`).
     pub name: String,
+    /// The channel's fitted parameters.
     pub params: FurParams,
+    /// The channel's exposure `k` (the closed-form scale between model and data).
     pub exposure: f64,
 }
 
@@ -669,7 +704,10 @@ fn check_bound(id: ParamId, v: f64) -> Result<()> {
 /// a unit circle"; we take the numbers as they stand, per unit radius, as MODEL.md says.
 #[derive(Clone, Copy, Debug)]
 pub struct Preset {
+    /// The species of the Table 4 column, lower-case and hyphenated (`red-fox`): the name
+    /// [`FurParams::preset`] looks up.
     pub name: &'static str,
+    /// The ten values in file units, in [`ParamId::ALL`] order.
     pub values: [f64; N_PARAMS],
     /// NRMSE the paper reports for its own fit (Table 4, "ours"), as a fraction.
     pub paper_nrmse: f64,

@@ -41,6 +41,7 @@ pub enum ModelKind {
 }
 
 impl ModelKind {
+    /// The kind's name, as [`ModelKind::parse`] reads it (`far`, `near-quadrature`).
     pub fn name(self) -> &'static str {
         match self {
             ModelKind::Far => "far",
@@ -99,6 +100,7 @@ pub struct GridPlan {
 }
 
 impl GridPlan {
+    /// The plan of `points` `(theta_i, theta_r, phi)`, radians.
     pub fn new(points: &[(f64, f64, f64)]) -> GridPlan {
         // The azimuthal model depends on theta_d only through cos theta_d
         // (`FurModel::azimuthal`), so theta_d and -theta_d share one slice: a grid
@@ -146,10 +148,12 @@ impl GridPlan {
         &self.groups
     }
 
+    /// Number of points planned.
     pub fn len(&self) -> usize {
         self.points.len()
     }
 
+    /// Whether there are no points.
     pub fn is_empty(&self) -> bool {
         self.points.is_empty()
     }

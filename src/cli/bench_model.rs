@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit bench-model` (its `--help` text is the [`super::Command`]
+/// variant's).
 pub struct Args {
     /// Output directory for far_field_error_vs_time.{csv,png,svg,md}.
     #[arg(long, default_value = "reports")]
@@ -25,6 +27,7 @@ pub struct Args {
     pub force: bool,
 }
 
+/// Run `furfit bench-model`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     if a.models {
         crate::report::zoo_bench::throughput(&mut |line| outln!("{line}"));

@@ -6,6 +6,7 @@ use anyhow::Context;
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit export` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// The fit file; a non-chiang2016 fit is exported as the closest chiang2016 material (NRMSE printed).
     #[arg(long)]
@@ -27,6 +28,7 @@ pub struct Args {
     pub force: bool,
 }
 
+/// Run `furfit export`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let format = Format::parse(&a.to).context("--to")?;
     if a.scene && !matches!(format, Format::Mitsuba | Format::Pbrt) {

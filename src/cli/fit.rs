@@ -15,6 +15,7 @@ const MAX_STARTS: u64 = 1_000_000;
 const MAX_LM_STARTS: u64 = 1024;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit fit` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Profile files (.csv, .npz, .npy, Yan .txt) and/or species folders; all are merged
     /// into one species.
@@ -44,6 +45,7 @@ pub struct Args {
     #[arg(long, default_value = "yan2017")]
     pub model: String,
     #[command(flatten)]
+    /// Far-field accuracy options.
     pub far: super::FarArgs,
     /// An extra start: a preset of the model, a parameter JSON or a fit JSON.
     #[arg(long)]
@@ -79,9 +81,11 @@ pub struct Args {
     #[arg(long)]
     pub bench: bool,
     #[command(flatten)]
+    /// How profile files are read.
     pub load: super::LoadArgs,
 }
 
+/// Run `furfit fit`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     check_counts(&a)?;
     if a.all && (!a.inputs.is_empty() || a.out.is_some()) {

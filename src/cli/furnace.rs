@@ -9,6 +9,7 @@ use anyhow::{bail, Context};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit furnace` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Parameter file, fit file or preset; its directional albedo is printed.
     #[arg(long, required_unless_present = "report")]
@@ -36,6 +37,7 @@ pub struct Args {
     pub fits_dir: PathBuf,
 }
 
+/// Run `furfit furnace`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     let model = crate::models::by_name(&a.model).context("--model")?;
     if model.name() != "yan2017" {

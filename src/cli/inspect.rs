@@ -10,11 +10,13 @@ use crate::profile::summary::{AxisStats, Summary, STEPS_PER_DEG};
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit inspect` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Profile files (.csv, .npy, .npz, Yan-2015 .txt/.dat) or species directories.
     #[arg(required = true)]
     pub files: Vec<PathBuf>,
     #[command(flatten)]
+    /// How profile files are read.
     pub load: super::LoadArgs,
 }
 
@@ -130,6 +132,7 @@ fn describe(path: &std::path::Path, l: &profile::Loaded) -> Vec<String> {
     out
 }
 
+/// Run `furfit inspect`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Loaded apart but in one run: a lone .npy among them makes --theta-i its axis.
     let opts = args.load.to_options()?.for_inputs(&args.files);

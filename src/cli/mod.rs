@@ -64,6 +64,7 @@ pub struct LoadArgs {
 }
 
 impl LoadArgs {
+    /// The loader options these arguments give; an out-of-range `--phi-offset` is an error.
     pub fn to_options(&self) -> anyhow::Result<crate::profile::LoadOptions> {
         // One turn either way covers every convention; beyond, a typo (or 1e17, whose
         // wrap is rounding noise) would silently rotate the data.
@@ -386,6 +387,7 @@ pub mod stability;
 pub mod synth;
 pub mod tables;
 pub mod tables_strand;
+#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod view;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
@@ -393,10 +395,12 @@ pub mod view;
 #[command(name = "furfit", version = concat!(env!("CARGO_PKG_VERSION"), " (git ", env!("FURFIT_GIT_REV"), ")"), about, long_about = None)]
 pub struct Cli {
     #[command(subcommand)]
+    /// The subcommand to run.
     pub command: Command,
 }
 
 #[derive(Subcommand, Debug)]
+/// The subcommands; each variant's doc comment is its `--help` summary.
 pub enum Command {
     /// Print sample counts, angle ranges, channels and metadata of profile files.
     Inspect(inspect::Args),

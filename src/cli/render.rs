@@ -12,6 +12,7 @@ use clap::builder::RangedU64ValueParser;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit render` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Fit file (fits/X.json) to render.
     #[arg(long, conflicts_with = "params")]

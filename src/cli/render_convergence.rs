@@ -14,6 +14,8 @@ use std::path::PathBuf;
 const MAX_REPEATS: usize = 1000;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit render-convergence` (its `--help` text is the [`super::Command`]
+/// variant's).
 pub struct Args {
     /// Parameter file, fit file or preset.
     #[arg(long, default_value = "red-fox")]

@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit report` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Folder of the fur model's fit files; its subfolders `<model>/` hold the other models' fits.
     #[arg(long, default_value = "fits")]
@@ -18,6 +19,7 @@ pub struct Args {
     pub force: bool,
 }
 
+/// Run `furfit report`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     // The fits first: a refused run leaves no empty --out folder behind.
     let (fits, mut unread) = crate::fit::file::read_fits(&a.fits)?;

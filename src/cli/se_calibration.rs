@@ -3,6 +3,8 @@
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit se-calibration` (its `--help` text is the [`super::Command`]
+/// variant's).
 pub struct Args {
     /// Output directory for se_calibration.{md,csv}.
     #[arg(long, default_value = "reports")]
@@ -15,6 +17,7 @@ pub struct Args {
     pub force: bool,
 }
 
+/// Run `furfit se-calibration`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     // Before the folder is probed (which creates it): a refused run leaves nothing.
     crate::report::se_calibration::check_reps(a.reps)?;

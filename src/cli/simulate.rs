@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit simulate` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Parameters: a preset name (e.g. red-fox), a parameter JSON or a fit JSON.
     #[arg(long, required_unless_present = "bench")]

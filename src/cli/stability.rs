@@ -3,6 +3,7 @@
 use std::path::PathBuf;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit stability` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Output directory for stability.md, stability.csv (the fur model) and
     /// stability_models.csv (the other models).
@@ -13,6 +14,7 @@ pub struct Args {
     pub force: bool,
 }
 
+/// Run `furfit stability`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     // The sweep takes minutes (162 s on two cores for the committed report): a bad --out
     // fails first.

@@ -7,6 +7,7 @@ use anyhow::{bail, Context};
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit synth` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Parameters: a preset name (e.g. red-fox), a parameter JSON or a fit JSON (of any
     /// model: the file names it).
@@ -37,6 +38,7 @@ pub struct Args {
     #[arg(long, allow_negative_numbers = true, value_parser = super::number)]
     pub exposure: Option<f64>,
     #[command(flatten)]
+    /// Far-field accuracy options.
     pub far: super::FarArgs,
     /// Output file (.csv or .npz; the extension picks the format).
     #[arg(long)]
@@ -74,6 +76,7 @@ fn check_out(out: &Path, force: bool) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Run `furfit synth`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     check_out(&a.out, a.force).context("--out")?;
     let want = a.model.as_deref().map(crate::models::by_name).transpose()?;

@@ -10,12 +10,15 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit tables` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     #[command(subcommand)]
+    /// `build`, `info` or `strand`.
     pub command: TablesCommand,
 }
 
 #[derive(clap::Subcommand, Debug)]
+/// The subcommands of `furfit tables`.
 pub enum TablesCommand {
     /// Rebuild the C^N / C^M tables by Monte Carlo and compress them with CP-ALS.
     Build(BuildArgs),
@@ -26,6 +29,7 @@ pub enum TablesCommand {
 }
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit tables build`.
 pub struct BuildArgs {
     /// RNG seed (the shipped file uses 2017).
     #[arg(long, allow_negative_numbers = true, default_value_t = 2017)]
@@ -48,6 +52,7 @@ pub struct BuildArgs {
 }
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit tables info`.
 pub struct InfoArgs {
     /// Tables file (default: the tables built into the binary).
     #[arg(long)]
@@ -66,6 +71,7 @@ pub struct InfoArgs {
     pub seed: u64,
 }
 
+/// Run `furfit tables`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.command {
         TablesCommand::Build(a) => build(a),

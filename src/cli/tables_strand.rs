@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::time::Instant;
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit tables strand`.
 pub struct StrandArgs {
     /// RNG seed of the training and held-out points, the Monte Carlo and the initial weights.
     #[arg(long, allow_negative_numbers = true, default_value_t = 2025)]
@@ -32,6 +33,7 @@ pub struct StrandArgs {
     pub report: PathBuf,
 }
 
+/// Run `furfit tables strand`.
 pub fn run(a: StrandArgs) -> anyhow::Result<()> {
     if a.train < 10 || a.holdout < 1 || a.paths < 2 || a.epochs < 1 {
         bail!("--train >= 10, --holdout >= 1, --paths >= 2 and --epochs >= 1 are needed");

@@ -40,13 +40,18 @@ use std::path::{Path, PathBuf};
 /// The renderer formats of `--to`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
+    /// Mitsuba 3 scene XML (`hair` BSDF, `.xml`).
     Mitsuba,
+    /// pbrt-v4 scene (`hair` material, `.pbrt`).
     Pbrt,
+    /// A Blender Python script setting up a Cycles Principled Hair BSDF (`.py`).
     Cycles,
+    /// A MaterialX document (`chiang_bsdf`, `.mtlx`).
     MaterialX,
 }
 
 impl Format {
+    /// Every format, in `--to` listing order.
     pub const ALL: [Format; 4] = [
         Format::Mitsuba,
         Format::Pbrt,
@@ -95,15 +100,25 @@ impl Format {
 #[derive(Clone, Debug, PartialEq)]
 pub enum Origin {
     /// A `chiang2016` fit, mapped exactly; `nrmse` is the fit's own against its data.
-    Exact { fit: PathBuf, nrmse: f64 },
+    Exact {
+        /// The source fit file.
+        fit: PathBuf,
+        /// The fit's own NRMSE against its data.
+        nrmse: f64,
+    },
     /// The closest `chiang2016` material to a fit of `model`: `cost` is the NRMSE of the
     /// Chiang fit against that model's prediction at `samples` data angles; `nrmse` the
     /// source fit's own against its data.
     Approximated {
+        /// The source fit file.
         fit: PathBuf,
+        /// The source fit's model name (`yan2017`, `marschner2003`).
         model: &'static str,
+        /// NRMSE of the Chiang material against the source model's prediction.
         cost: f64,
+        /// Number of data angles the approximation was fitted at.
         samples: usize,
+        /// The source fit's own NRMSE against its data.
         nrmse: f64,
     },
 }
@@ -113,8 +128,11 @@ pub enum Origin {
 pub struct Material {
     /// The species (or the fit file's stem): names the material in the file.
     pub name: String,
+    /// Index of refraction of the fiber.
     pub eta: f64,
+    /// Chiang 2016 longitudinal roughness, in (0, 1].
     pub beta_m: f64,
+    /// Chiang 2016 azimuthal roughness, in (0, 1].
     pub beta_n: f64,
     /// Degrees, pbrt-v4's sign.
     pub alpha_deg: f64,
@@ -123,6 +141,7 @@ pub struct Material {
     /// The fit's exposure `k` (of its primary channel): not part of the material (a
     /// renderer's light sets the absolute scale), recorded in the file's header.
     pub exposure: f64,
+    /// Which fit the material comes from and how it was mapped.
     pub origin: Origin,
     /// What the mapping had to decide (channels that disagreed, ...).
     pub notes: Vec<String>,
@@ -131,7 +150,9 @@ pub struct Material {
 /// A written file: its text and the notes (clamps, approximations) it states.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Written {
+    /// The file's contents.
     pub text: String,
+    /// The notes it states in its header, one line each.
     pub notes: Vec<String>,
 }
 

@@ -20,16 +20,23 @@ use std::path::{Path, PathBuf};
 pub struct Lock {
     /// Control points `(point, radius)` of every fiber, root to tip.
     pub fibers: Vec<Vec<(V3, f64)>>,
+    /// Camera position.
     pub eye: V3,
+    /// Vertical field of view, degrees.
     pub fov_deg: f64,
     /// Unit direction toward the key light, its irradiance (grey).
     pub light_dir: V3,
+    /// Irradiance of the key light (grey), at normal incidence.
     pub irradiance: f64,
     /// The environment's constant radiance.
     pub env: f64,
+    /// Image width, pixels.
     pub width: usize,
+    /// Image height, pixels.
     pub height: usize,
+    /// Samples per pixel.
     pub spp: usize,
+    /// Longest path (bounces) the renderers trace.
     pub max_depth: usize,
 }
 

@@ -31,7 +31,9 @@ pub fn model_dir(fits: &Path, model: &dyn FiberModel) -> PathBuf {
 
 /// The jobs of a batch, each with its data loaded and checked.
 pub struct Batch {
+    /// The jobs, in the order given.
     pub jobs: Vec<Job>,
+    /// Per job: its inputs, loaded and merged.
     pub loaded: Vec<LoadedInputs>,
     /// Per job: notes on samples left out (non-positive, below the floor), to print
     /// before its fit beside the loaders' notes.

@@ -31,6 +31,7 @@ pub(crate) fn legacy_load(v: &Value, files: &[PathBuf]) -> crate::profile::LoadO
 /// The parts of a fit file the reports use.
 #[derive(Clone, Debug)]
 pub struct FitFile {
+    /// Where the fit file was read from.
     pub path: PathBuf,
     /// See [`FitFile::label`].
     pub(crate) label: String,
@@ -38,8 +39,11 @@ pub struct FitFile {
     pub primary: bool,
     /// Parameters held fixed by `--fix` (`uncertainty.fixed`).
     pub fixed: Vec<String>,
+    /// Species the fit records (`species`).
     pub species: String,
+    /// The fitted parameters, with their model.
     pub params: ModelParams,
+    /// Exposure `k` of the channel.
     pub exposure: f64,
     /// The NRMSE the report shows: the file's own, replaced by the one recomputed from
     /// `params` on the fit's data when those differ ([`FitFile::check_nrmse`]).
@@ -50,6 +54,7 @@ pub struct FitFile {
     pub nrmse_recorded: Option<f64>,
     /// The build that wrote the fit (`tool_version`; empty when not recorded).
     pub tool_version: String,
+    /// Whether the fitted data are labelled synthetic (`data.synthetic`).
     pub synthetic: bool,
     /// Data files recorded in the fit, where they are found now (see `candidates`).
     pub files: Vec<PathBuf>,
@@ -81,11 +86,14 @@ pub struct FitFile {
     /// Of those, the ones below the floor, left out of the fit and its NRMSE
     /// (`data.n_below_floor`).
     pub n_below_floor: Option<u64>,
+    /// Wall seconds of the fit (`solver.wall_time_s`).
     pub wall_time_s: f64,
     /// Model evaluations of the solve (`solver.evaluations`).
     pub evaluations: Option<u64>,
     /// Samples the fit used (`data.n_used`).
     pub n_used: Option<u64>,
+    /// Parameters the fit flagged as not constrained by the data
+    /// (`uncertainty.unconstrained`).
     pub unconstrained: Vec<String>,
     /// Standard errors (file units) per parameter, `None` if fixed/infinite.
     pub se: Vec<Option<f64>>,
@@ -568,6 +576,7 @@ pub fn truth_settings(fit: Option<&FitFile>) -> (f64, FarOptions) {
 pub struct TruthNrmse {
     /// NRMSE (MODEL.md) with the optimal exposure.
     pub nrmse: f64,
+    /// The optimal exposure `k` at the truth.
     pub exposure: f64,
     /// Samples used: valid and at least the floor x the channel's peak.
     pub n_used: usize,

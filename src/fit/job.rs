@@ -20,6 +20,7 @@ pub struct Job {
     pub species: String,
     /// Profile files and/or species folders, merged.
     pub inputs: Vec<PathBuf>,
+    /// The fit file to write.
     pub out: PathBuf,
     /// `--force`: replace a fit file of other data at `out`.
     pub force: bool,
@@ -156,6 +157,7 @@ pub fn jobs_for_all(
 /// The inputs of a fit, loaded and merged.
 #[derive(Clone, Debug)]
 pub struct LoadedInputs {
+    /// The merged profile.
     pub profile: Profile,
     /// The files read (folders expanded).
     pub files: Vec<ReadFile>,
@@ -276,7 +278,9 @@ fn keep_refused(out: &Path, text: &[u8]) -> Option<PathBuf> {
 /// Summary of one channel's fit, for printing.
 #[derive(Clone, Debug)]
 pub struct ChannelSummary {
+    /// The channel's name (empty for one unnamed channel).
     pub channel: String,
+    /// Its fit.
     pub outcome: FitOutcome,
 }
 
@@ -336,6 +340,7 @@ fn fit_text(top: &Value) -> Result<String> {
 /// what [`fit_loaded`] writes, for a caller that decides later where (or whether) it goes.
 #[derive(Clone, Debug)]
 pub struct SpeciesFit {
+    /// Species name ([`species_name`]).
     pub species: String,
     /// Per channel, in the profile's order: the outcome and the provenance of its data
     /// (without the files, which [`SpeciesFit::to_json`] records relative to the fit file).

@@ -71,12 +71,14 @@ pub enum End {
 }
 
 impl End {
+    /// The value the side ended at, file units.
     pub fn value(self) -> f64 {
         match self {
             End::Crossing(v) | End::Bound(v) | End::Beyond(v) => v,
         }
     }
 
+    /// `crossing`, `bound` or `beyond`, as reports and fit files name it.
     pub fn kind(self) -> &'static str {
         match self {
             End::Crossing(_) => "crossing",
@@ -89,11 +91,13 @@ impl End {
 /// The profile interval of one parameter.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Interval {
+    /// The parameter.
     pub id: Param,
     /// The fitted value (file units).
     pub at: f64,
-    /// Lower and upper end (file units).
+    /// Lower end (file units).
     pub lo: End,
+    /// Upper end (file units).
     pub hi: End,
     /// The lowest `Delta` met (negative: a better fit exists with `id` moved) and where.
     pub lowest: Option<(f64, f64)>,
@@ -119,6 +123,7 @@ pub type Resolve<'r> = dyn FnMut(f64, &DVector<f64>) -> (f64, DVector<f64>) + 'r
 
 /// What the profile of one parameter needs to know about the fit.
 pub struct ProfileProblem {
+    /// The parameter profiled.
     pub id: Param,
     /// The parameter's position among the free coordinates.
     pub j: usize,

@@ -80,8 +80,11 @@ pub struct TracePoint {
 /// Levenberg-Marquardt solver state and settings.
 #[derive(Clone, Debug)]
 pub struct LevenbergMarquardt {
+    /// Stop when `||J^T r||_inf <= gtol`.
     pub gtol: f64,
+    /// Stop on an accepted step with `||delta|| <= xtol (||u|| + xtol)`.
     pub xtol: f64,
+    /// Stop on an accepted step that reduces the cost by at most this fraction.
     pub ftol: f64,
     /// Stop when the Gauss-Newton step moves no determined coordinate by more than this
     /// many of its standard errors (replaces the `ftol` test; see the module doc).

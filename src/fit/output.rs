@@ -18,10 +18,13 @@ pub struct DataInfo {
     /// relative name run elsewhere, [`super::job::check_replace_fit`]) and the SHA-256 of
     /// its samples ([`crate::profile::samples_sha256`]).
     pub files: Vec<(String, String, String, String)>,
+    /// Valid samples of the channel (finite, > 0).
     pub n_valid: usize,
+    /// Invalid samples (kept in the profile, never fitted).
     pub n_invalid: usize,
     /// Valid samples left out below the relative floor (`FitOptions::floor`).
     pub n_below_floor: usize,
+    /// Whether the data are labelled synthetic.
     pub synthetic: bool,
     /// Channel name (empty for a single unnamed channel).
     pub channel: String,

@@ -69,6 +69,8 @@ impl std::fmt::Display for Why {
 }
 
 #[derive(Clone, Debug, PartialEq)]
+/// Uncertainty of a fit from the Jacobian at its optimum ([`estimate`]): standard errors,
+/// unconstrained flags and correlations of the free parameters.
 pub struct Uncertainty {
     /// File-unit standard error per parameter (`None`: fixed or infinite).
     pub se: Vec<Option<f64>>,

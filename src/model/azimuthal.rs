@@ -86,10 +86,14 @@ pub fn beta_p(p: usize, beta_n: f64) -> f64 {
 /// Absorption coefficients and `1 / cos theta_d`, the parameters of the attenuation terms.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Absorption {
+    /// Cortex absorption coefficient `sigma_c_a`, per unit radius.
     pub sigma_c_a: f64,
     /// Medulla extinction for unscattered light, `sigma_m_a + sigma_m_s`.
     pub sigma_m_t: f64,
+    /// Medulla absorption coefficient `sigma_m_a`, per unit radius (for the scattered
+    /// lobes' paths).
     pub sigma_m_a: f64,
+    /// Medulla radius / fiber radius.
     pub kappa: f64,
     /// `1 / cos theta_d` (the elongation of azimuthal paths, seed Sec. 4.2).
     pub inv_cos_d: f64,

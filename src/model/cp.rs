@@ -16,11 +16,14 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 /// A dense tensor: `data` in row-major order (last mode fastest).
 #[derive(Clone, Debug)]
 pub struct Tensor {
+    /// Size of each mode.
     pub dims: Vec<usize>,
+    /// The entries, row-major (last mode fastest); `dims.iter().product()` of them.
     pub data: Vec<f64>,
 }
 
 impl Tensor {
+    /// A tensor of shape `dims` holding `data` (row-major); panics if the sizes differ.
     pub fn new(dims: Vec<usize>, data: Vec<f64>) -> Self {
         assert_eq!(dims.iter().product::<usize>(), data.len());
         Tensor { dims, data }
@@ -35,9 +38,13 @@ impl Tensor {
 /// `lambda` the column weights (columns of every factor have unit norm).
 #[derive(Clone, Debug)]
 pub struct CpModel {
+    /// Number of rank-one components.
     pub rank: usize,
+    /// Size of each mode.
     pub dims: Vec<usize>,
+    /// Weight of each component, `rank` of them.
     pub lambda: Vec<f64>,
+    /// One factor matrix per mode, `dims[n] x rank`, row-major.
     pub factors: Vec<Vec<f64>>,
 }
 
@@ -96,10 +103,13 @@ impl CpModel {
 /// Options of [`cp_als`].
 #[derive(Clone, Copy, Debug)]
 pub struct CpOptions {
+    /// Number of rank-one components to fit.
     pub rank: usize,
+    /// Most ALS sweeps.
     pub max_iter: usize,
     /// Stop when the relative fit changes by less than this between sweeps.
     pub tol: f64,
+    /// Seed of the random initial factors.
     pub seed: u64,
 }
 

@@ -135,8 +135,11 @@ impl McGrid {
 /// thick cells (hundreds of events per path) do not dominate the run time.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct McBudget {
+    /// Nominal photon paths per cell.
     pub paths: usize,
+    /// Paths a cell runs at least, whatever its event count.
     pub min_paths: usize,
+    /// Scattering events after which a cell stops (once it has `min_paths`).
     pub event_budget: u64,
 }
 
@@ -269,11 +272,17 @@ fn photon<R: Rng>(rng: &mut R, tau: f64, g: f64, x: f64, theta_i: f64) -> ([f64;
 /// noise can be estimated; `w` is the total weight of each half.
 #[derive(Clone, Debug, Default)]
 pub struct HalfHists {
+    /// Weighted histogram of the even paths.
     pub a: Vec<f64>,
+    /// Weighted histogram of the odd paths.
     pub b: Vec<f64>,
+    /// Total weight of the even paths.
     pub wa: f64,
+    /// Total weight of the odd paths.
     pub wb: f64,
+    /// Paths traced into the cell.
     pub paths: usize,
+    /// Scattering events those paths took.
     pub events: u64,
 }
 
@@ -418,10 +427,15 @@ pub fn cm_density(h: &HalfHists, n_theta_r: usize) -> Vec<f64> {
 /// `C^M` density per radian (side 0 front, 1 back).
 #[derive(Clone, Debug)]
 pub struct RawTables {
+    /// The `(tau, g, x)` and `(tau, g, theta_i)` grid the tables are on.
     pub grid: McGrid,
+    /// The `C^N` shape densities, per radian of exit azimuth `psi`.
     pub cn: Vec<f64>,
+    /// The `C^M` densities per radian of `theta_r`, front (0) and back (1) side.
     pub cm: [Vec<f64>; 2],
+    /// Scattering events over all cells.
     pub total_events: u64,
+    /// Photon paths over all cells.
     pub total_paths: u64,
     /// Estimated relative L2 Monte Carlo noise of each raw tensor (C^N, C^M front,
     /// C^M back) from the even/odd half split: the floor under any CP error against it.
@@ -542,13 +556,18 @@ pub fn simulate_tables(
 /// Options of [`build_tables`].
 #[derive(Clone, Debug)]
 pub struct BuildOptions {
+    /// The table grid.
     pub grid: McGrid,
+    /// Seed of every cell's random stream.
     pub seed: u64,
+    /// Photon paths per cell.
     pub budget: McBudget,
     /// Ranks tried for each tensor, increasing; the smallest whose relative L2 error is at
     /// most `target_error` is kept (else the last one).
     pub ranks: Vec<usize>,
+    /// Relative L2 error of the CP fit at which a rank is good enough.
     pub target_error: f64,
+    /// Most ALS sweeps of each CP fit.
     pub max_iter: usize,
 }
 
@@ -569,18 +588,26 @@ impl BuildOptions {
 /// One CP fit tried during a build.
 #[derive(Clone, Debug)]
 pub struct RankTrial {
+    /// `C^N`, `C^M front` or `C^M back`.
     pub table: &'static str,
+    /// CP rank tried.
     pub rank: usize,
+    /// Relative L2 error of the fit against the raw tensor.
     pub rel_error: f64,
+    /// ALS sweeps it took.
     pub iterations: usize,
 }
 
 /// Everything a build produced besides the tables themselves.
 #[derive(Clone, Debug)]
 pub struct BuildReport {
+    /// Every CP fit tried, in order.
     pub trials: Vec<RankTrial>,
+    /// Rank kept for `C^N`, `C^M` front and `C^M` back.
     pub chosen: [usize; 3],
+    /// Photon paths over all cells.
     pub total_paths: u64,
+    /// Scattering events over all cells.
     pub total_events: u64,
 }
 
@@ -702,7 +729,9 @@ pub fn build_tables(
 pub struct HoldoutPoint {
     /// "C^N", "C^M front" or "C^M back".
     pub table: &'static str,
+    /// Medulla optical radius `tau` of the cell.
     pub tau: f64,
+    /// Henyey-Greenstein anisotropy of the cell.
     pub g: f64,
     /// `x` for C^N, `theta_i` (radians) for C^M.
     pub coord: f64,

@@ -47,11 +47,14 @@ pub fn gauss_legendre_rule(n: usize) -> (Vec<f64>, Vec<f64>) {
 
 /// A Gauss-Legendre rule with nodes and weights in one vector.
 pub struct GaussLegendre {
+    /// Nodes on [-1, 1], increasing.
     pub nodes: Vec<f64>,
+    /// Weights, summing to 2.
     pub weights: Vec<f64>,
 }
 
 impl GaussLegendre {
+    /// The `n`-point rule ([`gauss_legendre_rule`]).
     pub fn new(n: usize) -> Self {
         let (nodes, weights) = gauss_legendre_rule(n);
         GaussLegendre { nodes, weights }
@@ -137,9 +140,11 @@ fn gk15(a: f64, b: f64, f: &mut impl FnMut(f64) -> f64) -> (f64, f64) {
 /// Result of [`adaptive_gk`].
 #[derive(Clone, Copy, Debug)]
 pub struct GkResult {
+    /// The integral estimate (the K15 sums).
     pub value: f64,
     /// Sum of the local |K15 - G7| estimates (a pessimistic error bound).
     pub error: f64,
+    /// Number of integrand evaluations.
     pub evaluations: usize,
 }
 

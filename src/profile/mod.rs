@@ -27,8 +27,9 @@
 //! - a file whose every angle lies within +-3.2 (not all 0), or whose thetas lie within
 //!   +-pi/2 and phi within +-2 pi, gets a warning note: the values look like radians, but
 //!   files hold degrees ([`radians_warning`]);
-//! - text echoed from a file in a message is [`escaped`] (a BOM, a NUL), and a number
-//!   below the f64 range (`1e-400`) is an error like one above it ([`parse_number`]).
+//! - text echoed from a file in a message is [`crate::text::escaped`] (a BOM, a NUL), and
+//!   a number below the f64 range (`1e-400`) is an error like one above it
+//!   ([`crate::text::parse_number`]).
 //!
 //! Rooms: [`sample`] holds the types, [`checks`] the per-value rules and angle
 //! conventions, [`label`] the synthetic/measured label ([`crate::text`] reads numbers and quotes text),

@@ -51,7 +51,9 @@ impl PartialEq for Sample {
 /// 0 for a sample made in memory.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct Origin {
+    /// Index into [`Profile::files`].
     pub file: u32,
+    /// 1-based line of a text row, or 1 + the row-major cell index of a grid; 0 if unknown.
     pub line: u32,
 }
 
@@ -83,15 +85,21 @@ pub enum Layout {
     /// labels its value column as the file's own errors do (`column 4 (value)`), and
     /// likewise its sigma and phi_i columns if it has them.
     Rows {
+        /// The file's label of its value column (`column 4 (value)`).
         value_column: String,
+        /// The label of its sigma column, if it has one.
         sigma_column: Option<String>,
+        /// The label of its phi_i column, if it has one.
         phi_i_column: Option<String>,
     },
     /// A `.npz` / lone `.npy` grid whose `value` array has this shape: [`Origin::line`] is
     /// 1 + the cell's row-major index; whether it has `sigma` and `phi_i` arrays.
     Grid {
+        /// Shape of the `value` array (3-D, or 4-D with channels).
         shape: Vec<usize>,
+        /// Whether the file has a `sigma` array.
         sigma: bool,
+        /// Whether the file has a `phi_i` array.
         phi_i: bool,
     },
 }
@@ -215,6 +223,7 @@ impl Sample {
 /// A goniometric profile: samples plus the file's metadata.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Profile {
+    /// The samples, in file order (grid order for `.npy`/`.npz`).
     pub samples: Vec<Sample>,
     /// Channel names (`r`, `g`, `b`, `650nm` ...). Empty means one unnamed channel.
     pub channels: Vec<String>,
@@ -307,7 +316,7 @@ impl Profile {
 pub enum Format {
     /// DATA.md CSV (`.csv`).
     Csv,
-    /// Dense grid archive (`.npz`), see [`npz`].
+    /// Dense grid archive (`.npz`), see [`super::npz`].
     Npz,
     /// A lone `value` array (`.npy`); the axes come from [`LoadOptions`].
     Npy,
@@ -439,7 +448,9 @@ pub fn is_profile_file(path: &Path) -> bool {
 /// a fit file records, so the digest is of exactly the data fitted).
 #[derive(Clone, Debug)]
 pub struct ReadFile {
+    /// The file as the user named it (or as found in the folder).
     pub path: PathBuf,
+    /// The format it was read as.
     pub format: Format,
     /// SHA-256 of the file's bytes.
     pub sha256: String,
@@ -477,7 +488,9 @@ pub fn samples_sha256(p: &Profile) -> String {
 /// A loaded profile with what the loader noticed on the way.
 #[derive(Clone, Debug)]
 pub struct Loaded {
+    /// The profile read.
     pub profile: Profile,
+    /// Its format (of the first file, for a folder).
     pub format: Format,
     /// The files read (one for [`load_full`](super::load::load_full), the folder's for [`load_dir`](super::load::load_dir)).
     pub files: Vec<ReadFile>,

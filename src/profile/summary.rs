@@ -12,7 +12,9 @@ pub const STEPS_PER_DEG: f64 = 1e9;
 pub struct AxisStats {
     /// Number of distinct values.
     pub distinct: usize,
+    /// Smallest value, degrees.
     pub min: f64,
+    /// Largest value, degrees.
     pub max: f64,
     /// The most common difference between consecutive distinct values (the smallest one on
     /// a tie); `None` unless two values differ by 5e-10 deg or more. Differences are grouped
@@ -27,10 +29,12 @@ pub struct AxisStats {
     /// `step` occurs more than once: when no step repeats (0, 10, 25, 45), "most common"
     /// means nothing and the range says more.
     pub step_range: Option<(f64, f64)>,
+    /// Whether the most common step occurs more than once.
     pub step_repeats: bool,
     /// Pairs of consecutive distinct values closer than 5e-10 deg (e.g. 20 and
     /// 20.000000000000004, float noise of a computed grid), and the first such pair.
     pub near_duplicates: usize,
+    /// The first near-duplicate pair, if any.
     pub near_pair: Option<(f64, f64)>,
 }
 
@@ -107,11 +111,17 @@ impl AxisStats {
 /// A profile's summary.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Summary {
+    /// Samples in the profile.
     pub n_samples: usize,
+    /// Valid samples (finite value > 0).
     pub n_valid: usize,
+    /// Invalid samples (NaN, `<= 0`), kept but not fitted.
     pub n_invalid: usize,
+    /// The `theta_i` axis (degrees); `None` for an empty profile.
     pub theta_i: Option<AxisStats>,
+    /// The `theta_r` axis (degrees); `None` for an empty profile.
     pub theta_r: Option<AxisStats>,
+    /// The `phi` axis (degrees); `None` for an empty profile.
     pub phi: Option<AxisStats>,
     /// Samples with a sigma.
     pub n_sigma: usize,
@@ -120,6 +130,7 @@ pub struct Summary {
 }
 
 impl Summary {
+    /// The summary of profile `p`.
     pub fn of(p: &Profile) -> Summary {
         let mut per = vec![0; p.n_channels()];
         for s in p.samples.iter().filter(|s| s.is_valid()) {

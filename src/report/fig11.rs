@@ -423,6 +423,8 @@ fn visible_runs(pts: impl Iterator<Item = (f64, f64)>, lo: f64) -> Vec<Vec<(f64,
     runs
 }
 
+/// Draw `fit`'s figure against `profile` into folder `out`: `fig11_<fit file stem>.png` and
+/// `.svg`; returns the paths written.
 pub fn write(fit: &FitFile, profile: &Profile, out: &Path) -> Result<Vec<std::path::PathBuf>> {
     ensure_font();
     let channel = profile

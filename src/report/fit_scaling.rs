@@ -26,13 +26,19 @@ use std::time::Instant;
 /// One fit of the study.
 #[derive(Clone, Debug)]
 pub struct ScalingPoint {
+    /// Which of the three series the fit belongs to.
     pub series: &'static str,
+    /// Samples fitted.
     pub samples: usize,
+    /// `theta_i` rows among them.
     pub theta_i_rows: usize,
+    /// Wall seconds of the fit.
     pub wall_s: f64,
     /// Process CPU seconds (all threads) of the fit: less affected by other load.
     pub cpu_s: f64,
+    /// Model evaluations the fit made.
     pub evaluations: u64,
+    /// NRMSE of the fit on its samples.
     pub nrmse: f64,
 }
 

@@ -66,6 +66,7 @@ pub use crate::fit::file::{nrmse_at, truth_settings, TruthNrmse};
 
 /// One species' entry.
 pub struct Entry {
+    /// The species (its `measurements/` folder name).
     pub species: String,
     /// The channel compared, for a profile with named channels.
     pub channel: Option<String>,
@@ -73,9 +74,11 @@ pub struct Entry {
     pub synthetic: bool,
     /// What the data are (metadata.json `what`/`source`, else the data's label).
     pub data: String,
+    /// The parameters the data were simulated at.
     pub truth: FurParams,
     /// At the truth, on the fit's samples with its far field ([`truth_settings`]).
     pub at_truth: TruthNrmse,
+    /// The species' fit, if there is one.
     pub fit: Option<FitFile>,
     /// Why the species' fit is not shown (its data changed since), if so.
     pub fit_note: Option<String>,

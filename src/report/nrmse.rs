@@ -312,6 +312,7 @@ pub fn write(
 /// What [`write_fit_reports`] wrote and what it had to skip.
 #[derive(Debug, Default)]
 pub struct ReportSummary {
+    /// Files written.
     pub written: Vec<PathBuf>,
     /// `(species, reason)` for figures or entries that could not be made.
     pub skipped: Vec<(String, String)>,
@@ -325,8 +326,8 @@ pub struct ReportSummary {
 
 /// The entry point of the fit reports: `nrmse.{md,csv}`, `fig11_<species>.{png,svg}`,
 /// `fit_error_vs_time.{csv,png,svg}` and `model_vs_simulation.md` from the fits
-/// [`read_fits`] read (`unread`: the fit files it could not) and the profiles in
-/// `measurements` (a fit's Fig-11 data is read from the first place holding the data it
+/// [`crate::fit::file::read_fits`] read (`unread`: the fit files it could not) and the
+/// profiles in `measurements` (a fit's Fig-11 data is read from the first place holding the data it
 /// recorded, see [`FitFile::load_data`]).
 pub fn write_fit_reports(
     fits: &[FitFile],

@@ -37,6 +37,7 @@ pub(super) fn plot_err<E: std::fmt::Debug>(path: &Path) -> impl Fn(E) -> Error +
 /// One line of a chart.
 #[derive(Clone, Debug)]
 pub struct Series {
+    /// Legend label.
     pub name: String,
     /// `(x, y)` points; non-positive or non-finite points are skipped on log axes.
     pub points: Vec<(f64, f64)>,
@@ -47,10 +48,15 @@ pub struct Series {
 /// Labels of a chart.
 #[derive(Clone, Debug)]
 pub struct ChartSpec<'a> {
+    /// Title above the chart.
     pub title: &'a str,
+    /// Label of the x axis.
     pub x_label: &'a str,
+    /// Label of the y axis.
     pub y_label: &'a str,
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
 }
 

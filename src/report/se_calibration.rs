@@ -32,11 +32,17 @@ use std::path::{Path, PathBuf};
 /// at `rho_row`, `w` independent; all standard normal.
 #[derive(Clone, Copy, Debug)]
 pub struct Noise {
+    /// The noise model's name in the report.
     pub name: &'static str,
+    /// SD of the AR(1) log-noise along `phi`.
     pub sd_phi: f64,
+    /// Lag-one correlation of that noise between neighbouring `phi`.
     pub rho_phi: f64,
+    /// SD of the per-row log-noise.
     pub sd_row: f64,
+    /// Lag-one correlation of the row noise between neighbouring `theta_r` rows.
     pub rho_row: f64,
+    /// SD of the independent per-sample log-noise.
     pub sd_white: f64,
 }
 
@@ -72,7 +78,9 @@ fn grid() -> (Vec<f64>, Vec<f64>, Vec<f64>) {
 /// One parameter's calibration under one noise model.
 #[derive(Clone, Debug)]
 pub struct Row {
+    /// The noise model's name ([`Noise::name`]).
     pub noise: &'static str,
+    /// The parameter.
     pub param: ParamId,
     /// Replicates where the parameter was not flagged unconstrained (flagged ones, e.g.
     /// `Wide` for a large standard error, have no usable one), so SD, mean SEs and
@@ -83,14 +91,19 @@ pub struct Row {
     /// `1.4826 x` their median absolute deviation: the SD if they were normal, but not
     /// inflated by a few replicates far out (another basin, a curved valley).
     pub sd_mad: f64,
+    /// Mean independent-residual standard error ([`crate::fit::uncertainty::estimate`]),
+    /// file units.
     pub mean_se: f64,
+    /// Mean sweep-robust standard error ([`crate::fit::uncertainty::robust`]), file units.
     pub mean_se_robust: f64,
     /// The robust estimator fed each replicate's own noise in place of its residuals
     /// ([`noise_fed_robust`]).
     pub mean_se_noise_fed: f64,
     /// Share of those replicates whose `+- 1.96 SE` interval covers the truth.
     pub cover: f64,
+    /// Share covered by the robust `+- 1.96 SE` interval.
     pub cover_robust: f64,
+    /// Share covered by the noise-fed robust interval.
     pub cover_noise_fed: f64,
 }
 
@@ -208,7 +221,9 @@ fn median(v: &mut [f64]) -> f64 {
 
 /// The study's rows, and per noise model ([`NOISES`]) the replicates whose fit failed.
 pub struct Study {
+    /// One row per noise model and parameter.
     pub rows: Vec<Row>,
+    /// Replicates whose fit failed, per noise model.
     pub failed: [usize; NOISES.len()],
 }
 

@@ -20,7 +20,9 @@ use std::path::Path;
 /// Totals of a stability run.
 #[derive(Clone, Debug, Default)]
 pub struct StabilitySummary {
+    /// Model evaluations made.
     pub n_evaluations: usize,
+    /// Evaluations that were not finite (NaN or infinite).
     pub n_nonfinite: usize,
     /// Values below zero before the documented clamp of rounding dips.
     pub n_negative_raw: usize,

@@ -20,14 +20,19 @@ const N_PHI: usize = 73;
 /// One case's counts.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Counts {
+    /// Model evaluations made.
     pub evaluations: usize,
+    /// Evaluations that were not finite.
     pub nonfinite: usize,
+    /// Evaluations below zero.
     pub negative: usize,
 }
 
 /// A named parameter vector (file units) of `model`.
 pub struct Case {
+    /// The case's name in the report.
     pub name: String,
+    /// The parameters, file units, in the model's order.
     pub file: Vec<f64>,
 }
 

@@ -46,9 +46,13 @@ pub struct Effects {
 /// Why a sample is invalid.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Invalid {
+    /// No energy reached the bin (value not finite or `<= 0`).
     NoSignal,
+    /// Below the detector floor (`floor * peak`).
     Floor,
+    /// In the occluded wedge around the light (within `wedge_deg` of it).
     Wedge,
+    /// Dropped at random (a fraction `drop`).
     Dropped,
 }
 
@@ -56,13 +60,18 @@ pub enum Invalid {
 /// invalid ones with the reason.
 #[derive(Clone, Debug)]
 pub struct Measured {
+    /// Measured value per bin, flattened as [`super::SimResult::value`]; 0 where invalid.
     pub value: Vec<f64>,
+    /// Its standard error (Monte Carlo and measurement noise).
     pub sigma: Vec<f64>,
+    /// Per bin: `None` if valid, else why not.
     pub invalid: Vec<Option<Invalid>>,
+    /// Peak of the noisy profile, the floor's reference.
     pub peak: f64,
 }
 
 impl Measured {
+    /// Number of samples with validity `why` (`None`: the valid ones).
     pub fn count(&self, why: Option<Invalid>) -> usize {
         self.invalid.iter().filter(|r| **r == why).count()
     }

@@ -106,12 +106,17 @@ pub const CHUNK: u64 = 1 << 15;
 /// What to simulate. Angles in degrees (file units), as on the command line.
 #[derive(Clone, Debug)]
 pub struct SimSettings {
+    /// The fiber's parameters.
     pub params: FurParams,
+    /// Incidence angles, degrees.
     pub theta_i: Vec<f64>,
+    /// Detector `theta_r` bin centres, degrees.
     pub theta_r: Vec<f64>,
+    /// Detector `phi` bin centres, degrees.
     pub phi: Vec<f64>,
     /// Paths traced per incidence angle.
     pub paths: u64,
+    /// Seed of the path streams (one per [`CHUNK`]).
     pub seed: u64,
     /// Elliptical cross-section axis ratio (None or 1 = circle).
     pub ellipse: Option<f64>,
@@ -203,6 +208,7 @@ impl SimSettings {
         Ok(())
     }
 
+    /// The fiber the tracer walks, with the geometry extras.
     pub fn fiber(&self) -> Fiber {
         Fiber::new(&self.params, self.ellipse, self.medulla_eta, self.smooth)
     }
@@ -300,7 +306,9 @@ fn find_bin(bins: &[(f64, f64)], x: f64) -> Option<usize> {
 /// The detector: bins `(lo, hi)` in theta_r and phi, radians.
 #[derive(Clone, Debug)]
 pub struct Detector {
+    /// `theta_r` bins `(lo, hi)`, radians, clipped to the poles.
     pub theta_bins: Vec<(f64, f64)>,
+    /// `phi` bins `(lo, hi)`, radians.
     pub phi_bins: Vec<(f64, f64)>,
 }
 
@@ -323,9 +331,11 @@ impl Detector {
             phi_bins: bins(phi_deg, true),
         }
     }
+    /// Number of `theta_r` bins.
     pub fn n_theta(&self) -> usize {
         self.theta_bins.len()
     }
+    /// Number of `phi` bins.
     pub fn n_phi(&self) -> usize {
         self.phi_bins.len()
     }
@@ -353,6 +363,7 @@ impl Detector {
 /// Energy tallies of one incidence angle (fractions of launched energy).
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct Tally {
+    /// Paths traced.
     pub paths: u64,
     /// Energy that left the fiber (anywhere).
     pub exited: f64,
@@ -406,15 +417,23 @@ impl Accum {
 /// phi, flattened row-major) and its Monte Carlo standard error.
 #[derive(Clone, Debug)]
 pub struct SimResult {
+    /// Incidence angles, degrees.
     pub theta_i: Vec<f64>,
+    /// `theta_r` bin centres, degrees.
     pub theta_r: Vec<f64>,
+    /// `phi` bin centres, degrees.
     pub phi: Vec<f64>,
+    /// Fraction of launched energy exiting into each bin per unit `dtheta_r dphi`
+    /// (radians^2), row-major in (theta_i, theta_r, phi).
     pub value: Vec<f64>,
+    /// Monte Carlo standard error of each value.
     pub sigma: Vec<f64>,
+    /// Energy tallies per incidence angle.
     pub tally: Vec<Tally>,
 }
 
 impl SimResult {
+    /// Flat index of bin `(i, j, k)` in `value`.
     pub fn index(&self, i: usize, j: usize, k: usize) -> usize {
         (i * self.theta_r.len() + j) * self.phi.len() + k
     }

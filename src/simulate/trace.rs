@@ -45,6 +45,7 @@ pub struct Fiber {
     pub eta: f64,
     /// Medulla IOR (equal to `eta` by default: index matched, no interface).
     pub eta_m: f64,
+    /// Medulla radius / fiber radius.
     pub kappa: f64,
     /// Normal tilt toward the tip: `alpha / 2` (so the R lobe sits at `-theta_i + alpha`).
     pub tilt: f64,
@@ -52,13 +53,19 @@ pub struct Fiber {
     pub s_m: f64,
     /// Std of the azimuthal micro-tilt of the normal: `beta_n / 2`.
     pub s_n: f64,
+    /// Cortex absorption, per unit radius.
     pub sigma_c_a: f64,
+    /// Medulla scattering, per unit radius.
     pub sigma_m_s: f64,
+    /// Medulla absorption, per unit radius.
     pub sigma_m_a: f64,
+    /// Henyey-Greenstein anisotropy of medulla scattering.
     pub g: f64,
+    /// Cuticle layers (the layered cuticle reflectance).
     pub l: f64,
     /// Semi-axes of the outer cross-section (x, y); (1, 1) for the circular fiber.
     pub ax: f64,
+    /// Semi-axis of the outer cross-section along y (1 for the circular fiber).
     pub ay: f64,
     /// Random rotation of the cross-section about the axis (only for an ellipse).
     pub rotate: bool,

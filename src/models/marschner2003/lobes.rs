@@ -128,8 +128,10 @@ pub const SCAN_CELLS: usize = 20_000;
 /// One `theta_d` of one lobe family: the Bravais indices and the lengthened absorption.
 #[derive(Clone, Copy, Debug)]
 pub struct Section<T = f64> {
-    /// `eta'` and `eta''` at `theta_d`.
+    /// `eta'` at `theta_d`: Bravais's index for the perpendicular polarisation
+    /// (Appendix B, [`bravais`]).
     pub eta_p: T,
+    /// `eta''` at `theta_d`: the index for the parallel polarisation.
     pub eta_pp: T,
     /// `sigma_a / cos theta_t` (Sec. 4.3).
     pub sigma: T,
@@ -371,9 +373,13 @@ impl<T: Real> Section<T> {
 /// The caustic model's parameters (Table 1 "Glints"; widths in radians).
 #[derive(Clone, Copy, Debug)]
 pub struct Glints<T = f64> {
+    /// Glint scale factor `k_G`.
     pub k_g: T,
+    /// Azimuthal width of the caustic, `w_c` (radians).
     pub w_c: T,
+    /// Fade range of the caustic merge, `Delta eta'`.
     pub delta_eta: T,
+    /// Caustic intensity limit, `Delta h_M`.
     pub delta_h_m: T,
 }
 

@@ -16,6 +16,8 @@
 //! paths of all `h` that exit toward `phi`), so its far field is the model itself.
 //! [`Integral::NearQuadrature`] finds the same roots by an independent dense scan of
 //! `Phi(h)`, the reference the analytic root finder is tested against.
+// Documented: the lint is back on here while `models` as a whole is pending (lib.rs).
+#![warn(missing_docs)]
 
 pub mod lobes;
 #[cfg(test)]
@@ -33,15 +35,23 @@ use std::sync::Arc;
 /// The model (its state lives in [`Marschner`], built per parameter set).
 pub struct Marschner2003;
 
-/// Parameter vector positions.
+/// Parameter vector positions: index of refraction `eta`.
 pub const ETA: usize = 0;
+/// Absorption coefficient `sigma_a` per unit radius.
 pub const SIGMA_A: usize = 1;
+/// Longitudinal shift of R, `alpha_R`.
 pub const ALPHA_R: usize = 2;
+/// Longitudinal width of R, `beta_R`.
 pub const BETA_R: usize = 3;
+/// Glint scale factor `k_G`.
 pub const K_G: usize = 4;
+/// Azimuthal width of the caustic, `w_c`.
 pub const W_C: usize = 5;
+/// Fade range of the caustic merge, `Delta eta'`.
 pub const DELTA_ETA: usize = 6;
+/// Caustic intensity limit, `Delta h_M`.
 pub const DELTA_H_M: usize = 7;
+/// Eccentricity (major / minor axis).
 pub const ECCENTRICITY: usize = 8;
 
 /// Seed Table 1's parameters. The eccentricity is bounded to [0.8, 1.25] (the seed's
@@ -148,11 +158,17 @@ pub const DELTA_H_M_FLOOR: f64 = 1e-3;
 /// `Marschner<Dual<N>>` carries derivatives ([`Factored::azimuthal_gradients`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Marschner<T = f64> {
+    /// Index of refraction.
     pub eta: T,
+    /// Absorption coefficient per unit radius.
     pub sigma_a: T,
+    /// Longitudinal shift of R, radians (TT and TRT follow by Table 1).
     pub alpha_r: T,
+    /// Longitudinal width of R, radians.
     pub beta_r: T,
+    /// The TRT caustic's glint parameters.
     pub glints: Glints<T>,
+    /// Eccentricity (major / minor axis), giving `eta*` (Sec. 5.2.3).
     pub eccentricity: T,
 }
 

@@ -33,14 +33,14 @@
 //! writes a 3-D `value` for a profile without channel names, 4-D otherwise.
 //!
 //! Axis values are normalised as in the CSV reader (`-0` -> `0`; phi, any finite value in
-//! [-360, 360], converted by the [`LoadOptions`] conventions and wrapped to (-180, 180] by
-//! [`super::read_phi`], so `np.arange(0, 360, 5.)` reads). Two cells that land on the same
-//! direction (a phi axis holding both 0 and 360 or -180 and 180, or a repeated axis value)
-//! are duplicates: identical ones are collapsed (with a note), different ones are an error
-//! naming both cells (with as many indices as `value` has axes; a wrap's pair on the `phi`
-//! array, saying so). Samples come out in grid order (`theta_i`, `theta_r`, `phi`, channel,
-//! in array order); the writer sorts each axis ascending, so a written-and-reloaded profile
-//! is in [`Profile::sort_grid_order`] order.
+//! [-360, 360], converted by the [`super::LoadOptions`] conventions and wrapped to
+//! (-180, 180] by [`super::read_phi`], so `np.arange(0, 360, 5.)` reads). Two cells that
+//! land on the same direction (a phi axis holding both 0 and 360 or -180 and 180, or a
+//! repeated axis value) are duplicates: identical ones are collapsed (with a note),
+//! different ones are an error naming both cells (with as many indices as `value` has axes;
+//! a wrap's pair on the `phi` array, saying so). Samples come out in grid order (`theta_i`,
+//! `theta_r`, `phi`, channel, in array order); the writer sorts each axis ascending, so a
+//! written-and-reloaded profile is in [`super::Profile::sort_grid_order`] order.
 //!
 //! Before an array is decoded its header is checked against the bytes actually present, so
 //! a truncated or corrupt array is an error naming it (never a huge allocation or a panic);
@@ -53,8 +53,8 @@
 //!
 //! # A lone `.npy`
 //! A `.npy` file holds only `value` (3-D or 4-D, float64/float32, NaN = missing); its three
-//! axes must be given as grids in [`LoadOptions`] (`--theta-i`, `--theta-r`, `--phi` on
-//! the command line) and their lengths must match the array's shape.
+//! axes must be given as grids in [`super::LoadOptions`] (`--theta-i`, `--theta-r`,
+//! `--phi` on the command line) and their lengths must match the array's shape.
 //!
 //! Files: [`npy`] reads and checks single arrays, [`read`] turns an archive or a lone
 //! `.npy` into a profile, [`write`] encodes one.
