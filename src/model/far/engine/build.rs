@@ -3,6 +3,11 @@
 use super::eval::max_dps;
 use super::*;
 
+/// The plan of one part of a slice ([`FarSlice::plan_parts`]): whether it is the direct
+/// and/or the mirrored side, its multiplicity (1 or 2), and the initial boundaries in `u`
+/// of the unscattered lobes, of TRT and of the scattered lobes.
+type PartPlan = (bool, bool, f64, Vec<f64>, Vec<f64>, Vec<f64>);
+
 impl<'a> FarSlice<'a> {
     /// The far field `1/2 integral_{-1}^{1}` (Eq. 22).
     pub fn far(az: &AzimuthalSlice<'a>, lobes: LobeSet, opts: &FarOptions) -> Self {
@@ -122,97 +127,11 @@ impl<'a> FarSlice<'a> {
         };
         // The far field (all of [-1, 1], Eq. 22) rather than a multi-scale range.
         let full_width = ranges == [(0.0, 1.0, true, true)];
-        // Initial boundaries per part and lobe family.
-        let nu = opts.n_unscattered.max(1);
-        let ns = opts.n_scattered.max(1);
-        let kappa = az.model.params.kappa;
-        let edge = kappa * az.eta_prime;
-        let caustic = az.trt_caustic_u();
-        let mut plans = Vec::new();
-        for &(ha, hb, direct, mirror) in ranges {
-            let (ha, hb) = (ha.clamp(0.0, 1.0), hb.clamp(0.0, 1.0));
-            if hb <= ha {
-                continue;
-            }
-            let mult = direct as u8 as f64 + mirror as u8 as f64;
-            // Unscattered: h_i = sqrt(i/n) clipped, + medulla edge.
-            let mut hs: Vec<f64> = (0..=nu).map(|i| (i as f64 / nu as f64).sqrt()).collect();
-            hs.push(ha);
-            hs.push(hb);
-            if edge > 0.0 && edge < 1.0 {
-                hs.push(edge);
-            }
-            let layer = if opts.tol.is_some() {
-                medulla_layer_h(az)
-            } else {
-                Vec::new()
-            };
-            hs.extend(&layer);
-            let mut us = to_u(&hs, ha, hb);
-            if opts.tol.is_some() {
-                us.extend(fresnel_layer_u(az.eta_prime, az.model.params.l));
-            }
-            sort_dedup(&mut us, ha.asin(), hb.asin());
-            let mut us_trt = us.clone();
-            if let Some(uc) = caustic {
-                us_trt.push(uc);
-                sort_dedup(&mut us_trt, ha.asin(), hb.asin());
-            }
-            // Scattered: h_i = h_max sqrt(i/n) on the medulla-reaching offsets.
-            let hmax = edge.min(1.0);
-            let mut us_s = Vec::new();
-            if lobes.intersect(LobeSet::SCATTERED) != LobeSet::NONE && ha < hmax {
-                let mut hs: Vec<f64> = (0..=ns)
-                    .map(|i| hmax * (i as f64 / ns as f64).sqrt())
-                    .collect();
-                hs.push(ha);
-                hs.push(hb.min(hmax));
-                // Tolerance mode integrates along psi between the table's offset nodes
-                // (`x = h / (kappa eta')`), where `C^N` is linear in `x`.
-                if let (Some(rows), true) = (fs.cn_rows(), opts.tol.is_some()) {
-                    hs.extend(rows.x_nodes().iter().map(|&x| x * edge));
-                }
-                hs.extend(&layer);
-                us_s = to_u(&hs, ha, hb.min(hmax));
-                sort_dedup(&mut us_s, ha.asin(), hb.min(hmax).asin());
-            }
-            plans.push((direct, mirror, mult, us, us_trt, us_s));
-        }
+        let plans = fs.plan_parts(opts, ranges);
         // Lobe scales for the tolerance budget: sum over parts of mult * integral A dh
         // (adaptive Simpson in u from the initial segments, see [`FarSlice::mass`]).
         let memo = NodeMemo::new();
-        let mut node_cache: Vec<(Vec<Node>, Vec<Node>, Vec<Node>)> = Vec::new();
-        let mut mass = [0.0f64; 5];
-        for (_, _, mult, us, us_trt, us_s) in &plans {
-            // The unscattered families' nodes skip the scattered values (they read only
-            // their own lobe's).
-            let mk = |v: &Vec<f64>, scattered: bool| -> Vec<Node> {
-                let mut out = Vec::with_capacity(2 * v.len());
-                for w in v.windows(2) {
-                    out.push(fs.node_memo(&memo, w[0], scattered));
-                    out.push(fs.node_memo(&memo, 0.5 * (w[0] + w[1]), scattered));
-                }
-                if let Some(&last) = v.last() {
-                    out.push(fs.node_memo(&memo, last, scattered));
-                }
-                out
-            };
-            let (a, b, c) = (mk(us, false), mk(us_trt, false), mk(us_s, true));
-            if opts.tol.is_some() {
-                let fam = [
-                    (&a, lobes.intersect(LobeSet::only(Lobe::R).with(Lobe::TT))),
-                    (&b, lobes.intersect(LobeSet::only(Lobe::TRT))),
-                    (&c, lobes.intersect(LobeSet::SCATTERED)),
-                ];
-                for (nodes, set) in fam {
-                    let m = fs.mass(&memo, nodes, set);
-                    for l in set.iter() {
-                        mass[l.index()] += mult * m[l.index()];
-                    }
-                }
-            }
-            node_cache.push((a, b, c));
-        }
+        let (node_cache, mass) = fs.initial_nodes(&memo, &plans, opts.tol.is_some());
         let budget = opts.tol.map(|t| {
             let mut b = [0.0; 5];
             for i in 0..5 {
@@ -325,6 +244,118 @@ impl<'a> FarSlice<'a> {
         }
         decisions.capped = fs.capped;
         (fs, decisions)
+    }
+
+    /// The initial boundaries (in `u`) of each of `ranges`' parts, per lobe family: the
+    /// unscattered lobes' (`h_i = sqrt(i/n)`, the medulla edge, in tolerance mode the
+    /// medulla and Fresnel layers), TRT's (those and the TRT caustic) and the scattered
+    /// lobes' (`h_i = h_max sqrt(i/n)` on the offsets that reach the medulla).
+    fn plan_parts(&self, opts: &FarOptions, ranges: &[(f64, f64, bool, bool)]) -> Vec<PartPlan> {
+        let az = &self.az;
+        let lobes = self.lobes;
+        let nu = opts.n_unscattered.max(1);
+        let ns = opts.n_scattered.max(1);
+        let kappa = az.model.params.kappa;
+        let edge = kappa * az.eta_prime;
+        let caustic = az.trt_caustic_u();
+        let mut plans = Vec::new();
+        for &(ha, hb, direct, mirror) in ranges {
+            let (ha, hb) = (ha.clamp(0.0, 1.0), hb.clamp(0.0, 1.0));
+            if hb <= ha {
+                continue;
+            }
+            let mult = direct as u8 as f64 + mirror as u8 as f64;
+            // Unscattered: h_i = sqrt(i/n) clipped, + medulla edge.
+            let mut hs: Vec<f64> = (0..=nu).map(|i| (i as f64 / nu as f64).sqrt()).collect();
+            hs.push(ha);
+            hs.push(hb);
+            if edge > 0.0 && edge < 1.0 {
+                hs.push(edge);
+            }
+            let layer = if opts.tol.is_some() {
+                medulla_layer_h(az)
+            } else {
+                Vec::new()
+            };
+            hs.extend(&layer);
+            let mut us = to_u(&hs, ha, hb);
+            if opts.tol.is_some() {
+                us.extend(fresnel_layer_u(az.eta_prime, az.model.params.l));
+            }
+            sort_dedup(&mut us, ha.asin(), hb.asin());
+            let mut us_trt = us.clone();
+            if let Some(uc) = caustic {
+                us_trt.push(uc);
+                sort_dedup(&mut us_trt, ha.asin(), hb.asin());
+            }
+            // Scattered: h_i = h_max sqrt(i/n) on the medulla-reaching offsets.
+            let hmax = edge.min(1.0);
+            let mut us_s = Vec::new();
+            if lobes.intersect(LobeSet::SCATTERED) != LobeSet::NONE && ha < hmax {
+                let mut hs: Vec<f64> = (0..=ns)
+                    .map(|i| hmax * (i as f64 / ns as f64).sqrt())
+                    .collect();
+                hs.push(ha);
+                hs.push(hb.min(hmax));
+                // Tolerance mode integrates along psi between the table's offset nodes
+                // (`x = h / (kappa eta')`), where `C^N` is linear in `x`.
+                if let (Some(rows), true) = (self.cn_rows(), opts.tol.is_some()) {
+                    hs.extend(rows.x_nodes().iter().map(|&x| x * edge));
+                }
+                hs.extend(&layer);
+                us_s = to_u(&hs, ha, hb.min(hmax));
+                sort_dedup(&mut us_s, ha.asin(), hb.min(hmax).asin());
+            }
+            plans.push((direct, mirror, mult, us, us_trt, us_s));
+        }
+        plans
+    }
+
+    /// The nodes (segment ends and midpoints) of every plan's three families, and in
+    /// tolerance mode (`tol_mode`) the lobe scales for the budget: per lobe the sum over
+    /// parts of `mult` times its mass ([`FarSlice::mass`]).
+    #[allow(clippy::type_complexity)]
+    fn initial_nodes(
+        &self,
+        memo: &NodeMemo,
+        plans: &[PartPlan],
+        tol_mode: bool,
+    ) -> (Vec<(Vec<Node>, Vec<Node>, Vec<Node>)>, [f64; 5]) {
+        let fs = self;
+        let lobes = self.lobes;
+        let mut node_cache: Vec<(Vec<Node>, Vec<Node>, Vec<Node>)> = Vec::new();
+        let mut mass = [0.0f64; 5];
+        for (_, _, mult, us, us_trt, us_s) in plans {
+            // The unscattered families' nodes skip the scattered values (they read only
+            // their own lobe's).
+            let mk = |v: &Vec<f64>, scattered: bool| -> Vec<Node> {
+                let mut out = Vec::with_capacity(2 * v.len());
+                for w in v.windows(2) {
+                    out.push(fs.node_memo(memo, w[0], scattered));
+                    out.push(fs.node_memo(memo, 0.5 * (w[0] + w[1]), scattered));
+                }
+                if let Some(&last) = v.last() {
+                    out.push(fs.node_memo(memo, last, scattered));
+                }
+                out
+            };
+            let (a, b, c) = (mk(us, false), mk(us_trt, false), mk(us_s, true));
+            if tol_mode {
+                let fam = [
+                    (&a, lobes.intersect(LobeSet::only(Lobe::R).with(Lobe::TT))),
+                    (&b, lobes.intersect(LobeSet::only(Lobe::TRT))),
+                    (&c, lobes.intersect(LobeSet::SCATTERED)),
+                ];
+                for (nodes, set) in fam {
+                    let m = fs.mass(memo, nodes, set);
+                    for l in set.iter() {
+                        mass[l.index()] += mult * m[l.index()];
+                    }
+                }
+            }
+            node_cache.push((a, b, c));
+        }
+        (node_cache, mass)
     }
 
     /// When a scattered lobe of at most [`RESCALE_MAX_PIECES`] pieces has error bounds
@@ -625,7 +656,7 @@ pub(super) fn fresnel_layer_u(eta_prime: f64, l: f64) -> Vec<f64> {
 /// low (black-box audit, 2026-11-28). A geometric mesh `s_m = kappa 2^-k` down to
 /// `c s_m = 1/2` resolves it; below [`MEDULLA_LAYER_MIN`] (every preset and shipped fit
 /// short of grazing `theta_d`) it adds nothing.
-pub(in crate::model::far) fn medulla_layer_h(az: &AzimuthalSlice) -> Vec<f64> {
+pub(crate) fn medulla_layer_h(az: &AzimuthalSlice) -> Vec<f64> {
     let ab = &az.absorption;
     let kappa = ab.kappa;
     let c = (4.0 * ab.sigma_m_t * ab.inv_cos_d).max(2.0 * (ab.sigma_m_t - ab.sigma_m_a));

@@ -141,7 +141,6 @@ impl<'a> FarSlice<'a> {
                     .and_then(|g| FourierGrid::new(g, sorted.len(), beta, w, sides));
                 spectral.clear();
                 for pc in &part.unsc[p] {
-                    let (lo, hi) = pc.range();
                     // The node form of a Phi piece, built once for both sides.
                     let phi_swept = match (pc, grid) {
                         (Piece::Phi { lo, len, c, lam }, Some(g))
@@ -166,78 +165,15 @@ impl<'a> FarSlice<'a> {
                         }
                     }
                     for sign in part.signs() {
-                        // Candidates: mu = sign phi within the window of some image k,
-                        // widened by WINDOW_SLACK so rounding cannot drop a phi that
-                        // add_piece's own test keeps. If the windows of neighbouring images
-                        // could overlap, every phi is a candidate (visited once).
-                        let width = hi - lo + 2.0 * w + 2.0 * WINDOW_SLACK;
-                        let visit = |a: usize, b: usize, s: &mut [f64]| {
-                            for q in a..b {
-                                self.add_piece(pc, sign * sorted[q], beta, w, &mut s[q]);
-                            }
-                        };
-                        // Quadrature-node pieces on an evenly spaced grid: the Gaussian of
-                        // each node follows a two-multiply recurrence along the grid. A Phi
-                        // piece of a few beta is swept through its node form too: per phi
-                        // its closed form costs an erf pair or (short pieces, distant phi)
-                        // a Gauss-Legendre rule of exponentials; a third of grid synthesis
-                        // went there (red fox).
-                        let sweep = match (pc, grid) {
-                            (Piece::Gl { nodes, .. }, Some(g))
-                                if g.step <= SWEEP_MAX_STEP * beta =>
-                            {
-                                Some((nodes.as_slice(), g))
-                            }
-                            (Piece::Phi { .. }, Some(g)) if phi_swept => {
-                                Some((phi_nodes.as_slice(), g))
-                            }
-                            _ => None,
-                        };
-                        // The images `sign * phi + shift` of sorted `qa..qb`, by sweep or
-                        // one `phi` at a time.
-                        let images = |shift: f64, qa: usize, qb: usize, s: &mut [f64]| match sweep {
-                            Some((nodes, g)) => {
-                                let at = SweepWindow {
-                                    sign,
-                                    shift,
-                                    qa,
-                                    qb,
-                                    beta,
-                                    w,
-                                };
-                                g.gaussian_sweep(nodes, &at, s);
-                            }
-                            None => visit(qa, qb, s),
-                        };
-                        if width >= TAU {
-                            if sweep.is_some() {
-                                // Every image whose window can reach the grid; the sweep
-                                // cuts each node to its own window.
-                                let k0 = ((lo - w - PI) / TAU).floor() as i64;
-                                let k1 = ((hi + w + PI) / TAU).ceil() as i64;
-                                for k in k0..=k1 {
-                                    images(TAU * k as f64, 0, sorted.len(), &mut s);
-                                }
-                            } else {
-                                visit(0, sorted.len(), &mut s);
-                            }
-                            continue;
-                        }
-
-                        let k0 = ((lo - w - PI) / TAU).floor() as i64 - 1;
-                        let k1 = ((hi + w + PI) / TAU).ceil() as i64 + 1;
-                        for k in k0..=k1 {
-                            let shift = TAU * k as f64;
-                            let (a, b) =
-                                (lo - w - shift - WINDOW_SLACK, hi + w - shift + WINDOW_SLACK);
-                            let (a, b) = if sign > 0.0 { (a, b) } else { (-b, -a) };
-                            if b < -PI || a > PI {
-                                continue;
-                            }
-                            let qa = sorted.partition_point(|&x| x < a);
-                            let qb = sorted.partition_point(|&x| x <= b);
-                            images(shift, qa, qb, &mut s);
-                        }
+                        self.add_piece_side(
+                            pc,
+                            sign,
+                            sorted,
+                            grid.as_ref(),
+                            (beta, w),
+                            (phi_swept, &phi_nodes),
+                            &mut s,
+                        );
                     }
                 }
                 if let (Some(f), Some(g)) = (&fourier, grid) {
@@ -268,6 +204,91 @@ impl<'a> FarSlice<'a> {
         out.into_iter()
             .map(|v| clamp_dips(self.keep_lobes(v)))
             .collect()
+    }
+
+    /// Add one unscattered piece `pc` at `mu = sign phi` to the sums `s` of the sorted
+    /// `phi`: every image `k` whose window (`beta`, half-width `w`) can reach them, by
+    /// node sweeps along an even `grid` (for a Phi piece when `phi_swept`, through its
+    /// node form `phi_nodes`) or one `phi` at a time ([`Self::add_piece`]).
+    #[allow(clippy::too_many_arguments)]
+    fn add_piece_side(
+        &self,
+        pc: &Piece,
+        sign: f64,
+        sorted: &[f64],
+        grid: Option<&UniformGrid>,
+        (beta, w): (f64, f64),
+        (phi_swept, phi_nodes): (bool, &[(f64, f64)]),
+        s: &mut [f64],
+    ) {
+        let (lo, hi) = pc.range();
+        // Candidates: mu = sign phi within the window of some image k,
+        // widened by WINDOW_SLACK so rounding cannot drop a phi that
+        // add_piece's own test keeps. If the windows of neighbouring images
+        // could overlap, every phi is a candidate (visited once).
+        let width = hi - lo + 2.0 * w + 2.0 * WINDOW_SLACK;
+        let visit = |a: usize, b: usize, s: &mut [f64]| {
+            for q in a..b {
+                self.add_piece(pc, sign * sorted[q], beta, w, &mut s[q]);
+            }
+        };
+        // Quadrature-node pieces on an evenly spaced grid: the Gaussian of
+        // each node follows a two-multiply recurrence along the grid. A Phi
+        // piece of a few beta is swept through its node form too: per phi
+        // its closed form costs an erf pair or (short pieces, distant phi)
+        // a Gauss-Legendre rule of exponentials; a third of grid synthesis
+        // went there (red fox).
+        let sweep = match (pc, grid) {
+            (Piece::Gl { nodes, .. }, Some(g)) if g.step <= SWEEP_MAX_STEP * beta => {
+                Some((nodes.as_slice(), g))
+            }
+            (Piece::Phi { .. }, Some(g)) if phi_swept => Some((phi_nodes, g)),
+            _ => None,
+        };
+        // The images `sign * phi + shift` of sorted `qa..qb`, by sweep or
+        // one `phi` at a time.
+        let images = |shift: f64, qa: usize, qb: usize, s: &mut [f64]| match sweep {
+            Some((nodes, g)) => {
+                let at = SweepWindow {
+                    sign,
+                    shift,
+                    qa,
+                    qb,
+                    beta,
+                    w,
+                };
+                g.gaussian_sweep(nodes, &at, s);
+            }
+            None => visit(qa, qb, s),
+        };
+        if width >= TAU {
+            if sweep.is_some() {
+                // Every image whose window can reach the grid; the sweep
+                // cuts each node to its own window.
+                let k0 = ((lo - w - PI) / TAU).floor() as i64;
+                let k1 = ((hi + w + PI) / TAU).ceil() as i64;
+                for k in k0..=k1 {
+                    images(TAU * k as f64, 0, sorted.len(), s);
+                }
+            } else {
+                visit(0, sorted.len(), s);
+            }
+            return;
+        }
+
+        let k0 = ((lo - w - PI) / TAU).floor() as i64 - 1;
+        let k1 = ((hi + w + PI) / TAU).ceil() as i64 + 1;
+        for k in k0..=k1 {
+            let shift = TAU * k as f64;
+            let (a, b) = (lo - w - shift - WINDOW_SLACK, hi + w - shift + WINDOW_SLACK);
+            let (a, b) = if sign > 0.0 { (a, b) } else { (-b, -a) };
+            if b < -PI || a > PI {
+                continue;
+            }
+            let qa = sorted.partition_point(|&x| x < a);
+            let qb = sorted.partition_point(|&x| x <= b);
+            images(shift, qa, qb, s);
+        }
     }
 
     /// [`Self::eval_many`] for a slice built to serve one grid of `phi` (grid synthesis,
