@@ -63,7 +63,7 @@
 use super::closed_form::{
     lam_curve_cap, poly, poly_exp, poly_gauss, poly_gauss_nodes, quadratic_through,
 };
-use super::FarOptions;
+use super::options::FarOptions;
 use crate::model::azimuthal::{self, beta_p, wrap_angle, wrapped_gaussian, Absorption};
 use crate::model::fresnel;
 use crate::model::geometry::PathGeometry;
@@ -535,8 +535,7 @@ impl Refine<'_> {
     }
 }
 
-mod build;
-pub(super) use build::medulla_layer_h;
+pub(super) mod build;
 mod eval;
 mod segments;
 mod sweep;
