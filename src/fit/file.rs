@@ -125,6 +125,79 @@ fn recorded_far(solver: &Value) -> FarOptions {
     }
 }
 
+/// The places a fit's recorded data files may be, in order (see [`FitFile::load_data`]),
+/// and the first whose files all exist (else the files as given): `(files, candidates)`.
+fn data_places(path: &Path, v: &Value) -> (Vec<PathBuf>, Vec<Vec<PathBuf>>) {
+    // Where the recorded files may be, in order: as given to `furfit fit` (usually
+    // relative to the project folder it ran in), relative to the fit file (`from_fit`:
+    // a report run from elsewhere, or a project moved), under the folder above the fits
+    // folder. `load_data` takes the first place whose files all exist and hold the
+    // recorded data; `files` is the first whose files exist.
+    let fit_dir = crate::io::parent_dir(path);
+    let project = path.parent().and_then(Path::parent);
+    let entries = v["data"]["files"].as_array().cloned().unwrap_or_default();
+    let given: Vec<PathBuf> = entries
+        .iter()
+        .filter_map(|f| f["path"].as_str().map(PathBuf::from))
+        .collect();
+    let mut candidates = vec![given.clone()];
+    let from_fit: Option<Vec<PathBuf>> = entries
+        .iter()
+        .map(|f| f["from_fit"].as_str().map(|r| fit_dir.join(r)))
+        .collect();
+    candidates.extend(from_fit);
+    if let Some(root) = project {
+        candidates.push(
+            given
+                .iter()
+                .map(|g| {
+                    if g.is_relative() {
+                        root.join(g)
+                    } else {
+                        g.clone()
+                    }
+                })
+                .collect(),
+        );
+    }
+    candidates.retain(|c| c.len() == given.len() && !c.is_empty());
+    // Each place once (with a one-folder relative --fits the project's place is the
+    // given one), in order.
+    let mut seen = Vec::new();
+    candidates.retain(|c| {
+        let fresh = !seen.contains(c);
+        if fresh {
+            seen.push(c.clone());
+        }
+        fresh
+    });
+    let files = candidates
+        .iter()
+        .find(|c| c.iter().all(|f| f.exists()))
+        .cloned()
+        .unwrap_or(given);
+    (files, candidates)
+}
+
+/// The fit's convergence trace `(stage, iter, time_s, value)`, as [`FitFile::trace`].
+fn recorded_trace(v: &Value) -> Vec<(String, u64, f64, f64)> {
+    v["trace"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .map(|t| {
+                    (
+                        t["stage"].as_str().unwrap_or("").to_string(),
+                        t["iter"].as_u64().unwrap_or(0),
+                        t["time_s"].as_f64().unwrap_or(f64::NAN),
+                        t["nrmse"].as_f64().unwrap_or(f64::NAN),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default()
+}
+
 impl FitFile {
     /// Read one fit file: one entry, or one per channel for a fit of several channels
     /// (each labelled `<stem>-<channel>`; the file's primary channel first).
@@ -200,72 +273,11 @@ impl FitFile {
                 })
                 .unwrap_or_default()
         };
-        // Where the recorded files may be, in order: as given to `furfit fit` (usually
-        // relative to the project folder it ran in), relative to the fit file (`from_fit`:
-        // a report run from elsewhere, or a project moved), under the folder above the fits
-        // folder. `load_data` takes the first place whose files all exist and hold the
-        // recorded data; `files` is the first whose files exist.
-        let fit_dir = crate::io::parent_dir(path);
-        let project = path.parent().and_then(Path::parent);
-        let entries = v["data"]["files"].as_array().cloned().unwrap_or_default();
-        let given: Vec<PathBuf> = entries
-            .iter()
-            .filter_map(|f| f["path"].as_str().map(PathBuf::from))
-            .collect();
-        let mut candidates = vec![given.clone()];
-        let from_fit: Option<Vec<PathBuf>> = entries
-            .iter()
-            .map(|f| f["from_fit"].as_str().map(|r| fit_dir.join(r)))
-            .collect();
-        candidates.extend(from_fit);
-        if let Some(root) = project {
-            candidates.push(
-                given
-                    .iter()
-                    .map(|g| {
-                        if g.is_relative() {
-                            root.join(g)
-                        } else {
-                            g.clone()
-                        }
-                    })
-                    .collect(),
-            );
-        }
-        candidates.retain(|c| c.len() == given.len() && !c.is_empty());
-        // Each place once (with a one-folder relative --fits the project's place is the
-        // given one), in order.
-        let mut seen = Vec::new();
-        candidates.retain(|c| {
-            let fresh = !seen.contains(c);
-            if fresh {
-                seen.push(c.clone());
-            }
-            fresh
-        });
-        let files = candidates
-            .iter()
-            .find(|c| c.iter().all(|f| f.exists()))
-            .cloned()
-            .unwrap_or(given);
+        let (files, candidates) = data_places(path, v);
         let load = legacy_load(v, &files);
         let sha256 = recorded("sha256");
         let samples_sha256 = recorded("samples_sha256");
-        let trace = v["trace"]
-            .as_array()
-            .map(|a| {
-                a.iter()
-                    .map(|t| {
-                        (
-                            t["stage"].as_str().unwrap_or("").to_string(),
-                            t["iter"].as_u64().unwrap_or(0),
-                            t["time_s"].as_f64().unwrap_or(f64::NAN),
-                            t["nrmse"].as_f64().unwrap_or(f64::NAN),
-                        )
-                    })
-                    .collect()
-            })
-            .unwrap_or_default();
+        let trace = recorded_trace(v);
         let unconstrained = v["uncertainty"]["unconstrained"]
             .as_array()
             .map(|a| {

@@ -16,9 +16,11 @@
 //! the fine run then took as many steps as from the subsample's end), and freezing the
 //! refinement decisions during the fine run.
 
+use super::options::{FitOptions, FitOutcome};
 use super::problem::LogResidualProblem;
+use super::run::{run_lm, RunResult, Solved};
 use super::stages::{entries, Starts};
-use super::{likelihood, reparam, run_lm, FitOptions, FitOutcome, RunResult, Solved};
+use super::{likelihood, reparam};
 use crate::error::Result;
 use crate::model::far::FarOptions;
 use nalgebra::DVector;

@@ -1,8 +1,10 @@
 //! Stages 1 and 2 of [`super::fit_data`] (the global design scored on the subsample, and
 //! the multi-start LM runs there), and the trace entries of a run.
 
+use super::options::{FitOptions, TraceEntry};
 use super::problem::LogResidualProblem;
-use super::{run_lm, starts, FitOptions, RunResult, TraceEntry, SUBSAMPLE_FTOL};
+use super::run::{run_lm, RunResult, SUBSAMPLE_FTOL};
+use super::starts;
 use crate::error::Result;
 use nalgebra::DVector;
 use rayon::prelude::*;

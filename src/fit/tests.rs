@@ -2,6 +2,7 @@
 
 use super::forward::{predict_points, Points};
 use super::problem::{optimal_log_exposure, FitData, LogResidualProblem, ParamLayout};
+use super::run::run_lm;
 use super::*;
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;

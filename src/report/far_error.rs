@@ -267,152 +267,205 @@ pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row
             outer_log(l);
         };
         let log: &mut dyn FnMut(&str) = &mut tee;
-        let models: Vec<FurModel> = PRESETS
-            .iter()
-            .map(|n| FurModel::new(&FurParams::preset(n).expect("shipped preset")))
-            .collect();
-        let phis: Vec<f64> = (0..N_PHI)
-            .map(|k| -PI + 2.0 * PI * (k as f64 + 0.37) / N_PHI as f64)
-            .collect();
-        log(&format!(
-            "reference (adaptive Gauss-Kronrod, ~1e-10) on {} presets x {} theta_d x {} phi ...",
-            PRESETS.len(),
-            THETA_D.len(),
-            N_PHI
-        ));
-        let t0 = Instant::now();
-        let reference = per_sample(&models, &phis, |az, p| az.far_reference(p, LobeSet::ALL));
-        log(&format!("  done in {:.1} s", t0.elapsed().as_secs_f64()));
-        let set = Set {
-            models,
-            phis,
-            reference,
-        };
-        let mut rows = Vec::new();
-        let reps = 3;
-        let push = |rows: &mut Vec<Row>,
-                    method: &str,
-                    setting: String,
-                    r: (Vec<Vec<Vec<LobeValues>>>, f64, f64),
-                    opts: Option<FarOptions>,
-                    log: &mut dyn FnMut(&str)| {
-            let (max_err, median_err, max_err_lobe) = errors(&set, &r.0);
-            log(&format!(
-            "{method:<12} {setting:<10} max err {max_err:.2e}  median {median_err:.2e}  {:.2} us/eval single, {:.2} us amortised",
-            r.1, r.2
-        ));
-            if method.starts_with("far-tol") {
-                log(&format!("  max err per lobe: {}", lobe_list(&max_err_lobe)));
-            }
-            rows.push(Row {
-                method: method.into(),
-                setting,
-                max_err,
-                median_err,
-                max_err_lobe,
-                us_single: r.1,
-                us_amortised: r.2,
-                opts,
-            });
-        };
-        for n in 1..=16usize {
-            let opts = FarOptions {
-                n_unscattered: n,
-                n_scattered: n,
-                tol: None,
-                ..FarOptions::paper()
-            };
-            let r = measure_far(&set, reps, &opts);
-            push(&mut rows, "far-fixed", format!("n={n}"), r, Some(opts), log);
-        }
-        for (method, base) in [
-            ("far-tol", FarOptions::default()),
-            ("far-tol-strict", FarOptions::strict()),
-        ] {
-            for tol in TOLS {
-                let opts = FarOptions {
-                    tol: Some(tol),
-                    ..base
-                };
-                let r = measure_far(&set, reps, &opts);
-                push(
-                    &mut rows,
-                    method,
-                    format!("tol={tol:.0e}"),
-                    r,
-                    Some(opts),
-                    log,
-                );
-            }
-        }
-        for n in GL_POINTS {
-            let r = measure(
-                &set,
-                reps,
-                |az, phi| az.far_gl(phi, n, LobeSet::ALL),
-                |az, phis| {
-                    phis.iter()
-                        .map(|&p| az.far_gl(p, n, LobeSet::ALL))
-                        .collect()
-                },
-            );
-            push(&mut rows, "gauss-legendre", format!("N={n}"), r, None, log);
-        }
-        // Speedup at equal error.
-        let gl: Vec<&Row> = rows
-            .iter()
-            .filter(|r| r.method == "gauss-legendre")
-            .collect();
-        // The rows the goal is stated for.
-        let compared = [
-            ("far-fixed", "n=8"),
-            ("far-tol", "tol=1e-4"),
-            ("far-tol-strict", "tol=1e-4"),
-        ];
-        for (method, setting) in compared {
-            let Some((r, opts)) = rows
-                .iter()
-                .find(|r| r.method == method && r.setting == setting)
-                .and_then(|r| Some((r, r.opts?)))
-            else {
-                continue;
-            };
-            // The cheapest rule at least as accurate: among the plotted ones, else among
-            // larger rules searched for the comparison only, else the largest (a bound).
-            let found = match gl.iter().position(|g| g.max_err <= r.max_err) {
-                Some(k) => Some((GL_POINTS[k], gl[k].max_err)),
-                None => gl_reaching(&set, r.max_err),
-            };
-            let (n, what) = match found {
-                Some((n, err)) => (
-                    n,
-                    format!("Gauss-Legendre needs N={n} for max err <= that ({err:.2e})"),
-                ),
-                None => {
-                    let n = *GL_POINTS_SEARCH.last().expect("non-empty");
-                    (
-                        n,
-                        format!(
-                        "no Gauss-Legendre rule up to N={n} reaches it; vs that rule, a lower bound"
-                    ),
-                    )
-                }
-            };
-            let (xs, xa) = head_to_head(&set, &opts, n);
-            log(&format!(
-            "speedup {method} {setting} (max err {:.2e}): {what}: {xs:.1}x single, {xa:.1}x amortised (median of {H2H_ROUNDS} interleaved rounds)",
-            r.max_err
-        ));
-        }
+        let set = test_set(log);
+        let rows = measure_rows(&set, log);
+        log_speedups(&set, &rows, log);
         synth_throughput(log);
         rows
     };
     let log = outer_log;
-    // Files.
+    write_files(out, &rows, &lines, t_run, log)?;
+    Ok(rows)
+}
+
+/// The test set: the presets' models, the `phi` grid and the reference values (adaptive
+/// Gauss-Kronrod), timed in the log.
+fn test_set(log: &mut dyn FnMut(&str)) -> Set {
+    let models: Vec<FurModel> = PRESETS
+        .iter()
+        .map(|n| FurModel::new(&FurParams::preset(n).expect("shipped preset")))
+        .collect();
+    let phis: Vec<f64> = (0..N_PHI)
+        .map(|k| -PI + 2.0 * PI * (k as f64 + 0.37) / N_PHI as f64)
+        .collect();
+    log(&format!(
+        "reference (adaptive Gauss-Kronrod, ~1e-10) on {} presets x {} theta_d x {} phi ...",
+        PRESETS.len(),
+        THETA_D.len(),
+        N_PHI
+    ));
+    let t0 = Instant::now();
+    let reference = per_sample(&models, &phis, |az, p| az.far_reference(p, LobeSet::ALL));
+    log(&format!("  done in {:.1} s", t0.elapsed().as_secs_f64()));
+    Set {
+        models,
+        phis,
+        reference,
+    }
+}
+
+/// Score one measured method against `set`: its errors, logged (per lobe too for the
+/// tolerance modes), as a new row; `r` is its values and timings from [`measure`].
+fn push_row(
+    set: &Set,
+    rows: &mut Vec<Row>,
+    method: &str,
+    setting: String,
+    r: (Vec<Vec<Vec<LobeValues>>>, f64, f64),
+    opts: Option<FarOptions>,
+    log: &mut dyn FnMut(&str),
+) {
+    let (max_err, median_err, max_err_lobe) = errors(set, &r.0);
+    log(&format!(
+            "{method:<12} {setting:<10} max err {max_err:.2e}  median {median_err:.2e}  {:.2} us/eval single, {:.2} us amortised",
+            r.1, r.2
+        ));
+    if method.starts_with("far-tol") {
+        log(&format!("  max err per lobe: {}", lobe_list(&max_err_lobe)));
+    }
+    rows.push(Row {
+        method: method.into(),
+        setting,
+        max_err,
+        median_err,
+        max_err_lobe,
+        us_single: r.1,
+        us_amortised: r.2,
+        opts,
+    });
+}
+
+/// The table's rows: the far field with fixed segments and in its tolerance modes, then
+/// Gauss-Legendre of the near field, each scored by [`push_row`].
+fn measure_rows(set: &Set, log: &mut dyn FnMut(&str)) -> Vec<Row> {
+    let mut rows = Vec::new();
+    let reps = 3;
+    for n in 1..=16usize {
+        let opts = FarOptions {
+            n_unscattered: n,
+            n_scattered: n,
+            tol: None,
+            ..FarOptions::paper()
+        };
+        let r = measure_far(set, reps, &opts);
+        push_row(
+            set,
+            &mut rows,
+            "far-fixed",
+            format!("n={n}"),
+            r,
+            Some(opts),
+            log,
+        );
+    }
+    for (method, base) in [
+        ("far-tol", FarOptions::default()),
+        ("far-tol-strict", FarOptions::strict()),
+    ] {
+        for tol in TOLS {
+            let opts = FarOptions {
+                tol: Some(tol),
+                ..base
+            };
+            let r = measure_far(set, reps, &opts);
+            push_row(
+                set,
+                &mut rows,
+                method,
+                format!("tol={tol:.0e}"),
+                r,
+                Some(opts),
+                log,
+            );
+        }
+    }
+    for n in GL_POINTS {
+        let r = measure(
+            set,
+            reps,
+            |az, phi| az.far_gl(phi, n, LobeSet::ALL),
+            |az, phis| {
+                phis.iter()
+                    .map(|&p| az.far_gl(p, n, LobeSet::ALL))
+                    .collect()
+            },
+        );
+        push_row(
+            set,
+            &mut rows,
+            "gauss-legendre",
+            format!("N={n}"),
+            r,
+            None,
+            log,
+        );
+    }
+    rows
+}
+
+/// Log the speedup at equal error of the rows the goal is stated for: the cheapest
+/// Gauss-Legendre rule at least as accurate, timed [`head_to_head`].
+fn log_speedups(set: &Set, rows: &[Row], log: &mut dyn FnMut(&str)) {
+    let gl: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.method == "gauss-legendre")
+        .collect();
+    // The rows the goal is stated for.
+    let compared = [
+        ("far-fixed", "n=8"),
+        ("far-tol", "tol=1e-4"),
+        ("far-tol-strict", "tol=1e-4"),
+    ];
+    for (method, setting) in compared {
+        let Some((r, opts)) = rows
+            .iter()
+            .find(|r| r.method == method && r.setting == setting)
+            .and_then(|r| Some((r, r.opts?)))
+        else {
+            continue;
+        };
+        // The cheapest rule at least as accurate: among the plotted ones, else among
+        // larger rules searched for the comparison only, else the largest (a bound).
+        let found = match gl.iter().position(|g| g.max_err <= r.max_err) {
+            Some(k) => Some((GL_POINTS[k], gl[k].max_err)),
+            None => gl_reaching(set, r.max_err),
+        };
+        let (n, what) = match found {
+            Some((n, err)) => (
+                n,
+                format!("Gauss-Legendre needs N={n} for max err <= that ({err:.2e})"),
+            ),
+            None => {
+                let n = *GL_POINTS_SEARCH.last().expect("non-empty");
+                (
+                    n,
+                    format!(
+                        "no Gauss-Legendre rule up to N={n} reaches it; vs that rule, a lower bound"
+                    ),
+                )
+            }
+        };
+        let (xs, xa) = head_to_head(set, &opts, n);
+        log(&format!(
+            "speedup {method} {setting} (max err {:.2e}): {what}: {xs:.1}x single, {xa:.1}x amortised (median of {H2H_ROUNDS} interleaved rounds)",
+            r.max_err
+        ));
+    }
+}
+
+/// Write the CSV, the chart (PNG, SVG) and the markdown with the run's printed `lines`
+/// (`t_run`: when the run started), and log where.
+fn write_files(
+    out: &Path,
+    rows: &[Row],
+    lines: &[String],
+    t_run: Instant,
+    log: &mut dyn FnMut(&str),
+) -> crate::Result<()> {
     let mut csv = String::from(
         "method,setting,max_rel_err,median_rel_err,us_per_eval_single,us_per_eval_amortised,max_rel_err_R,max_rel_err_TT,max_rel_err_TRT,max_rel_err_TTs,max_rel_err_TRTs\n",
     );
-    for r in &rows {
+    for r in rows {
         let _ = writeln!(
             csv,
             "{},{},{:.4e},{:.4e},{:.4},{:.4},{}",
@@ -502,7 +555,7 @@ pub fn run(out: &Path, outer_log: &mut dyn FnMut(&str)) -> crate::Result<Vec<Row
         "wrote {}/far_field_error_vs_time.{{csv,png,svg,md}}",
         out.display()
     ));
-    Ok(rows)
+    Ok(())
 }
 
 /// The synthesis benchmark grid (radians): theta_i 0, 15, 30, 45 deg, theta_r

@@ -457,23 +457,72 @@ fn cpu_model() -> String {
 /// Run the adversarial sweep and write `stability.md` / `stability.csv` into `out`.
 pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySummary> {
     let t0 = std::time::Instant::now();
-    let mut csv = String::from(
-        "case,evaluations,nan_inf,negative,negative_before_clamp,\
-         tol_worst_dip_rel_slice_peak,paper_worst_dip_rel_slice_peak,\
-         slices,capped_slices,ref_samples,\
-         tol_unsc_max,tol_unsc_median,tol_scat_max,tol_scat_median,\
-         paper_unsc_max,paper_unsc_median,paper_scat_max,paper_scat_median,\
-         tol_ms_unsc_max,tol_ms_scat_max,paper_ms_unsc_max,paper_ms_scat_max,\
-         strict_scat_max,strict_scat_median,strict_ms_scat_max,seconds\n",
-    );
-    let mut md = String::new();
-    let mut sum = StabilitySummary::default();
-    let mut table = String::new();
-    let mut over = Vec::new();
-    let (mut n_slices, mut n_capped, mut n_ref) = (0, 0, 0);
-    let mut max_dip = [0.0f64; 2];
+    let mut t = Totals {
+        csv: String::from(
+            "case,evaluations,nan_inf,negative,negative_before_clamp,\
+             tol_worst_dip_rel_slice_peak,paper_worst_dip_rel_slice_peak,\
+             slices,capped_slices,ref_samples,\
+             tol_unsc_max,tol_unsc_median,tol_scat_max,tol_scat_median,\
+             paper_unsc_max,paper_unsc_median,paper_scat_max,paper_scat_median,\
+             tol_ms_unsc_max,tol_ms_scat_max,paper_ms_unsc_max,paper_ms_scat_max,\
+             strict_scat_max,strict_scat_median,strict_ms_scat_max,seconds\n",
+        ),
+        ..Totals::default()
+    };
     for case in cases() {
         let mut r = run_case(&case);
+        t.add_case(&case, &mut r, log);
+    }
+    let secs = t0.elapsed().as_secs_f64();
+    let mut md = what_ran_md(out, secs, &t);
+    md.push_str(&per_case_md());
+    md.push_str(&t.table);
+    md.push_str(&reading_md(&t.over));
+    let mut sum = t.sum.clone();
+    let (zoo_md, zoo_csv, zoo) = super::stability_models::run(log)?;
+    md.push('\n');
+    md.push_str(&zoo_md);
+    sum.n_evaluations += zoo.evaluations;
+    sum.n_nonfinite += zoo.nonfinite;
+    sum.n_negative += zoo.negative;
+    sum.n_negative_raw += zoo.negative;
+    std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
+    crate::io::write_outputs(&[
+        (out.join("stability.csv"), t.csv.into_bytes()),
+        (out.join("stability_models.csv"), zoo_csv.into_bytes()),
+        (out.join("stability.md"), md.into_bytes()),
+    ])?;
+    log(&format!(
+        "total: {} evaluations, {} NaN/Inf, {} negative ({} before clamp), {} of {} slices capped, in {:.1} s; wrote {}",
+        sum.n_evaluations,
+        sum.n_nonfinite,
+        sum.n_negative,
+        sum.n_negative_raw,
+        t.n_capped,
+        t.n_slices,
+        secs,
+        out.join("stability.md").display()
+    ));
+    Ok(sum)
+}
+
+/// What the stiff cases of a run add up to: the totals, the CSV and the report's table
+/// rows, the cases with tolerance-mode errors above 1e-4.
+#[derive(Default)]
+struct Totals {
+    sum: StabilitySummary,
+    n_slices: usize,
+    n_capped: usize,
+    n_ref: usize,
+    max_dip: [f64; 2],
+    csv: String,
+    table: String,
+    over: Vec<String>,
+}
+
+impl Totals {
+    /// Add one case's result `r`: its log line, CSV line and table row, its totals.
+    fn add_case(&mut self, case: &Case, r: &mut CaseResult, log: &mut dyn FnMut(&str)) {
         let refs = r.far[0][0].len() + r.far[0][1].len();
         let (tu, tum, tus) = max_med(&mut r.far[0][0]);
         let (ts, tsm, tss) = max_med(&mut r.far[0][1]);
@@ -501,14 +550,14 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
         };
         let _ =
             writeln!(
-            csv,
+            self.csv,
             "\"{}\",{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{:.2}",
             case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, e(r.worst_dip[0]), e(r.worst_dip[1]),
             r.slices, r.capped, refs, e(tu), e(tum), e(ts), e(tsm), e(pu), e(pum), e(ps), e(psm),
             e(mtu), e(mts), e(mpu), e(mps), e(ss), e(ssm), e(mss), r.seconds
         );
         let _ = writeln!(
-            table,
+            self.table,
             "| {} | {} | {} | {} ({}) | {:.1e} / {:.1e} | {}/{} | {} | {tus} | {tss} | {} / {} | {sss} | {} | {pus} | {pss} | {} / {} | {:.0} |",
             case.name, r.evals, r.nonfinite, r.neg, r.neg_raw, r.worst_dip[0], r.worst_dip[1],
             r.capped, r.slices,
@@ -518,25 +567,29 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
             for (w, model) in [(0, "far field"), (1, "multi-scale")] {
                 let (e, label) = &r.worst[w][fam];
                 if *e > 1e-4 {
-                    over.push(format!(
+                    self.over.push(format!(
                         "{} — {what}, {model}: {e:.1e}, worst sample {label}",
                         case.name
                     ));
                 }
             }
         }
-        sum.n_evaluations += r.evals;
-        sum.n_nonfinite += r.nonfinite;
-        sum.n_negative += r.neg;
-        sum.n_negative_raw += r.neg_raw;
-        n_slices += r.slices;
+        self.sum.n_evaluations += r.evals;
+        self.sum.n_nonfinite += r.nonfinite;
+        self.sum.n_negative += r.neg;
+        self.sum.n_negative_raw += r.neg_raw;
+        self.n_slices += r.slices;
         for k in 0..2 {
-            max_dip[k] = max_dip[k].max(r.worst_dip[k]);
+            self.max_dip[k] = self.max_dip[k].max(r.worst_dip[k]);
         }
-        n_capped += r.capped;
-        n_ref += refs;
+        self.n_capped += r.capped;
+        self.n_ref += refs;
     }
-    let secs = t0.elapsed().as_secs_f64();
+}
+
+/// The report's header, what ran and the totals (`secs`: the sweep's wall time).
+fn what_ran_md(out: &Path, secs: f64, t: &Totals) -> String {
+    let mut md = String::new();
     let n_cases = cases().len();
     let _ = writeln!(md, "# Far-field stability report\n");
     let _ = writeln!(
@@ -565,8 +618,8 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
         THETA_D,
         N_PHI,
         MS_RANGES,
-        sum.n_evaluations,
-        n_slices
+        t.sum.n_evaluations,
+        t.n_slices
     );
     let _ = writeln!(
         md,
@@ -588,13 +641,14 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
         REF_MS,
         REF_PHI,
         PEAK_GRID,
-        n_ref
+        t.n_ref
     );
     let _ = writeln!(
         md,
-        "* **Refinement caps:** {n_capped} of {n_slices} slices had a lobe whose tolerance \
+        "* **Refinement caps:** {} of {} slices had a lobe whose tolerance \
          refinement stopped at its depth (30) or split (4096 per lobe) cap while its error \
-         check still asked for more.\n"
+         check still asked for more.\n",
+        t.n_capped, t.n_slices
     );
     let _ = writeln!(
         md,
@@ -602,13 +656,19 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
          before clamping dips of the quadratic fits below 0 to 0; the worst such dip per case \
          and mode is listed relative to the largest lobe peak of its slice: at most {:.1e} \
          in the tolerance mode, {:.1e} in the paper's coarse 8/5 segments).\n",
-        sum.n_evaluations,
-        sum.n_nonfinite,
-        sum.n_negative,
-        sum.n_negative_raw,
-        max_dip[0],
-        max_dip[1]
+        t.sum.n_evaluations,
+        t.sum.n_nonfinite,
+        t.sum.n_negative,
+        t.sum.n_negative_raw,
+        t.max_dip[0],
+        t.max_dip[1]
     );
+    md
+}
+
+/// The head of the report's per-case table.
+fn per_case_md() -> String {
+    let mut md = String::new();
     let _ = writeln!(md, "## Per case\n");
     let _ = writeln!(
         md,
@@ -625,7 +685,12 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
         md,
         "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
-    md.push_str(&table);
+    md
+}
+
+/// The report's notes on the errors (`over`: the cases above 1e-4 in the tolerance mode).
+fn reading_md(over: &[String]) -> String {
+    let mut md = String::new();
     let _ = writeln!(md, "\n## Reading the errors\n");
     let _ = writeln!(
         md,
@@ -656,31 +721,7 @@ pub fn run(out: &Path, log: &mut dyn FnMut(&str)) -> crate::Result<StabilitySumm
                 .join("\n")
         }
     );
-    let (zoo_md, zoo_csv, zoo) = super::stability_models::run(log)?;
-    md.push('\n');
-    md.push_str(&zoo_md);
-    sum.n_evaluations += zoo.evaluations;
-    sum.n_nonfinite += zoo.nonfinite;
-    sum.n_negative += zoo.negative;
-    sum.n_negative_raw += zoo.negative;
-    std::fs::create_dir_all(out).map_err(|e| crate::Error::io(out, e))?;
-    crate::io::write_outputs(&[
-        (out.join("stability.csv"), csv.into_bytes()),
-        (out.join("stability_models.csv"), zoo_csv.into_bytes()),
-        (out.join("stability.md"), md.into_bytes()),
-    ])?;
-    log(&format!(
-        "total: {} evaluations, {} NaN/Inf, {} negative ({} before clamp), {} of {} slices capped, in {:.1} s; wrote {}",
-        sum.n_evaluations,
-        sum.n_nonfinite,
-        sum.n_negative,
-        sum.n_negative_raw,
-        n_capped,
-        n_slices,
-        secs,
-        out.join("stability.md").display()
-    ));
-    Ok(sum)
+    md
 }
 
 #[cfg(test)]

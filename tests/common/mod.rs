@@ -1,4 +1,6 @@
-//! Helpers shared by several end-to-end test files (`mod common;` in each).
+//! Helpers shared by several end-to-end test files (`mod common;` in each). Each test
+//! crate uses only some of them, hence the `allow`.
+#![allow(dead_code)]
 
 /// A fit file with r, g, b channels (written here by hand in the layout `fit` writes: the
 /// primary channel at the top level, every channel in `channels`).
@@ -15,3 +17,6 @@ pub fn rgb_fit(dir: &std::path::Path) -> std::path::PathBuf {
     std::fs::write(&path, serde_json::to_string_pretty(&top).unwrap()).unwrap();
     path
 }
+
+/// Helpers of the `fit` and `report` end-to-end files.
+pub mod fit;

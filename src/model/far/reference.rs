@@ -2,7 +2,7 @@
 //! adaptive Gauss-Kronrod of the near field `A_p(h) D_p(h, phi)` over `h`, about 1e-10
 //! relative. It shares nothing with the piecewise-analytic evaluator except the near-field
 //! model itself ([`AzimuthalSlice::near`]) and, where the medulla's extinction is steep,
-//! the evaluator's mesh toward the medulla edge (`engine::medulla_layer_h`: breakpoints
+//! the evaluator's mesh toward the medulla edge (`engine::build::medulla_layer_h`: breakpoints
 //! only, which place the quadrature but not its values; a test checks the reference there
 //! against an integral in another variable), so it is an independent check of the closed
 //! forms.
@@ -47,7 +47,7 @@ impl AzimuthalSlice<'_> {
             pts.push(edge.asin());
             pts.push(-edge.asin());
             // The steep extinction layer inside the edge, as the far field meshes it.
-            for h in super::engine::medulla_layer_h(self) {
+            for h in super::engine::build::medulla_layer_h(self) {
                 pts.push(h.asin());
                 pts.push(-h.asin());
             }
