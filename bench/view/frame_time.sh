@@ -26,10 +26,10 @@ for size in $SIZES; do
   load0=$(cut -d' ' -f1 /proc/loadavg)
   "$CHROMIUM" --headless=new --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader \
     --hide-scrollbars --no-first-run --user-data-dir="$work/profile-$size" \
-    --window-size="$w,$h" --dump-dom "file://$PWD/$work/page/index.html#w=$w&h=$h&bench=$FRAMES" \
+    --window-size="$w,$h" --dump-dom "file://$work/page/index.html#w=$w&h=$h&bench=$FRAMES" \
     2>/dev/null >"$work/dom-$size.html"
   load1=$(cut -d' ' -f1 /proc/loadavg)
-  json=$(grep -o 'bench {"[^<]*}' "$work/dom-$size.html" | head -1 | sed 's/^bench //')
+  json=$(grep -o 'bench {"[^<]*}' "$work/dom-$size.html" | head -1 | sed 's/^bench //' || true)
   if [ -z "$json" ]; then
     echo "no bench result at $size (page status: $(grep -o 'id="status">[^<]*' "$work/dom-$size.html"))" >&2
     exit 1

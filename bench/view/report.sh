@@ -33,7 +33,7 @@ shot() {
   "$CHROMIUM" --headless=new --no-sandbox --use-angle=swiftshader --enable-unsafe-swiftshader \
     --hide-scrollbars --no-first-run --enable-logging=stderr --v=0 --user-data-dir="$prof" \
     --window-size="$w,$h" --screenshot="$OUT/$name.png" \
-    "file://$PWD/$work/page/index.html#w=$w&h=$h$hash" 2>"$work/$name.log" >/dev/null
+    "file://$work/page/index.html#w=$w&h=$h$hash" 2>"$work/$name.log" >/dev/null
   if grep -q ":CONSOLE" "$work/$name.log"; then
     grep ":CONSOLE" "$work/$name.log" >&2
     echo "console messages in $name" >&2
