@@ -2,6 +2,7 @@
 //! ([`crate::view`]).
 
 use crate::render::output;
+use crate::render::Image;
 use crate::view::{self, lights, page, prt, reference, serve, shells::FurSpec, still, View};
 use anyhow::Context;
 use std::path::{Path, PathBuf};
@@ -42,6 +43,12 @@ pub struct Args {
     /// Camera elevation,azimuth in degrees.
     #[arg(long, value_name = "ELEV,AZIM")]
     pub cam: Option<String>,
+    /// Camera distance from the middle of the fur (tile sides; the page's wheel zoom).
+    #[arg(long, default_value_t = 2.2)]
+    pub dist: f64,
+    /// --still without the fins at the swatch's borders (the page's fins checkbox).
+    #[arg(long)]
+    pub no_fins: bool,
     /// Light elevation,azimuth in degrees (default: the light's own).
     #[arg(long, value_name = "ELEV,AZIM")]
     pub light_dir: Option<String>,
@@ -108,6 +115,13 @@ fn view_of(a: &Args, light: &lights::Light) -> anyhow::Result<View> {
     if let Some(c) = &a.cam {
         (v.elev_deg, v.azim_deg) = pair("--cam", c)?;
     }
+    if !(a.dist.is_finite() && (0.5..=10.0).contains(&a.dist)) {
+        anyhow::bail!(
+            "--dist {}: expected 0.5 to 10 (the page's zoom range)",
+            a.dist
+        );
+    }
+    v.dist = a.dist;
     if let Some(c) = &a.light_dir {
         (v.light_elev_deg, v.light_azim_deg) = pair("--light-dir", c)?;
     }
@@ -134,18 +148,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         .out
         .clone()
         .ok_or_else(|| anyhow::anyhow!("--out is required"))?;
-    let dirs = {
-        let (nz, np) = a
-            .dirs
-            .split_once(['x', 'X'])
-            .ok_or_else(|| anyhow::anyhow!("--dirs '{}': expected NZxNPHI", a.dirs))?;
-        let p = |s: &str| {
-            s.trim()
-                .parse::<usize>()
-                .map_err(|_| anyhow::anyhow!("--dirs '{}': expected NZxNPHI", a.dirs))
-        };
-        (p(nz)?, p(np)?)
-    };
+    let dirs = parse_dirs(&a.dirs)?;
     let (w, h) = super::parse_size("--size", &a.size, 8192, 1 << 24)?;
     if a.still {
         crate::io::check_out_file(&out).context("--out")?;
@@ -175,6 +178,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
             species,
             light,
             background: true,
+            fins: !a.no_fins,
         };
         let img = still::render(&data, &st);
         let text = [
@@ -238,12 +242,16 @@ fn run_reference(
     out: &Path,
     (w, h): (usize, usize),
 ) -> anyhow::Result<()> {
+    let mut files = packing_report(a, data, out, (w, h))?;
     let margin = 0.6;
     let bvh = reference::geometry(data, margin);
-    let mut rows = vec!["| species | light | PRT vs single-scattering PT | PRT vs full PT (16 bounces) | PRT vs single, 1 px | PT seconds |".to_string(), "|---|---|---|---|---|---|".to_string()];
-    let mut csv =
-        String::from("species,light,rel_rmse_single_4px,rel_rmse_full_4px,rel_rmse_single_1px\n");
-    let mut files = Vec::new();
+    let mut rows = vec![
+        "| species | light | PRT vs single PT, 4 px | 16 px | means | PT noise, 4 px | 16 px | PRT vs full PT, 4 px | 16 px | means | PT seconds |".to_string(),
+        "|---|---|---|---|---|---|---|---|---|---|---|".to_string(),
+    ];
+    let mut csv = String::from(
+        "species,light,rel_rmse_single_1px,rel_rmse_single_4px,rel_rmse_single_16px,mean_bias_single,pt_noise_4px,pt_noise_16px,rel_rmse_full_4px,rel_rmse_full_16px,mean_bias_full,pt_seconds\n",
+    );
     for (i, (sp, spec)) in data.species.iter().zip(&a.params).enumerate() {
         let (mp, _, json) = crate::models::ModelParams::load(spec, None)?;
         let Some(fp) = mp.fur() else {
@@ -267,37 +275,55 @@ fn run_reference(
                 species: i,
                 light,
                 background: matches!(light.kind, lights::Kind::Sky { .. }),
+                // The comparison is inside the swatch, away from its borders.
+                fins: false,
             };
             let prt_img = still::render(data, &st);
-            let t0 = std::time::Instant::now();
-            let rs = |single| reference::RefSettings {
+            let rs = |single, seed| reference::RefSettings {
                 width: w,
                 height: h,
                 spp: a.spp,
-                seed: 11,
+                seed,
                 single,
                 margin,
             };
-            let single = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(true))?;
+            let t0 = std::time::Instant::now();
+            let single = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(true, 11))?;
             let secs = t0.elapsed().as_secs_f64();
-            let full = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(false))?;
+            // A second, independent single-scattering image: its distance to the first
+            // is the reference's own noise (the floor under any PRT error).
+            let single2 = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(true, 12))?;
+            let full = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(false, 11))?;
             let mask = reference::mask(data, &v, w, h, -0.1);
-            let e1 = reference::relative_rmse(&prt_img, &single, &mask, 4);
-            let e2 = reference::relative_rmse(&prt_img, &full, &mask, 4);
-            let e3 = reference::relative_rmse(&prt_img, &single, &mask, 1);
-            println!("{} / {}: PRT vs single-scattering PT {:.1} %, vs full PT {:.1} % (4x4 px blocks), {:.1} % per pixel", sp.name, light.name, 100.0 * e1, 100.0 * e2, 100.0 * e3);
+            let e = |img: &Image, k| reference::relative_rmse(&prt_img, img, &mask, k);
+            let bias = |img: &Image| reference::mean_ratio(&prt_img, img, &mask) - 1.0;
+            let (s1, s4, s16, sb) = (e(&single, 1), e(&single, 4), e(&single, 16), bias(&single));
+            let noise = |k| reference::relative_rmse(&single2, &single, &mask, k);
+            let (n4, n16) = (noise(4), noise(16));
+            let (f4, f16, fb) = (e(&full, 4), e(&full, 16), bias(&full));
+            let pc = |x: f64| format!("{:.1} %", 100.0 * x);
+            let spc = |x: f64| format!("{:+.1} %", 100.0 * x);
+            println!(
+                "{} / {}: PRT vs single-scattering PT {} (4x4 px blocks), {} (16x16), means {}; PT noise {} / {}; vs full PT {} / {}, means {}",
+                sp.name, light.name, pc(s4), pc(s16), spc(sb), pc(n4), pc(n16), pc(f4), pc(f16), spc(fb)
+            );
             rows.push(format!(
-                "| {} | {} | {:.1} % | {:.1} % | {:.1} % | {:.0} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {:.0} |",
                 sp.name,
                 light.name,
-                100.0 * e1,
-                100.0 * e2,
-                100.0 * e3,
+                pc(s4),
+                pc(s16),
+                spc(sb),
+                pc(n4),
+                pc(n16),
+                pc(f4),
+                pc(f16),
+                spc(fb),
                 secs
             ));
             csv.push_str(&format!(
-                "{},{},{:.5},{:.5},{:.5}\n",
-                sp.name, light.name, e1, e2, e3
+                "{},{},{s1:.5},{s4:.5},{s16:.5},{sb:.5},{n4:.5},{n16:.5},{f4:.5},{f16:.5},{fb:.5},{secs:.1}\n",
+                sp.name, light.name
             ));
             for (tag, img) in [
                 ("prt", &prt_img),
@@ -324,4 +350,71 @@ fn run_reference(
     crate::io::write_atomic_all(&files)?;
     print!("{md}");
     Ok(())
+}
+
+/// The packing's own error, per species and light at the view of `--reference`: the
+/// texel radiance `sum_k c_k v_k` from 8-bit textures (what the page uses) and from half
+/// floats, against the unquantised transfer ([`crate::view::pack::radiance_error`]).
+fn packing_report(
+    a: &Args,
+    data: &view::ViewData,
+    out: &Path,
+    (w, h): (usize, usize),
+) -> anyhow::Result<Vec<(PathBuf, Vec<u8>)>> {
+    let dirs = data.n_dirs;
+    let fibers = view::shells::grow(&data.fur);
+    let cov = view::shells::coverage(&data.fur, &fibers);
+    let (nz, np) = parse_dirs(&a.dirs)?;
+    let rule = view::sh::Rule::product(nz, np);
+    debug_assert_eq!(rule.dirs.len(), dirs);
+    let t = prt::transfer(&data.fur, &cov, &rule);
+    let mut md = vec![
+        "| species | light | 8-bit, per-shell scale and offset (page) | half float |".to_string(),
+        "|---|---|---|---|".to_string(),
+    ];
+    let mut csv = String::from("species,light,rel_rmse_u8,rel_rmse_f16\n");
+    for (i, sp) in data.species.iter().enumerate() {
+        for light in lights::LIGHTS {
+            let (_, c) = still::lighting(data, i, &light, &view_of(a, &light)?, w, h);
+            let (e8, e16) = view::pack::radiance_error(&t, &cov, &data.packed, &c);
+            println!(
+                "{} / {}: packing error of the texel radiance: 8-bit {:.3} %, half {:.4} %",
+                sp.name,
+                light.name,
+                100.0 * e8,
+                100.0 * e16
+            );
+            md.push(format!(
+                "| {} | {} | {:.3} % | {:.4} % |",
+                sp.name,
+                light.name,
+                100.0 * e8,
+                100.0 * e16
+            ));
+            csv.push_str(&format!("{},{},{e8:.6},{e16:.6}\n", sp.name, light.name));
+        }
+    }
+    let bytes8 = data.packed.bytes.len();
+    md.push(String::new());
+    md.push(format!(
+        "Relative RMSE of the texel radiance (coverage-weighted, RGB) against the unquantised transfer. Texture bytes: 8-bit {:.1} MB, half float {:.1} MB ({} shells x {}^2 texels x 28 channels).",
+        bytes8 as f64 / 1e6,
+        2.0 * bytes8 as f64 / 1e6,
+        data.fur.shells,
+        data.fur.res
+    ));
+    Ok(vec![
+        (
+            out.join("packing.md"),
+            format!("{}\n", md.join("\n")).into_bytes(),
+        ),
+        (out.join("packing.csv"), csv.into_bytes()),
+    ])
+}
+
+fn parse_dirs(s: &str) -> anyhow::Result<(usize, usize)> {
+    let bad = || anyhow::anyhow!("--dirs '{s}': expected NZxNPHI");
+    let (nz, np) = s.split_once(['x', 'X']).ok_or_else(bad)?;
+    let p = |v: &str| v.trim().parse::<usize>().map_err(|_| bad());
+    Ok((p(nz)?, p(np)?))
 }

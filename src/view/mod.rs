@@ -7,6 +7,7 @@
 //!   shells' coverage;
 //! * [`prt`]: the per-texel transfer (self-shadowing through the shells) and the BCSDF's
 //!   SH matrices, combined per frame into 25 lighting coefficients;
+//! * [`fins`]: fin textures at the swatch's borders, where the surface turns edge-on;
 //! * [`pack`]: the transfer packed into 8-bit textures with per-shell scale and offset;
 //! * [`still`]: the page's reconstruction on the CPU (`--still`);
 //! * [`page`]: the static WebGL2 page; [`serve`]: a local HTTP server for it;
@@ -20,6 +21,7 @@
 // (as in src/render/).
 #![allow(clippy::needless_range_loop)]
 
+pub mod fins;
 pub mod lights;
 pub mod pack;
 pub mod page;
@@ -163,6 +165,9 @@ impl Default for View {
 pub struct ViewData {
     pub fur: shells::FurSpec,
     pub packed: pack::Packed,
+    /// Fin coverage, 8-bit (`[wall][row][texel]`, [`fins::pack`]), `fin_rows` rows.
+    pub fin_bytes: Vec<u8>,
+    pub fin_rows: usize,
     pub species: Vec<Species>,
     /// Seconds: growing + coverage, transfer, packing.
     pub seconds: [f64; 3],
@@ -196,6 +201,7 @@ pub fn build(
     let t0 = Instant::now();
     let fibers = shells::grow(fur);
     let cov = shells::coverage(fur, &fibers);
+    let fin = fins::coverage(fur, &fibers);
     let t1 = Instant::now();
     let rule = sh::Rule::product(dirs.0, dirs.1);
     let transfer = prt::transfer(fur, &cov, &rule);
@@ -205,6 +211,8 @@ pub fn build(
     Ok(ViewData {
         fur: fur.clone(),
         packed,
+        fin_bytes: fins::pack(&fin),
+        fin_rows: fin.rows,
         species,
         seconds: [
             (t1 - t0).as_secs_f64(),

@@ -1,7 +1,7 @@
 //! The static page `furfit view --out DIR` writes: `index.html`, `viewer.js` (raw
 //! WebGL2, no library: the whole renderer is ~300 lines, and a page with no dependency
 //! works from `file://` and offline), `data.js` (sizes, scales, lights, each species'
-//! BCSDF matrices) and `textures.js` (the packed shell textures, base64). Data travel as
+//! BCSDF matrices) and `textures.js` (the packed shell and fin textures, base64). Data travel as
 //! scripts, not as fetched files, because Chromium refuses `fetch` from `file://`.
 
 use super::pack::Packed;
@@ -56,6 +56,11 @@ pub fn data_json(data: &ViewData, view: &View) -> Value {
         "comb": [f.comb().x, f.comb().y, f.comb().z],
         "target": [target(f).x, target(f).y, target(f).z],
         "rot_rule": {"dirs": rot.dirs, "weights": rot.weights},
+        "height": f.height(),
+        "dy": f.dy(),
+        "fins": {"rows": data.fin_rows, "depth": super::fins::DEPTH,
+                 "walls": super::fins::WALLS.iter().map(|w| json!({"axis": w.axis, "c": w.c, "sign": w.sign})).collect::<Vec<_>>()},
+        "slant_min_cos": super::still::SLANT_MIN_COS,
         "scale": p.scale,
         "offset": p.offset,
         "lights": lights::LIGHTS.iter().map(|l| json!({
@@ -105,7 +110,11 @@ pub fn check_out(dir: &Path, force: bool) -> crate::Result<()> {
 /// Write the page into `dir` (one group write: all files land or none).
 pub fn write(dir: &Path, data: &ViewData, view: &View) -> crate::Result<Vec<PathBuf>> {
     let js = format!("window.FURFIT = {};\n", data_json(data, view));
-    let tex = format!("window.FURFIT_TEX = \"{}\";\n", base64(&data.packed.bytes));
+    let tex = format!(
+        "window.FURFIT_TEX = \"{}\";\nwindow.FURFIT_FIN = \"{}\";\n",
+        base64(&data.packed.bytes),
+        base64(&data.fin_bytes)
+    );
     let files: Vec<(PathBuf, Vec<u8>)> = vec![
         (dir.join("index.html"), INDEX.as_bytes().to_vec()),
         (dir.join("viewer.js"), VIEWER.as_bytes().to_vec()),

@@ -196,3 +196,16 @@ pub fn relative_rmse(a: &Image, b: &Image, mask: &[bool], k: usize) -> f64 {
     }
     (se / n as f64).sqrt() / (sum / n as f64)
 }
+
+/// Ratio of the mean of `a` to the mean of `b` over masked pixels (RGB summed): the
+/// overall bias, free of the pixel-level differences of geometry and noise.
+pub fn mean_ratio(a: &Image, b: &Image, mask: &[bool]) -> f64 {
+    let (mut sa, mut sb) = (0.0, 0.0);
+    for (i, m) in mask.iter().enumerate() {
+        if *m {
+            sa += a.data[i].iter().sum::<f64>();
+            sb += b.data[i].iter().sum::<f64>();
+        }
+    }
+    sa / sb
+}

@@ -2,8 +2,9 @@
 //! textures and the same per-frame lighting, so the page can be checked against it
 //! pixel by pixel. GL conventions are followed where they matter: pixel centres at
 //! `+0.5`, bilinear `LINEAR` filtering with `REPEAT` wrap (texel centres at `(i + 0.5) /
-//! res`), premultiplied "over" compositing back to front, tone map after compositing.
+//! res`), premultiplied "over" compositing back to front (back fins, shells, front fins), tone map after compositing.
 
+use super::fins;
 use super::lights::Light;
 use super::pack::{Packed, ALPHA};
 use super::prt::{frame_lighting, Rgb25};
@@ -28,6 +29,8 @@ pub struct Still {
     /// Show the environment behind the fur (the page does); off for the comparison with
     /// a reference that has none behind it.
     pub background: bool,
+    /// Draw the fins at the swatch's borders ([`super::fins`]).
+    pub fins: bool,
 }
 
 /// The camera of a view.
@@ -83,6 +86,18 @@ pub fn texel_radiance(p: &Packed, c: &Rgb25) -> Vec<Vec<[f32; 4]>> {
         .collect()
 }
 
+/// Shells are seen through at a slant: the camera ray crosses a slab `1 / |d_y|` times as
+/// thick as the vertical one whose coverage the texel holds, so its opacity is
+/// `1 - (1 - alpha)^(1 / |d_y|)`, the transfer's own rule for light ([`super::prt::transfer`],
+/// seed 003 Eq. 4). `|d_y|` is held at or above this (a slant of 10 at most).
+pub const SLANT_MIN_COS: f64 = 0.1;
+
+/// The opacity of coverage `alpha` seen at slant `slant = 1 / |d_y|`.
+#[inline]
+pub fn slant_alpha(alpha: f32, slant: f32) -> f32 {
+    1.0 - (1.0 - alpha.clamp(0.0, 1.0)).powf(slant)
+}
+
 /// Bilinear `REPEAT` sample of a `res x res` texel grid at tile coordinates `(x, z)`.
 fn sample(tex: &[[f32; 4]], res: usize, x: f64, z: f64) -> [f32; 4] {
     let (fx, fz) = (x * res as f64 - 0.5, z * res as f64 - 0.5);
@@ -120,6 +135,7 @@ pub fn render(data: &ViewData, s: &Still) -> Image {
     let tex = texel_radiance(&data.packed, &c);
     let cam = camera(data, &s.view, s.width, s.height);
     let order = shell_order(data, cam.eye.y);
+    let (back, front) = fins::order(cam.eye);
     let res = data.packed.res;
     let rows: Vec<Vec<[f64; 3]>> = (0..s.height)
         .into_par_iter()
@@ -127,6 +143,7 @@ pub fn render(data: &ViewData, s: &Still) -> Image {
             (0..s.width)
                 .map(|px| {
                     let d = cam.ray_dir(px as f64 + 0.5, py as f64 + 0.5);
+                    let slant = (1.0 / d.y.abs().max(SLANT_MIN_COS)) as f32;
                     let mut col = if s.background {
                         let y = sh::eval([d.x, d.y, d.z]);
                         [0, 1, 2]
@@ -134,14 +151,25 @@ pub fn render(data: &ViewData, s: &Still) -> Image {
                     } else {
                         [0.0f32; 3]
                     };
+                    if s.fins {
+                        for &w in &back {
+                            fin(data, &tex, cam.eye, d, w, &mut col);
+                        }
+                    }
                     for &sh_i in &order {
                         if let Some(p) = hit_shell(data, cam.eye, d, sh_i) {
                             // Radiance and coverage filtered apart, then
                             // premultiplied: what the shader does with its samples.
                             let t = sample(&tex[sh_i], res, p.x, p.z);
+                            let a = slant_alpha(t[3], slant);
                             for ch in 0..3 {
-                                col[ch] = t[ch] * t[3] + (1.0 - t[3]) * col[ch];
+                                col[ch] = t[ch] * a + (1.0 - a) * col[ch];
                             }
+                        }
+                    }
+                    if s.fins {
+                        for &w in &front {
+                            fin(data, &tex, cam.eye, d, w, &mut col);
                         }
                     }
                     col.map(|v| v as f64)
@@ -168,4 +196,37 @@ fn hit_shell(data: &ViewData, eye: V3, d: V3, s: usize) -> Option<V3> {
     let p = eye + d * t;
     let inside = |v: f64| (-EXTENT..=1.0 + EXTENT).contains(&v);
     (inside(p.x) && inside(p.z)).then_some(p)
+}
+
+/// Composite wall `w`'s fin over `col`, if the ray meets it ([`super::fins`]): coverage
+/// from the fin texture, radiance of the shell at that height and place, as the page's
+/// fin shader.
+fn fin(data: &ViewData, tex: &[Vec<[f32; 4]>], eye: V3, d: V3, w: usize, col: &mut [f32; 3]) {
+    let Some((p, fv)) = fins::hit(&data.fur, eye, d, w) else {
+        return;
+    };
+    let wall = fins::WALLS[w];
+    let along = if wall.axis == 0 { p.z } else { p.x };
+    let h = data.fur.height();
+    let cov = fins::sample(
+        &data.fin_bytes,
+        data.fur.res,
+        data.fin_rows,
+        w,
+        along,
+        p.y / h,
+    );
+    if cov <= 0.0 {
+        return;
+    }
+    let fv = fv as f32;
+    let a = fins::weight(fv) * slant_alpha(cov, 1.0 / fv.max(SLANT_MIN_COS as f32));
+    if a <= 0.0 {
+        return;
+    }
+    let s = ((p.y / data.fur.dy()).floor().max(0.0) as usize).min(data.fur.shells - 1);
+    let t = sample(&tex[s], data.packed.res, p.x, p.z);
+    for ch in 0..3 {
+        col[ch] = t[ch] * a + (1.0 - a) * col[ch];
+    }
 }

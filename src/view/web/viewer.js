@@ -13,7 +13,7 @@
   }
   window.addEventListener("error", (e) => fail(e.message || e));
   const D = window.FURFIT;
-  if (!D || !window.FURFIT_TEX) { fail("data.js or textures.js did not load"); return; }
+  if (!D || !window.FURFIT_TEX || !window.FURFIT_FIN) { fail("data.js or textures.js did not load"); return; }
 
   // ---- SH (src/view/sh.rs: same polynomials, same order) ----
   function shEval(x, y, z) {
@@ -106,6 +106,7 @@
     dist: num("dist", D.view.dist),
     exposure: num("ev", D.view.exposure),
     lightDir: null,
+    fins: hash.get("fins") !== "0",
   };
   st.lightDir = pair("lightdir", [D.lights[st.light].elev, D.lights[st.light].azim]);
   const showUi = hash.get("ui") !== "0";
@@ -160,11 +161,11 @@
     o = vec4(c * uShow, 1.0);
   }`);
   const SHELL = program(`#version 300 es
-  in vec2 pos; uniform mat4 uMVP; uniform float uY; out vec2 xz;
-  void main() { xz = pos; gl_Position = uMVP * vec4(pos.x, uY, pos.y, 1.0); }`, `#version 300 es
+  in vec2 pos; uniform mat4 uMVP; uniform float uY; out vec2 xz; out vec3 wp;
+  void main() { xz = pos; wp = vec3(pos.x, uY, pos.y); gl_Position = uMVP * vec4(wp, 1.0); }`, `#version 300 es
   precision highp float; precision highp sampler2DArray;
-  in vec2 xz; out vec4 o;
-  uniform sampler2DArray uTex; uniform int uBase;
+  in vec2 xz; in vec3 wp; out vec4 o;
+  uniform sampler2DArray uTex; uniform int uBase; uniform vec3 uEye;
   uniform vec4 uCR[7], uCG[7], uCB[7]; uniform vec3 uB; uniform vec2 uAlpha;
   void main() {
     // The coverage first: an empty texel (all four filtered neighbours empty) adds
@@ -172,9 +173,40 @@
     vec4 q6 = texture(uTex, vec3(xz, float(uBase + 6)));
     float a = uAlpha.x + uAlpha.y * q6.y;
     if (a <= 0.0) discard;
+    // Seen at a slant the slab is thicker: 1 - (1 - a)^(1 / |d_y|) (still.rs slant_alpha).
+    float slant = 1.0 / max(abs(normalize(wp - uEye).y), 0.1);
+    a = 1.0 - pow(1.0 - clamp(a, 0.0, 1.0), slant);
     vec3 c = uB + vec3(dot(q6, uCR[6]), dot(q6, uCG[6]), dot(q6, uCB[6]));
     for (int j = 0; j < 6; j++) {
       vec4 q = texture(uTex, vec3(xz, float(uBase + j)));
+      c += vec3(dot(q, uCR[j]), dot(q, uCG[j]), dot(q, uCB[j]));
+    }
+    o = vec4(c * a, a);
+  }`);
+  // Fins (src/view/fins.rs): one strip per shell band of each border wall, coverage from
+  // the fin texture, radiance of that band's shell at the fragment's place.
+  const FIN = program(`#version 300 es
+  in vec2 pos; uniform mat4 uMVP; uniform int uAxis; uniform float uC, uE, uY0, uY1; out vec3 wp;
+  void main() {
+    float along = -uE + (1.0 + 2.0 * uE) * pos.x, y = uY0 + (uY1 - uY0) * pos.y;
+    wp = uAxis == 0 ? vec3(uC, y, along) : vec3(along, y, uC);
+    gl_Position = uMVP * vec4(wp, 1.0);
+  }`, `#version 300 es
+  precision highp float; precision highp int; precision highp sampler2DArray;
+  in vec3 wp; out vec4 o;
+  uniform sampler2DArray uTex, uFin; uniform int uBase, uAxis, uWall; uniform vec3 uEye, uN;
+  uniform float uH, uMinCos;
+  uniform vec4 uCR[7], uCG[7], uCB[7]; uniform vec3 uB;
+  void main() {
+    float along = uAxis == 0 ? wp.z : wp.x;
+    float cov = texture(uFin, vec3(along, wp.y / uH, float(uWall))).r;
+    if (cov <= 0.0) discard;
+    float fv = abs(dot(normalize(wp - uEye), uN));
+    float a = smoothstep(0.15, 0.5, fv) * (1.0 - pow(1.0 - clamp(cov, 0.0, 1.0), 1.0 / max(fv, uMinCos)));
+    if (a <= 0.0) discard;
+    vec3 c = uB;
+    for (int j = 0; j < 7; j++) {
+      vec4 q = texture(uTex, vec3(wp.x, wp.z, float(uBase + j)));
       c += vec3(dot(q, uCR[j]), dot(q, uCG[j]), dot(q, uCB[j]));
     }
     o = vec4(c * a, a);
@@ -195,6 +227,14 @@
   gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
   gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, gl.REPEAT);
   gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_T, gl.REPEAT);
+  const finTex = gl.createTexture();
+  gl.bindTexture(gl.TEXTURE_2D_ARRAY, finTex);
+  gl.texImage3D(gl.TEXTURE_2D_ARRAY, 0, gl.R8, D.res, D.fins.rows, 4, 0, gl.RED, gl.UNSIGNED_BYTE, b64(window.FURFIT_FIN));
+  window.FURFIT_FIN = null;
+  gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+  gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_S, gl.REPEAT);
+  gl.texParameteri(gl.TEXTURE_2D_ARRAY, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
   const img = gl.createTexture();
   gl.bindTexture(gl.TEXTURE_2D, img);
   gl.texStorage2D(gl.TEXTURE_2D, 1, gl.RGBA16F, W, H);
@@ -211,6 +251,14 @@
   const loc = gl.getAttribLocation(SHELL.p, "pos");
   gl.enableVertexAttribArray(loc);
   gl.vertexAttribPointer(loc, 2, gl.FLOAT, false, 0, 0);
+  const finVbo = gl.createBuffer();
+  gl.bindBuffer(gl.ARRAY_BUFFER, finVbo);
+  gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([0, 0, 1, 0, 0, 1, 1, 1]), gl.STATIC_DRAW);
+  const finVao = gl.createVertexArray();
+  gl.bindVertexArray(finVao);
+  const finLoc = gl.getAttribLocation(FIN.p, "pos");
+  gl.enableVertexAttribArray(finLoc);
+  gl.vertexAttribPointer(finLoc, 2, gl.FLOAT, false, 0, 0);
 
   // render::scene::Camera::look_at
   function camera() {
@@ -236,12 +284,44 @@
     for (let s = D.shells - 1; s >= 0; s--) if (D.shell_y[s] >= eyeY) above.push(s);
     return below.concat(above);
   }
+  function wallOrder(eye, wantBack) { // fins.rs order: the back walls or the front ones
+    const back = (w) => ((w.axis === 0 ? eye[0] : eye[2]) - w.c) * w.sign < 0;
+    return [0, 1, 2, 3].filter((i) => back(D.fins.walls[i]) === wantBack);
+  }
+  function drawFins(c, coef, walls) {
+    gl.useProgram(FIN.p);
+    gl.bindVertexArray(finVao);
+    gl.activeTexture(gl.TEXTURE0); gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
+    gl.activeTexture(gl.TEXTURE2); gl.bindTexture(gl.TEXTURE_2D_ARRAY, finTex);
+    gl.uniform1i(FIN.u.uTex, 0); gl.uniform1i(FIN.u.uFin, 2);
+    gl.uniformMatrix4fv(FIN.u.uMVP, false, mvp(c));
+    gl.uniform3fv(FIN.u.uEye, c.eye);
+    gl.uniform1f(FIN.u.uE, D.extent); gl.uniform1f(FIN.u.uH, D.height); gl.uniform1f(FIN.u.uMinCos, D.slant_min_cos);
+    // Fins and shells are drawn back to front with "over" blending: back walls, shells, front walls.
+    for (const w of walls) {
+      const wall = D.fins.walls[w];
+      gl.uniform1i(FIN.u.uWall, w); gl.uniform1i(FIN.u.uAxis, wall.axis); gl.uniform1f(FIN.u.uC, wall.c);
+      gl.uniform3fv(FIN.u.uN, wall.axis === 0 ? [wall.sign, 0, 0] : [0, 0, wall.sign]);
+      for (let s = 0; s < D.shells; s++) {
+        const { cr, cg, cb, b } = coef[s];
+        gl.uniform4fv(FIN.u.uCR, cr); gl.uniform4fv(FIN.u.uCG, cg); gl.uniform4fv(FIN.u.uCB, cb);
+        gl.uniform3fv(FIN.u.uB, b);
+        gl.uniform1i(FIN.u.uBase, s * 7);
+        gl.uniform1f(FIN.u.uY0, s * D.dy); gl.uniform1f(FIN.u.uY1, s === D.shells - 1 ? D.height : (s + 1) * D.dy);
+        gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
+      }
+    }
+  }
+  // Draws one frame; returns the milliseconds of its CPU part (SH rotation of the light,
+  // the BCSDF matrix product and the per-shell uniforms; the GPU's work is not waited for).
   function draw() {
+    const tc = performance.now();
     const c = camera(), sp = D.species[st.species], L = D.lights[st.light];
     const R = orientation(st.lightDir[0], st.lightDir[1]);
     const light = L.coeffs.map((ch) => shRotate(ch, R));
     const wo = norm(sub(c.eye, D.target));
     const cf = frameLighting(sp, light, wo, D.comb);
+    const cpuMs = performance.now() - tc;
     gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
     gl.viewport(0, 0, W, H);
     gl.disable(gl.BLEND);
@@ -252,18 +332,26 @@
     gl.drawArrays(gl.TRIANGLES, 0, 3);
     gl.enable(gl.BLEND);
     gl.blendFunc(gl.ONE, gl.ONE_MINUS_SRC_ALPHA);
-    gl.useProgram(SHELL.p);
-    gl.bindVertexArray(vao);
-    gl.activeTexture(gl.TEXTURE0); gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
-    gl.uniform1i(SHELL.u.uTex, 0);
-    gl.uniformMatrix4fv(SHELL.u.uMVP, false, mvp(c));
-    for (const s of shellOrder(c.eye[1])) {
+    // Per shell: the frame's lighting times the shell's dequantisation (scale, offset).
+    const coef = [];
+    for (let s = 0; s < D.shells; s++) {
       const cr = new Float32Array(28), cg = new Float32Array(28), cb = new Float32Array(28), b = [0, 0, 0];
       for (let k = 0; k < 25; k++) {
         const sc = D.scale[s * 28 + k], of = D.offset[s * 28 + k];
         cr[k] = cf[0][k] * sc; cg[k] = cf[1][k] * sc; cb[k] = cf[2][k] * sc;
         b[0] += cf[0][k] * of; b[1] += cf[1][k] * of; b[2] += cf[2][k] * of;
       }
+      coef.push({ cr, cg, cb, b });
+    }
+    if (st.fins) drawFins(c, coef, wallOrder(c.eye, true));
+    gl.useProgram(SHELL.p);
+    gl.bindVertexArray(vao);
+    gl.activeTexture(gl.TEXTURE0); gl.bindTexture(gl.TEXTURE_2D_ARRAY, tex);
+    gl.uniform1i(SHELL.u.uTex, 0);
+    gl.uniformMatrix4fv(SHELL.u.uMVP, false, mvp(c));
+    gl.uniform3fv(SHELL.u.uEye, c.eye);
+    for (const s of shellOrder(c.eye[1])) {
+      const { cr, cg, cb, b } = coef[s];
       gl.uniform4fv(SHELL.u.uCR, cr); gl.uniform4fv(SHELL.u.uCG, cg); gl.uniform4fv(SHELL.u.uCB, cb);
       gl.uniform3fv(SHELL.u.uB, b);
       gl.uniform2f(SHELL.u.uAlpha, D.offset[s * 28 + 25], D.scale[s * 28 + 25]);
@@ -271,12 +359,14 @@
       gl.uniform1f(SHELL.u.uY, D.shell_y[s]);
       gl.drawArrays(gl.TRIANGLE_STRIP, 0, 4);
     }
+    if (st.fins) drawFins(c, coef, wallOrder(c.eye, false));
     gl.disable(gl.BLEND);
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     gl.useProgram(TONE.p);
     gl.activeTexture(gl.TEXTURE1); gl.bindTexture(gl.TEXTURE_2D, img);
     gl.uniform1i(TONE.u.uImg, 1); gl.uniform1f(TONE.u.uK, Math.pow(2, st.exposure));
     gl.drawArrays(gl.TRIANGLES, 0, 3);
+    return cpuMs;
   }
 
   // ---- UI ----
@@ -285,21 +375,38 @@
   D.species.forEach((s, i) => selS.add(new Option(s.name + " (" + s.model + ")", i)));
   D.lights.forEach((l, i) => selL.add(new Option(l.label, i)));
   selS.value = st.species; selL.value = st.light;
+  const chkF = document.getElementById("fins");
+  chkF.checked = st.fins;
+  chkF.onchange = () => { st.fins = chkF.checked; redraw(); };
   function showInfo() {
     const s = D.species[st.species];
     info.textContent = s.name + "\n" + s.model + ": " + s.title + "\n" + s.params.join("\n") + "\ncolour: " + s.colour;
   }
   if (!showUi) for (const id of ["ui", "status", "bench"]) document.getElementById(id).style.visibility = "hidden";
-  let ema = null, pending = false;
-  function frame() {
-    pending = false;
+  // Frame time: each frame is drawn and then waited for (a one-pixel readPixels), so the
+  // figure is the whole frame, CPU lighting and GPU drawing. The first frame (shader
+  // compilation, texture upload) is reported apart. window.furfitFrameMs holds the mean
+  // of the last frames, window.furfitFrame the details (tests and bench/view read them).
+  const recent = [];
+  let pending = false, nFrames = 0;
+  window.furfitFrame = { first_ms: null, last_ms: null, cpu_ms: null, frames: 0, width: W, height: H, shells: D.shells };
+  window.furfitFrameMs = null;
+  function timedFrame() {
     const t0 = performance.now();
-    draw();
+    const cpu = draw();
     gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4)); // wait for the GPU
     const ms = performance.now() - t0;
-    ema = ema === null ? ms : 0.9 * ema + 0.1 * ms;
-    fps.textContent = "frame " + ema.toFixed(1) + " ms (CPU lighting + GPU, synchronous)";
+    const f = window.furfitFrame;
+    nFrames += 1; f.frames = nFrames; f.last_ms = ms; f.cpu_ms = cpu;
+    if (nFrames === 1) f.first_ms = ms;
+    else { recent.push(ms); if (recent.length > 30) recent.shift(); }
+    const mean = recent.length ? recent.reduce((a, b) => a + b, 0) / recent.length : ms;
+    window.furfitFrameMs = mean;
+    fps.textContent = (recent.length ? "frame " + mean.toFixed(1) + " ms (mean of " + recent.length + ")"
+      : "first frame " + ms.toFixed(0) + " ms (with shader compilation)") + ", CPU lighting " + cpu.toFixed(2) + " ms";
+    return ms;
   }
+  function frame() { pending = false; timedFrame(); }
   function redraw() { if (!pending) { pending = true; requestAnimationFrame(frame); } }
   selS.onchange = () => { st.species = Number(selS.value); showInfo(); redraw(); };
   selL.onchange = () => { st.light = Number(selL.value); const l = D.lights[st.light]; st.lightDir = [l.elev, l.azim]; redraw(); };
@@ -319,11 +426,21 @@
 
   showInfo();
   frame();
-  // Benchmark: #bench=N draws N frames back to back and reports the mean.
+  // Benchmark: #bench=N draws N frames back to back (the camera turning half a degree a
+  // frame) after the first and reports their mean, also as window.furfitBench.
   if (hash.has("bench")) {
-    const n = Number(hash.get("bench")), t0 = performance.now();
-    for (let i = 0; i < n; i++) { st.cam[1] += 0.5; draw(); gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, new Uint8Array(4)); }
-    document.getElementById("bench").textContent = "bench " + W + "x" + H + " shells " + D.shells + " frames " + n + " ms/frame " + ((performance.now() - t0) / n).toFixed(3);
+    const n = Math.max(1, Number(hash.get("bench")));
+    const times = [], cpus = [];
+    for (let i = 0; i < n; i++) { st.cam[1] += 0.5; times.push(timedFrame()); cpus.push(window.furfitFrame.cpu_ms); }
+    const mean = (v) => v.reduce((a, b) => a + b, 0) / v.length;
+    const sorted = times.slice().sort((a, b) => a - b);
+    const b = window.furfitBench = {
+      width: W, height: H, shells: D.shells, res: D.res, frames: n,
+      first_ms: window.furfitFrame.first_ms, mean_ms: mean(times), median_ms: sorted[Math.floor(n / 2)],
+      min_ms: sorted[0], max_ms: sorted[n - 1], cpu_ms: mean(cpus),
+      renderer: (() => { const x = gl.getExtension("WEBGL_debug_renderer_info"); return x ? gl.getParameter(x.UNMASKED_RENDERER_WEBGL) : gl.getParameter(gl.RENDERER); })(),
+    };
+    document.getElementById("bench").textContent = "bench " + JSON.stringify(b);
   }
   if (errors.length === 0) { statusEl.textContent = "ready"; document.title = "furfit view: ready"; }
 })();
