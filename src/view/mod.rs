@@ -11,7 +11,7 @@
 //! * [`pack`]: the transfer packed into 8-bit textures with per-shell scale and offset;
 //! * [`still`]: the page's reconstruction on the CPU (`--still`);
 //! * [`page`]: the static WebGL2 page; [`serve`]: a local HTTP server for it;
-//! * [`reference`]: the path-traced reference of the same fibers through `render`.
+//! * [`reference`](mod@reference): the path-traced reference of the same fibers through `render`.
 //!
 //! Nothing here names a model's parameters: the BCSDF is reached through
 //! [`crate::models::FiberModel::predict`], the colour through the fit's r, g, b channels

@@ -6,7 +6,7 @@ use super::grid::{floor_i64, locate, locate_periodic};
 /// The slice's `C^N` shape at its nodes, row by row: one row per table offset `x_i`, each
 /// periodic and piecewise linear in `psi` between the bin centres `c0 + k d`. Between two
 /// offset nodes `C^N_shape(x, psi) = (1 - t) R_i(psi) + t R_{i+1}(psi)` with `t` linear in
-/// `x` (the bilinear lerp of [`MedullaSlice::cn`]; the floored nodes are positive, so its
+/// `x` (the bilinear lerp of [`MedullaSlice::cn`](super::MedullaSlice::cn); the floored nodes are positive, so its
 /// clamp at 0 never acts), which lets the far field integrate a smooth density against the
 /// rows exactly, kinks included ([`CnRows::integrate`]).
 #[derive(Clone, Copy, Debug)]
@@ -33,7 +33,7 @@ impl CnRows<'_> {
         self.x
     }
 
-    /// The lower row `i` of the pair interpolated at offset `|x|` (as [`MedullaSlice::cn`]
+    /// The lower row `i` of the pair interpolated at offset `|x|` (as [`MedullaSlice::cn`](super::MedullaSlice::cn)
     /// locates it; at most the second-to-last row).
     pub fn row_at(&self, x: f64) -> usize {
         locate(self.x, x.abs()).0
@@ -191,7 +191,7 @@ impl CnRows<'_> {
     }
 
     /// Add `w C^N_shape(|x|, psi0 + shift d)` to `acc` as weights on the four row nodes
-    /// around `(|x|, psi0)`: the bilinear lerp of [`MedullaSlice::cn`] written as node
+    /// around `(|x|, psi0)`: the bilinear lerp of [`MedullaSlice::cn`](super::MedullaSlice::cn) written as node
     /// weights, so [`Self::correlate`] reads a point query along a grid with the pieces.
     pub fn accumulate_point(&self, acc: &mut RowWeights, x: f64, psi0: f64, w: f64) {
         let n = self.n;
