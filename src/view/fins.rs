@@ -17,7 +17,7 @@
 //!   front walls after them, each in index order ([`order`]); the page does the same.
 
 use super::shells::FurSpec;
-use super::still::EXTENT;
+use super::shells::EXTENT;
 use crate::render::math::V3;
 
 /// Depth of the slab of fibers a fin shows (tile units, ~4 texels at 128^2).

@@ -16,6 +16,10 @@ use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
 use std::f64::consts::TAU;
 
+/// The swatch the page draws: tiles over `[-EXTENT, 1 + EXTENT]^2` (fins stand on its
+/// borders).
+pub const EXTENT: f64 = 1.0;
+
 /// How the fur is grown.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FurSpec {

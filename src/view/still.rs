@@ -15,8 +15,7 @@ use crate::render::scene::Camera;
 use crate::render::Image;
 use rayon::prelude::*;
 
-/// The swatch the page draws: tiles over `[-EXTENT, 1 + EXTENT]^2`.
-pub const EXTENT: f64 = 1.0;
+pub use super::shells::EXTENT;
 
 /// What one picture shows.
 #[derive(Clone, Debug)]
