@@ -100,8 +100,8 @@ pub struct Args {
     /// `furfit tables strand`).
     #[arg(long)]
     pub energy_weights: Option<PathBuf>,
-    /// BCSDF sampling: ishair (Cauchy proposals), lobes (the lobes' Gaussians) or uniform (baseline).
-    #[arg(long, default_value = "ishair")]
+    /// BCSDF sampling: lobes (the lobes' Gaussians), ishair (Cauchy proposals) or uniform (baseline).
+    #[arg(long, default_value = "lobes")]
     pub sampling: String,
     /// Skip the per-lobe AOV images.
     #[arg(long)]

@@ -59,8 +59,8 @@ pub struct Args {
     /// Output directory.
     #[arg(long, default_value = "reports")]
     pub out: PathBuf,
-    /// BCSDF samplers to compare (ishair, lobes, uniform); the first one's curves are the report's.
-    #[arg(long, default_value = "ishair")]
+    /// BCSDF samplers to compare (lobes, ishair, uniform); the first one's curves are the report's.
+    #[arg(long, default_value = "lobes")]
     pub samplings: String,
     /// Also time the full --frame at 64 spp, multiscale against near field.
     #[arg(long, conflicts_with_all = ["culling_study", "noise_budget"])]

@@ -27,13 +27,15 @@ use std::f64::consts::{FRAC_PI_2, PI};
 /// Which proposal the renderer's BCSDF sampler uses.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Sampling {
-    /// Truncated Gaussians in `theta` and wrapped Gaussians in `phi`: the lobes' own shapes
-    /// (the sampler of [`super::bsdf`] before ISHair).
-    Lobes,
-    /// Cauchy proposals (module doc). The default of renders: on the red fox lock it
-    /// matched `lobes` in near field (0.98x, repeats 0.95-1.02) and beat it in far field
-    /// and multi-scale (1.20x, 1.10x); `reports/render_convergence.md`.
+    /// Truncated Gaussians in `theta` and wrapped Gaussians in `phi`: the lobes' own shapes.
+    /// The default of renders: over both test locks it is the more efficient in the
+    /// default multi-scale mode (ISHair's equal-quality ratio to it: red fox 1.10x, human
+    /// 0.63x; far field 1.20x and 0.74x; near field 0.98x and 1.09x;
+    /// `reports/render_convergence.md`, `reports/convergence_human/`).
     #[default]
+    Lobes,
+    /// Cauchy proposals (module doc): an option, ahead on the red fox lock, behind on the
+    /// human one (see [`Sampling::Lobes`]).
     Ishair,
     /// Uniform over the sphere (pdf `1/(4 pi)` per solid angle): the seed's baseline.
     Uniform,
