@@ -355,16 +355,57 @@ pub fn render_scene(
     s: &RenderSettings,
 ) -> crate::Result<RenderOutput> {
     params.validate()?;
+    frame_pool(s)?.install(|| render_in_pool(scene, params, s))
+}
+
+/// The thread pool of a frame of `s`, once its size and spp are checked.
+fn frame_pool(s: &RenderSettings) -> crate::Result<rayon::ThreadPool> {
     if s.width == 0 || s.height == 0 || s.spp == 0 {
         return Err(crate::Error::Invalid(
             "image size and spp must be positive".into(),
         ));
     }
-    let pool = rayon::ThreadPoolBuilder::new()
+    rayon::ThreadPoolBuilder::new()
         .num_threads(s.threads)
         .build()
-        .map_err(|e| crate::Error::Invalid(format!("thread pool: {e}")))?;
-    pool.install(|| render_in_pool(scene, params, s))
+        .map_err(|e| crate::Error::Invalid(format!("thread pool: {e}")))
+}
+
+/// The frame of `s` through `bsdf`: the light tree, camera and integrator of the scene,
+/// `setup` the clock started before the BCSDF's own set-up (counted in the output's
+/// set-up time).
+fn trace_scene<B: Bcsdf>(
+    scene: &Scene,
+    bsdf: &B,
+    s: &RenderSettings,
+    setup: Instant,
+) -> crate::Result<RenderOutput> {
+    let light_tree = s.light.map(|l| scene.light_tree(l.dir));
+    let setup_seconds = setup.elapsed().as_secs_f64();
+    let camera = Camera::look_at(
+        V3::new(0.0, 0.0, 0.0),
+        s.camera.dist,
+        s.camera.elev_deg,
+        s.camera.azim_deg,
+        s.camera.fov_deg,
+        s.width,
+        s.height,
+    );
+    let integ = Integrator {
+        bvh: &scene.bvh,
+        light_tree: light_tree.as_deref(),
+        bsdf,
+        camera: &camera,
+        light: s.light,
+        env: s.env,
+        mode: s.mode,
+        max_depth: s.max_depth,
+        roulette_from: s.roulette_from,
+        footprint_scale: s.footprint_scale,
+        secondary_spread: s.secondary_spread,
+        env_nee: s.env_nee,
+    };
+    trace_frame(&integ, s, setup_seconds)
 }
 
 fn render_in_pool(
@@ -387,32 +428,7 @@ fn render_in_pool(
         scene.energy(&mut bsdf, params, s)?;
     }
     bsdf.build_select_table();
-    let light_tree = s.light.map(|l| scene.light_tree(l.dir));
-    let setup_seconds = setup.elapsed().as_secs_f64();
-    let camera = Camera::look_at(
-        V3::new(0.0, 0.0, 0.0),
-        s.camera.dist,
-        s.camera.elev_deg,
-        s.camera.azim_deg,
-        s.camera.fov_deg,
-        s.width,
-        s.height,
-    );
-    let integ = Integrator {
-        bvh: &scene.bvh,
-        light_tree: light_tree.as_deref(),
-        bsdf: &bsdf,
-        camera: &camera,
-        light: s.light,
-        env: s.env,
-        mode: s.mode,
-        max_depth: s.max_depth,
-        roulette_from: s.roulette_from,
-        footprint_scale: s.footprint_scale,
-        secondary_spread: s.secondary_spread,
-        env_nee: s.env_nee,
-    };
-    trace_frame(&integ, s, setup_seconds)
+    trace_scene(scene, &bsdf, s, setup)
 }
 
 /// Render `rgb`, the parameters of the r, g and b channels of a model other than the fur
@@ -459,45 +475,9 @@ pub fn render_model_scene(
             model.name()
         )));
     }
-    if s.width == 0 || s.height == 0 || s.spp == 0 {
-        return Err(crate::Error::Invalid(
-            "image size and spp must be positive".into(),
-        ));
-    }
     let bsdf = model_bsdf::ModelBsdf { inner };
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(s.threads)
-        .build()
-        .map_err(|e| crate::Error::Invalid(format!("thread pool: {e}")))?;
-    pool.install(|| {
-        let setup = Instant::now();
-        let light_tree = s.light.map(|l| scene.light_tree(l.dir));
-        let setup_seconds = setup.elapsed().as_secs_f64();
-        let camera = Camera::look_at(
-            V3::new(0.0, 0.0, 0.0),
-            s.camera.dist,
-            s.camera.elev_deg,
-            s.camera.azim_deg,
-            s.camera.fov_deg,
-            s.width,
-            s.height,
-        );
-        let integ = Integrator {
-            bvh: &scene.bvh,
-            light_tree: light_tree.as_deref(),
-            bsdf: &bsdf,
-            camera: &camera,
-            light: s.light,
-            env: s.env,
-            mode: Mode::Near,
-            max_depth: s.max_depth,
-            roulette_from: s.roulette_from,
-            footprint_scale: s.footprint_scale,
-            secondary_spread: s.secondary_spread,
-            env_nee: s.env_nee,
-        };
-        trace_frame(&integ, s, setup_seconds)
-    })
+    // `s.mode` is near (checked above).
+    frame_pool(s)?.install(|| trace_scene(scene, &bsdf, s, Instant::now()))
 }
 
 /// The registered models `furfit render` renders: the fur model and every model with a
