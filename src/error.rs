@@ -76,6 +76,16 @@ impl Error {
         }
     }
 
+    /// A parse error of `file` at `line` (1-based) and `column` (as messages name it).
+    pub fn parse(file: impl Into<PathBuf>, line: usize, column: String, msg: String) -> Self {
+        Error::Parse {
+            file: file.into(),
+            line,
+            column,
+            msg,
+        }
+    }
+
     /// A whole-file error.
     pub fn file(file: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
         Error::File {

@@ -116,16 +116,6 @@ pub fn parse_with(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Prof
     ))
 }
 
-/// A parse error of `path` at `line` (1-based) and `column`.
-fn perr(path: &Path, line: usize, column: String, msg: String) -> Error {
-    Error::Parse {
-        file: path.to_path_buf(),
-        line,
-        column,
-        msg,
-    }
-}
-
 /// What the first pass over a file's lines keeps.
 struct Lines {
     /// The `# key: value` lines before the header, in file order.
@@ -217,7 +207,7 @@ fn is_sep_line(t: &[u8], line: usize, path: &Path) -> Result<bool> {
     if sep == b"," {
         return Ok(true);
     }
-    Err(perr(
+    Err(Error::parse(
         path,
         line,
         "column 1".into(),
@@ -244,7 +234,7 @@ fn metadata_line(
         Some((key, val)) if !key.trim().is_empty() => {
             let key = key.trim();
             super::label::check_synthetic_label(key, val)
-                .map_err(|m| perr(path, line, "metadata".into(), m))?;
+                .map_err(|m| Error::parse(path, line, "metadata".into(), m))?;
             if !utf8 {
                 label_notes.push(super::label::non_utf8_metadata_note(line, key));
             }
@@ -288,7 +278,7 @@ fn read_rows(lines: &Lines, path: &Path, opts: &LoadOptions) -> Result<Rows> {
     let mut record = ::csv::ByteRecord::new();
     loop {
         let more = rdr.read_byte_record(&mut record).map_err(|e| {
-            perr(
+            Error::parse(
                 path,
                 line_of(e.position()),
                 "-".into(),
@@ -306,7 +296,7 @@ fn read_rows(lines: &Lines, path: &Path, opts: &LoadOptions) -> Result<Rows> {
                 Some(names) if k < names.len() => format!("column {} ({})", k + 1, names[k]),
                 _ => format!("column {}", k + 1),
             };
-            return Err(perr(
+            return Err(Error::parse(
                 path,
                 line,
                 column,
@@ -318,13 +308,13 @@ fn read_rows(lines: &Lines, path: &Path, opts: &LoadOptions) -> Result<Rows> {
                 .iter()
                 .map(|f| String::from_utf8_lossy(f).trim().to_ascii_lowercase())
                 .collect();
-            cols = Columns::from_header(&names, |c, m| perr(path, line, c, m))?;
+            cols = Columns::from_header(&names, |c, m| Error::parse(path, line, c, m))?;
             header = Some(names);
             continue;
         };
         if record.len() != names.len() {
             let col = record.len().min(names.len()) + 1;
-            return Err(perr(
+            return Err(Error::parse(
                 path,
                 line,
                 format!("column {col}"),
@@ -373,7 +363,7 @@ struct Row<'a> {
 impl Row<'_> {
     /// An error on column `i` of this row.
     fn err(&self, i: usize, msg: String) -> Error {
-        perr(self.path, self.line, self.label(i), msg)
+        Error::parse(self.path, self.line, self.label(i), msg)
     }
 
     fn label(&self, i: usize) -> String {

@@ -71,7 +71,7 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
             // Comments are not data: a Latin-1 note is read as CSV reads it.
             Err(_) if is_comment(raw) => String::from_utf8_lossy(raw),
             Err(_) => {
-                return Err(perr(
+                return Err(Error::parse(
                     path,
                     line,
                     "column 1".into(),
@@ -149,16 +149,6 @@ pub fn parse(bytes: &[u8], path: &Path, opts: &LoadOptions) -> Result<(Profile, 
     ))
 }
 
-/// A parse error of `path` at `line` (1-based) and `column`.
-fn perr(path: &Path, line: usize, column: String, msg: String) -> Error {
-    Error::Parse {
-        file: path.to_path_buf(),
-        line,
-        column,
-        msg,
-    }
-}
-
 /// The name of data column `i` in errors: `column 2 (theta)`.
 fn label(i: usize) -> String {
     format!("column {} ({})", i + 1, NAMES[i])
@@ -192,12 +182,12 @@ impl Lines {
         let val = val.trim();
         if key.eq_ignore_ascii_case("theta_i") {
             let col = "theta_i comment".to_string();
-            let v = parse_number(val).map_err(|m| perr(path, line, col.clone(), m))?;
-            let v =
-                check_angle("theta_i", v, 90.0).map_err(|m| perr(path, line, col.clone(), m))?;
+            let v = parse_number(val).map_err(|m| Error::parse(path, line, col.clone(), m))?;
+            let v = check_angle("theta_i", v, 90.0)
+                .map_err(|m| Error::parse(path, line, col.clone(), m))?;
             if let Some((old, l0)) = self.file_theta_i {
                 if old != v {
-                    return Err(perr(
+                    return Err(Error::parse(
                         path,
                         line,
                         col,
@@ -212,7 +202,7 @@ impl Lines {
             self.file_theta_i = Some((v, line));
         } else if !key.is_empty() {
             super::label::check_synthetic_label(key, val)
-                .map_err(|m| perr(path, line, "metadata".into(), m))?;
+                .map_err(|m| Error::parse(path, line, "metadata".into(), m))?;
             if lossy {
                 self.label_notes
                     .push(super::label::non_utf8_metadata_note(line, key));
@@ -244,7 +234,7 @@ fn is_column_names(fields: &[&str], t: &str, line: usize, path: &Path) -> Result
         .is_some_and(|f| f.parse::<f64>().is_err() && *f != "?")
         && fields.iter().any(named)
     {
-        return Err(perr(
+        return Err(Error::parse(
             path,
             line,
             "column 1".into(),
@@ -268,7 +258,7 @@ fn data_row(
     opts: &LoadOptions,
 ) -> Result<(Sample, f64)> {
     if fields.len() < 3 && t.contains(',') {
-        return Err(perr(
+        return Err(Error::parse(
             path,
             line,
             "column 1".into(),
@@ -278,7 +268,7 @@ fn data_row(
         ));
     }
     if fields.len() != 3 {
-        return Err(perr(
+        return Err(Error::parse(
             path,
             line,
             format!("column {}", fields.len().min(3) + 1),
@@ -289,17 +279,18 @@ fn data_row(
         ));
     }
     let num = |i: usize| -> Result<f64> {
-        parse_number(fields[i]).map_err(|m| perr(path, line, label(i), m))
+        parse_number(fields[i]).map_err(|m| Error::parse(path, line, label(i), m))
     };
     let raw = num(0)?;
-    let phi = read_phi("phi", raw, opts).map_err(|m| perr(path, line, label(0), m))?;
-    let theta = check_angle("theta", num(1)?, 90.0).map_err(|m| perr(path, line, label(1), m))?;
+    let phi = read_phi("phi", raw, opts).map_err(|m| Error::parse(path, line, label(0), m))?;
+    let theta =
+        check_angle("theta", num(1)?, 90.0).map_err(|m| Error::parse(path, line, label(1), m))?;
     let value = if fields[2] == "?" {
         f64::NAN
     } else {
         let v = num(2)?;
         if v.is_infinite() {
-            return Err(perr(
+            return Err(Error::parse(
                 path,
                 line,
                 label(2),
@@ -360,7 +351,7 @@ fn option_theta_i(
 /// which must agree when both are given.
 fn incident_angle(file: Option<(f64, usize)>, opt: Option<f64>, path: &Path) -> Result<f64> {
     match (file, opt) {
-        (Some((f, l)), Some(o)) if f != o => Err(perr(
+        (Some((f, l)), Some(o)) if f != o => Err(Error::parse(
             path,
             l,
             "theta_i comment".into(),

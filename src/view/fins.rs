@@ -17,7 +17,7 @@
 //!   front walls after them, each in index order ([`order`]); the page does the same.
 
 use super::shells::FurSpec;
-use super::shells::EXTENT;
+use super::shells::{capsule_share, EXTENT};
 use crate::render::math::V3;
 
 /// Depth of the slab of fibers a fin shows (tile units, ~4 texels at 128^2).
@@ -162,7 +162,6 @@ pub fn coverage(spec: &FurSpec, fibers: &[Vec<V3>]) -> FinCoverage {
 /// Add the capsule `p`-`q` (along, y) of radius `r` to `log_t` (`rows` rows over `[0, h]`,
 /// `res` texels over the repeating unit along).
 fn splat(log_t: &mut [f64], res: usize, rows: usize, h: f64, p: (f64, f64), q: (f64, f64), r: f64) {
-    const SUB: usize = 4;
     let (tu, ty) = (1.0 / res as f64, h / rows as f64);
     let (i0, i1) = (
         ((p.0.min(q.0) - r) / tu).floor() as i64,
@@ -172,28 +171,10 @@ fn splat(log_t: &mut [f64], res: usize, rows: usize, h: f64, p: (f64, f64), q: (
         (((p.1.min(q.1) - r) / ty).floor() as i64).max(0),
         (((p.1.max(q.1) + r) / ty).floor() as i64).min(rows as i64 - 1),
     );
-    let (du, dy) = (q.0 - p.0, q.1 - p.1);
-    let len2 = du * du + dy * dy;
     for j in j0..=j1 {
         for i in i0..=i1 {
-            let mut hits = 0;
-            for sj in 0..SUB {
-                for si in 0..SUB {
-                    let u = (i as f64 + (si as f64 + 0.5) / SUB as f64) * tu;
-                    let y = (j as f64 + (sj as f64 + 0.5) / SUB as f64) * ty;
-                    let t = if len2 > 0.0 {
-                        (((u - p.0) * du + (y - p.1) * dy) / len2).clamp(0.0, 1.0)
-                    } else {
-                        0.0
-                    };
-                    let (eu, ey) = (u - p.0 - t * du, y - p.1 - t * dy);
-                    if eu * eu + ey * ey <= r * r {
-                        hits += 1;
-                    }
-                }
-            }
-            if hits > 0 {
-                let c = hits as f64 / (SUB * SUB) as f64;
+            let c = capsule_share(p, q, r, (tu, ty), (i, j));
+            if c > 0.0 {
                 let wi = i.rem_euclid(res as i64) as usize;
                 log_t[j as usize * res + wi] += (1.0 - c.min(0.9999)).ln();
             }

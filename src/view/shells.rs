@@ -198,7 +198,7 @@ pub fn coverage(spec: &FurSpec, fibers: &[Vec<V3>]) -> Vec<Vec<f32>> {
             let (lo, hi) = (s as f64 * dy, (s + 1) as f64 * dy);
             // log(1 - alpha) accumulated per texel.
             let mut log_t = vec![0.0f64; res * res];
-            for (fi, f) in fibers.iter().enumerate() {
+            for f in fibers {
                 let n = (f.len() - 1) as f64;
                 for (i, w) in f.windows(2).enumerate() {
                     let (a, b) = (w[0], w[1]);
@@ -217,7 +217,7 @@ pub fn coverage(spec: &FurSpec, fibers: &[Vec<V3>]) -> Vec<Vec<f32>> {
                     let (t0, t1) = (clip(lo), clip(hi));
                     let (p, q) = (a + (b - a) * t0.min(t1), a + (b - a) * t0.max(t1));
                     let r = spec.radius * (1.0 - 0.5 * (i as f64 + 0.5) / n);
-                    splat_capsule(&mut log_t, res, p, q, r, fi);
+                    splat_capsule(&mut log_t, res, p, q, r);
                 }
             }
             log_t.iter().map(|l| (1.0 - l.exp()) as f32).collect()
@@ -227,35 +227,16 @@ pub fn coverage(spec: &FurSpec, fibers: &[Vec<V3>]) -> Vec<Vec<f32>> {
 
 /// Add the capsule `p`-`q` of radius `r` (projected on `xz`) to `log_t`, wrapping around
 /// the tile.
-fn splat_capsule(log_t: &mut [f64], res: usize, p: V3, q: V3, r: f64, _fiber: usize) {
-    const SUB: usize = 4;
+fn splat_capsule(log_t: &mut [f64], res: usize, p: V3, q: V3, r: f64) {
     let texel = 1.0 / res as f64;
     let (x0, x1) = (p.x.min(q.x) - r, p.x.max(q.x) + r);
     let (z0, z1) = (p.z.min(q.z) - r, p.z.max(q.z) + r);
     let (i0, i1) = ((x0 / texel).floor() as i64, (x1 / texel).floor() as i64);
     let (j0, j1) = ((z0 / texel).floor() as i64, (z1 / texel).floor() as i64);
-    let (dx, dz) = (q.x - p.x, q.z - p.z);
-    let len2 = dx * dx + dz * dz;
     for j in j0..=j1 {
         for i in i0..=i1 {
-            let mut hits = 0;
-            for sj in 0..SUB {
-                for si in 0..SUB {
-                    let x = (i as f64 + (si as f64 + 0.5) / SUB as f64) * texel;
-                    let z = (j as f64 + (sj as f64 + 0.5) / SUB as f64) * texel;
-                    let t = if len2 > 0.0 {
-                        (((x - p.x) * dx + (z - p.z) * dz) / len2).clamp(0.0, 1.0)
-                    } else {
-                        0.0
-                    };
-                    let (ex, ez) = (x - p.x - t * dx, z - p.z - t * dz);
-                    if ex * ex + ez * ez <= r * r {
-                        hits += 1;
-                    }
-                }
-            }
-            if hits > 0 {
-                let c = hits as f64 / (SUB * SUB) as f64;
+            let c = capsule_share((p.x, p.z), (q.x, q.z), r, (texel, texel), (i, j));
+            if c > 0.0 {
                 let (wi, wj) = (
                     i.rem_euclid(res as i64) as usize,
                     j.rem_euclid(res as i64) as usize,
@@ -265,6 +246,37 @@ fn splat_capsule(log_t: &mut [f64], res: usize, p: V3, q: V3, r: f64, _fiber: us
             }
         }
     }
+}
+
+/// The share of cell `(i, j)` (sides `cell`) inside the 2-D capsule `p`-`q` of radius
+/// `r`, on a 4 x 4 grid of points in the cell (the shells' and the fins' coverage).
+pub(super) fn capsule_share(
+    p: (f64, f64),
+    q: (f64, f64),
+    r: f64,
+    cell: (f64, f64),
+    (i, j): (i64, i64),
+) -> f64 {
+    const SUB: usize = 4;
+    let (du, dv) = (q.0 - p.0, q.1 - p.1);
+    let len2 = du * du + dv * dv;
+    let mut hits = 0;
+    for sj in 0..SUB {
+        for si in 0..SUB {
+            let u = (i as f64 + (si as f64 + 0.5) / SUB as f64) * cell.0;
+            let v = (j as f64 + (sj as f64 + 0.5) / SUB as f64) * cell.1;
+            let t = if len2 > 0.0 {
+                (((u - p.0) * du + (v - p.1) * dv) / len2).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            let (eu, ev) = (u - p.0 - t * du, v - p.1 - t * dv);
+            if eu * eu + ev * ev <= r * r {
+                hits += 1;
+            }
+        }
+    }
+    hits as f64 / (SUB * SUB) as f64
 }
 
 #[cfg(test)]

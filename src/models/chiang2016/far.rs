@@ -149,25 +149,11 @@ impl SliceNodes {
     /// `N̄_p(phi)` of the four lobes (the residual's is constant in `phi`).
     pub fn eval(&self, phi: f64) -> [f64; P_MAX + 1] {
         let mut out = [0.0; P_MAX + 1];
-        let w = (WINDOW * self.s).min(PI);
         for (p, nodes) in self.lobes.iter().enumerate() {
             let mut sum = 0.0;
-            let mut add = |lo: f64, hi: f64| {
-                let i0 = nodes.partition_point(|n| n.0 < lo);
-                let i1 = nodes.partition_point(|n| n.0 < hi);
-                for &(ph, wt) in &nodes[i0..i1] {
+            for range in self.window(p, phi) {
+                for &(ph, wt) in &nodes[range] {
                     sum += wt * lobes::logistic(lobes::wrap(phi - ph), self.s);
-                }
-            };
-            if w >= PI {
-                add(-PI, PI);
-            } else {
-                let (lo, hi) = (lobes::wrap(phi - w), lobes::wrap(phi + w));
-                if lo <= hi {
-                    add(lo, hi);
-                } else {
-                    add(lo, PI);
-                    add(-PI, hi);
                 }
             }
             out[p] = sum / self.norm;

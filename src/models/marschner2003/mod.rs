@@ -217,19 +217,20 @@ impl Factored<LOBES> for Marschner {
     fn azimuthal_gradients(&self, plan: &Plan) -> Option<Vec<Vec<[f64; LOBES]>>> {
         use rayon::prelude::*;
         let k = SPECS.len();
-        let v = |i: usize| Dual::<7>::variable(self.param(AZIMUTHAL[i]), i);
+        // Gradient slot i is parameter AZIMUTHAL[i].
+        let v = Dual::<7>::variable;
         let m = Marschner {
-            eta: v(0),
-            sigma_a: v(1),
+            eta: v(self.eta, 0),
+            sigma_a: v(self.sigma_a, 1),
             alpha_r: Dual::cst(self.alpha_r),
             beta_r: Dual::cst(self.beta_r),
             glints: Glints {
-                k_g: v(2),
-                w_c: v(3),
-                delta_eta: v(4),
-                delta_h_m: v(5),
+                k_g: v(self.glints.k_g, 2),
+                w_c: v(self.glints.w_c, 3),
+                delta_eta: v(self.glints.delta_eta, 4),
+                delta_h_m: v(self.glints.delta_h_m, 5),
             },
-            eccentricity: v(6),
+            eccentricity: v(self.eccentricity, 6),
         };
         Some(
             plan.slices
@@ -267,23 +268,6 @@ impl Factored<LOBES> for Marschner {
             out[i * k + BETA_R] = m.map(|x| x.g[1] * c * c);
         }
         Some(out)
-    }
-}
-
-impl Marschner {
-    /// Parameter `i` (internal units), as [`Factored::from_params`] read it.
-    fn param(&self, i: usize) -> f64 {
-        match i {
-            ETA => self.eta,
-            SIGMA_A => self.sigma_a,
-            ALPHA_R => self.alpha_r,
-            BETA_R => self.beta_r,
-            K_G => self.glints.k_g,
-            W_C => self.glints.w_c,
-            DELTA_ETA => self.glints.delta_eta,
-            DELTA_H_M => self.glints.delta_h_m,
-            _ => self.eccentricity,
-        }
     }
 }
 
