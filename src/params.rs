@@ -56,7 +56,7 @@ impl ParamId {
     ];
 
     /// Position in [`ParamId::ALL`].
-    pub fn index(self) -> usize {
+    pub const fn index(self) -> usize {
         self as usize
     }
 

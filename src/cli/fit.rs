@@ -77,6 +77,9 @@ pub struct Args {
     /// Weight residuals by sigma/value (every valid sample needs a sigma > 0).
     #[arg(long)]
     pub weighted: bool,
+    /// Fit the full model only: skip the nested model tried first (yan2017: kappa = 0).
+    #[arg(long)]
+    pub full_model: bool,
     /// Print timing figures (evaluations/s, share of time in the model).
     #[arg(long)]
     pub bench: bool,
@@ -172,6 +175,7 @@ fn options(a: &Args, model: &'static dyn FiberModel) -> anyhow::Result<FitOption
         max_iters: a.max_iters,
         weighted: a.weighted,
         floor: a.floor,
+        nested: !a.full_model,
         ..FitOptions::for_model(model)
     };
     if let Some(n) = a.lm_starts {

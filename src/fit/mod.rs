@@ -34,6 +34,7 @@ pub mod forward;
 pub mod job;
 pub mod likelihood;
 pub mod lm;
+pub mod nested;
 mod options;
 pub mod output;
 mod polish;
@@ -77,8 +78,7 @@ pub fn fit_data(
         ));
     }
     let clock = Instant::now();
-    let layout = &opts.layout;
-    let n_free = layout.free().len();
+    let n_free = opts.layout.free().len();
     // The free parameters and the exposure are the unknowns: with no more samples than
     // that the fit interpolates the data and its NRMSE (0) and uncertainty mean nothing.
     if data.len() <= n_free + 1 {
@@ -96,6 +96,82 @@ pub fn fit_data(
             data.len()
         )));
     }
+    let Some(red) = nested::applicable(opts) else {
+        return fit_layout(data, opts, clock, &say);
+    };
+    // The nested model first, unless the global stage shows the full model's signal
+    // plainly; the full model only when the data ask for it.
+    let sub_data = subsample(data, opts);
+    let coarse = FarOptions {
+        tol: None,
+        ..opts.far
+    };
+    let sub = LogResidualProblem::new(&sub_data, opts.layout.clone(), coarse)
+        .with_cancel(opts.cancel.clone());
+    let pre = nested::precheck(&sub, opts, red)?;
+    let done = |mut out: FitOutcome, test: nested::NestedTest, before: u64| {
+        out.evaluations += before + test.evaluations;
+        out.nested = Some(test);
+        out.wall_time_s = clock.elapsed().as_secs_f64();
+        out
+    };
+    if !pre.try_reduced() {
+        let test = nested::skipped(red, &pre, sub_data.len());
+        say(&test.summary());
+        let mut full_opts = opts.clone();
+        full_opts.design_costs = Some(pre.costs_full.clone());
+        return Ok(done(fit_layout(data, &full_opts, clock, &say)?, test, 0));
+    }
+    say(&format!("nested model first: {}", red.name));
+    let mut r_opts = nested::reduced_options(opts, red);
+    r_opts.design_costs = Some(pre.costs_reduced.clone());
+    let reduced = fit_layout(data, &r_opts, clock, &say)?;
+    let (mut test, best) = nested::probe(&sub_data, opts, &reduced, &pre, red, clock)?;
+    test.evaluations += pre.evaluations;
+    say(&test.summary());
+    if test.kept_reduced {
+        return Ok(done(reduced, test, 0));
+    }
+    let mut full_opts = opts.clone();
+    full_opts.extra_starts.push(best);
+    full_opts.design_costs = Some(pre.costs_full.clone());
+    let full = fit_layout(data, &full_opts, clock, &say)?;
+    // The full model contains the reduced one, so its fit ending worse is a basin the
+    // multi-start missed: the reduced fit is then the better answer.
+    if full.nrmse > reduced.nrmse {
+        test.kept_reduced = true;
+        test.decided_by = "F-test, then the full fit ended above the nested one";
+        return Ok(done(reduced, test, full.evaluations));
+    }
+    Ok(done(full, test, reduced.evaluations))
+}
+
+/// The global and multi-start stages only choose the basin (the polish on all samples
+/// settles the optimum), so they run on a subsample of whole far-field slices (all
+/// samples when that would not save much).
+fn subsample(data: &FitData, opts: &FitOptions) -> FitData {
+    if data.len() > opts.n_sub * 3 / 2 {
+        let model = opts.layout.model;
+        data.subset(&starts::subsample_grouped(
+            &data.points.pts,
+            opts.n_sub,
+            opts.seed,
+            |ti, tr| model.slice_of(ti, tr),
+        ))
+    } else {
+        data.clone()
+    }
+}
+
+/// [`fit_data`] of one parameter layout (the stages of the module doc), on checked data.
+fn fit_layout(
+    data: &FitData,
+    opts: &FitOptions,
+    clock: Instant,
+    say: &dyn Fn(&str),
+) -> Result<FitOutcome> {
+    let layout = &opts.layout;
+    let n_free = layout.free().len();
     let full =
         LogResidualProblem::new(data, layout.clone(), opts.far).with_cancel(opts.cancel.clone());
     if n_free == 0 {
@@ -107,21 +183,9 @@ pub fn fit_data(
         };
         return finish(data, opts, &full, &full, fixed, (0, 0), clock);
     }
-    // The global and multi-start stages only choose the basin (the polish on all samples
-    // settles the optimum), so they run on a subsample of whole far-field slices (all
-    // samples when that would not save much) and on the fixed initial segmentation:
-    // smooth in the parameters and several times cheaper than the tolerance mode.
-    let sub_data = if data.len() > opts.n_sub * 3 / 2 {
-        let model = layout.model;
-        data.subset(&starts::subsample_grouped(
-            &data.points.pts,
-            opts.n_sub,
-            opts.seed,
-            |ti, tr| model.slice_of(ti, tr),
-        ))
-    } else {
-        data.clone()
-    };
+    // The subsample's stages run on the fixed initial segmentation: smooth in the
+    // parameters and several times cheaper than the tolerance mode.
+    let sub_data = subsample(data, opts);
     let sub_far = FarOptions {
         tol: None,
         ..opts.far
@@ -134,9 +198,9 @@ pub fn fit_data(
         "coarse"
     };
     // 1. Global stage.
-    let starts = stages::global(&sub, opts, clock, &say)?;
+    let starts = stages::global(&sub, opts, clock, say)?;
     // 2. Multi-start LM (parallel over starts).
-    let (best_run, runs) = stages::multi_start(&sub, &starts, opts, clock, &say)?;
+    let (best_run, runs) = stages::multi_start(&sub, &starts, opts, clock, say)?;
     let mut trace = vec![starts.entry(sub_data.len())];
     trace.extend(stages::entries(stage, 0, &best_run, sub_data.len()));
     let iters = best_run.iters + runs.iter().map(|r| r.iters).sum::<u64>();
@@ -158,14 +222,14 @@ pub fn fit_data(
         &starts,
         opts,
         clock,
-        &say,
+        say,
     )?;
     let counts = (starts.scored.len(), starts.chosen.len());
     let out = finish(data, opts, &full, &sub, solved.clone(), counts, clock)?;
     if opts.profile.is_empty() {
         return Ok(out);
     }
-    polish::with_profile(out, &full, solved, cost, opts, clock, &say, |s| {
+    polish::with_profile(out, &full, solved, cost, opts, clock, say, |s| {
         finish(data, opts, &full, &sub, s, counts, clock)
     })
 }
@@ -282,6 +346,7 @@ fn finish(
         profile: Vec::new(),
         profile_time_s: 0.0,
         profile_failed: 0,
+        nested: None,
     })
 }
 

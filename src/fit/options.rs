@@ -55,6 +55,16 @@ pub struct FitOptions {
     pub profile: Vec<Param>,
     /// Relative floor of the data used ([`channel_data`](super::channel_data), [`DEFAULT_FLOOR`]).
     pub floor: f64,
+    /// Try the model's nested reduction first ([`super::nested`]; the fur model: `kappa =
+    /// 0`) and fit the full model only when it lowers the cost by more than noise.
+    pub nested: bool,
+    /// Starts (file units) that run LM in addition to the best scored ones, as `init`
+    /// does, but not recorded as the user's (the nested stage hands its probe's best on).
+    pub extra_starts: Vec<Vec<f64>>,
+    /// Subsample costs of the model's presets and Halton design in this layout, where
+    /// already scored (the nested stage scores both layouts before choosing one; NaN
+    /// where not); the global stage then does not score them again.
+    pub design_costs: Option<std::sync::Arc<Vec<f64>>>,
     /// Set from another thread, ends the fit with [`Error::Interrupted`] within about one
     /// model evaluation (the default token is never set: the binary ends on a signal).
     pub cancel: Cancel,
@@ -77,6 +87,9 @@ impl Default for FitOptions {
             broyden: true,
             profile: Vec::new(),
             floor: DEFAULT_FLOOR,
+            nested: true,
+            extra_starts: Vec::new(),
+            design_costs: None,
             cancel: Cancel::default(),
         }
     }
@@ -227,6 +240,8 @@ pub struct FitOutcome {
     pub profile: Vec<likelihood::Interval>,
     /// Wall seconds of the profile intervals.
     pub profile_time_s: f64,
+    /// What the nested-model stage decided, when it ran ([`super::nested`]).
+    pub nested: Option<super::nested::NestedTest>,
     /// Profile re-solves the solver failed on (scored at their start, so an interval end
     /// beside them may lie too far out).
     pub profile_failed: usize,

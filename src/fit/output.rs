@@ -6,6 +6,7 @@
 //! `solver.model_time_share`, `trace[].time_s`) is a deterministic function of the data,
 //! the options and the seed.
 
+use super::nested::NestedTest;
 use super::{FitOptions, FitOutcome};
 use crate::models::{FiberModel, ModelParams, Param};
 use serde_json::{json, Map, Value};
@@ -80,6 +81,32 @@ fn robust_json(model: &'static dyn FiberModel, rb: Option<&super::uncertainty::R
     })
 }
 
+/// `solver.nested` of a fit file.
+fn nested_json(model: &dyn FiberModel, t: &NestedTest) -> Value {
+    let held: Map<String, Value> = t
+        .held
+        .iter()
+        .map(|&(i, v)| (model.specs()[i].name.to_string(), json!(v)))
+        .collect();
+    json!({
+        "model": t.name,
+        "held": held,
+        "kept": t.kept_reduced,
+        "decided_by": t.decided_by,
+        "test": "F-test of nested least-squares models on the subsample",
+        "samples": t.n,
+        "added_parameters": t.q,
+        "dof": t.dof,
+        "cost_nested": num(t.cost_reduced),
+        "cost_full": num(t.cost_full),
+        "f": num(t.f),
+        "p_value": num(t.p_value),
+        "alpha": crate::fit::nested::ALPHA,
+        "evaluations": t.evaluations,
+        "seconds": t.seconds,
+    })
+}
+
 /// The JSON object of one channel's fit.
 pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
     let unc = &out.uncertainty;
@@ -91,8 +118,14 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             unc.se[id.index()].map(num).unwrap_or(Value::Null),
         );
     }
+    // A kept nested model holds its parameters as `--fix` would.
+    let held = |i: usize| {
+        out.nested
+            .as_ref()
+            .is_some_and(|t| t.kept_reduced && t.held.iter().any(|&(k, _)| k == i))
+    };
     let fixed: Vec<&str> = Param::all(model)
-        .filter(|id| opts.layout.fixed[id.index()].is_some())
+        .filter(|id| opts.layout.fixed[id.index()].is_some() || held(id.index()))
         .map(|id| id.spec().name)
         .collect();
     let unconstrained: Vec<Value> = unc
@@ -188,6 +221,9 @@ pub fn fit_json(out: &FitOutcome, opts: &FitOptions, data: &DataInfo) -> Value {
             // The local optimum's distance from the result in standard errors (converged:
             // below the solver's 0.1).
             "gauss_newton_step_se": num(unc.step_se),
+            // The nested model tried first and the F-test that kept it or not
+            // (`fit::nested`); null when it was not tried.
+            "nested": out.nested.as_ref().map(|t| nested_json(model, t)),
         },
         "data": {
             "files": files,

@@ -14,7 +14,7 @@ use std::time::Instant;
 /// The scored starts of the global stage.
 pub(super) struct Starts {
     /// `(candidate index, subsample cost, start in solver coordinates)` per candidate; the
-    /// `--init` start, when given, is candidate 0.
+    /// `--init` start, when given, is candidate 0, the extra starts follow.
     pub scored: Vec<(usize, f64, DVector<f64>)>,
     /// Candidates by cost, best first.
     pub order: Vec<usize>,
@@ -54,18 +54,40 @@ pub(super) fn global(
         }
         cands.push(v);
     }
+    let n_extra = opts.extra_starts.len();
+    for e in &opts.extra_starts {
+        let mut v = e.clone();
+        for (k, f) in layout.fixed.iter().enumerate() {
+            if let Some(x) = f {
+                v[k] = *x;
+            }
+        }
+        cands.push(v);
+    }
     let presets = starts::preset_starts(layout);
     let n_presets = presets.len();
     cands.extend(presets);
     cands.extend(starts::halton_starts(layout, opts.n_global, opts.seed));
     say(&format!(
-        "global stage: scoring {} starts ({} Halton, {} presets{}) on {} samples",
+        "global stage: scoring {} starts ({} Halton, {} presets{}{}) on {} samples",
         cands.len(),
         opts.n_global,
         n_presets,
         if opts.init.is_some() { ", --init" } else { "" },
+        if n_extra > 0 {
+            ", the nested probe's"
+        } else {
+            ""
+        },
         sub.data.len()
     ));
+    // The design's costs where the caller scored it already (same subsample, same
+    // layout, same points: `fit::nested`; NaN where it did not).
+    let first_design = cands.len() - n_presets - opts.n_global;
+    let known = opts
+        .design_costs
+        .as_deref()
+        .filter(|c| c.len() == n_presets + opts.n_global);
     let scored: Vec<(usize, f64, DVector<f64>)> = cands
         .par_iter()
         .enumerate()
@@ -74,6 +96,12 @@ pub(super) fn global(
             // Once cancelled, the remaining starts are not evaluated (checked below).
             let cost = if opts.cancel.is_cancelled() {
                 f64::INFINITY
+            } else if let Some(k) = known
+                .filter(|_| i >= first_design)
+                .map(|k| k[i - first_design])
+                .filter(|k| !k.is_nan())
+            {
+                k
             } else {
                 sub.cost(u.as_slice())
             };
@@ -96,6 +124,13 @@ pub(super) fn global(
     // of them could drop the best start of all).
     if opts.init.is_some() && !chosen.contains(&0) {
         chosen.insert(0, 0);
+    }
+    // So do the extra starts, which follow it.
+    let first_extra = usize::from(opts.init.is_some());
+    for i in first_extra..first_extra + n_extra {
+        if !chosen.contains(&i) {
+            chosen.push(i);
+        }
     }
     Ok(Starts {
         scored,

@@ -180,6 +180,18 @@ impl std::fmt::Debug for Param {
     }
 }
 
+/// A nested model inside a [`FiberModel`] ([`FiberModel::reduction`]): the parameters
+/// held and their values (file units). It must be the full model at those values, so
+/// that the fitter's test of one against the other is a test of nested models.
+#[derive(Debug)]
+pub struct Reduction {
+    /// What the nested model is, for messages and fit files (`kappa = 0 (no medulla)`).
+    pub name: &'static str,
+    /// `(parameter index, value in file units)`: the first is the one that switches the
+    /// extra lobes off; the others are inert there and held at any in-bound value.
+    pub fixed: &'static [(usize, f64)],
+}
+
 /// One fiber scattering model (see the module doc). Object safe: the generic code holds
 /// `&'static dyn FiberModel`.
 pub trait FiberModel: Send + Sync + 'static {
@@ -237,6 +249,13 @@ pub trait FiberModel: Send + Sync + 'static {
     /// unconstrained whatever their standard errors say.
     fn inert(&self, _file: &[f64]) -> (Vec<usize>, &'static str) {
         (Vec::new(), "")
+    }
+
+    /// A simpler model nested in this one that the fitter tries first
+    /// ([`crate::fit::nested`]): some parameters held at values where others go inert (the
+    /// fur model: `kappa = 0`, no medulla). `None` (the default): no such model.
+    fn reduction(&self) -> Option<&'static Reduction> {
+        None
     }
 
     /// Starts that run Levenberg-Marquardt by default ([`crate::fit::FitOptions::n_best`]):

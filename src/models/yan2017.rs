@@ -8,7 +8,7 @@
 // Documented: the lint is back on here while `models` as a whole is pending (lib.rs).
 #![warn(missing_docs)]
 
-use super::{FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset};
+use super::{FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset, Reduction};
 use crate::model::far::{Decisions, FarOptions};
 use crate::model::{FurModel, LobeSet, LobeValues};
 use crate::params::{FurParams, ParamId, ParamSpec, N_PARAMS, PRESETS, SPECS};
@@ -59,6 +59,20 @@ pub const BETA_N_FLOOR: f64 = 1e-4;
 /// of a profile in an audit (and g came back to 6e-4), so the rule waits for a medulla
 /// 20 times thinner; between the two the standard errors decide.
 pub const KAPPA_ABSENT: f64 = 1e-3;
+
+/// The fur model without a medulla: `kappa = 0`, where the scattered lobes vanish and
+/// `sigma_m_s`, `sigma_m_a` and `g` go inert (held at fixed in-bound values: any gives
+/// the same model). Hair, and fur whose
+/// profile shows no scattered-lobe signal, is fitted with six parameters instead of ten.
+static NO_MEDULLA: Reduction = Reduction {
+    name: "kappa = 0 (no medulla)",
+    fixed: &[
+        (ParamId::Kappa.index(), 0.0),
+        (ParamId::SigmaMS.index(), 1.0),
+        (ParamId::SigmaMA.index(), 0.1),
+        (ParamId::G.index(), 0.3),
+    ],
+};
 
 impl FiberModel for Yan2017 {
     fn name(&self) -> &'static str {
@@ -153,6 +167,10 @@ impl FiberModel for Yan2017 {
         } else {
             (Vec::new(), "")
         }
+    }
+
+    fn reduction(&self) -> Option<&'static Reduction> {
+        Some(&NO_MEDULLA)
     }
 
     fn notes(&self, p: &[f64]) -> Vec<String> {
