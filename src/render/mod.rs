@@ -33,6 +33,7 @@ pub mod sampler_study;
 pub mod scene;
 pub mod select;
 pub mod strand;
+pub mod strand_albedo;
 pub mod strand_train;
 pub mod study;
 pub mod study_run;
