@@ -22,6 +22,7 @@ pub mod far;
 #[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod fresnel;
 pub mod geometry;
+pub mod grid_plan;
 pub mod longitudinal;
 #[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod medulla;

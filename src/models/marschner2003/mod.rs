@@ -23,11 +23,12 @@ pub mod lobes;
 #[cfg(test)]
 mod tests;
 
-use super::{spec, FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset};
-use super::{Factored, FactoredTerms, Factors, SlicePlan as Plan};
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::models::dual::{Dual, Real};
+use crate::models::factored::{Factored, FactoredTerms, Factors};
+use crate::models::interface::{spec, FiberModel, Integral, Map, ModelTerms, Prediction, Preset};
+use crate::models::points::{Points, SlicePlan as Plan};
 use crate::params::ParamSpec;
 use lobes::{Glints, RootFinder, Section, LOBES};
 use std::sync::Arc;
