@@ -22,7 +22,6 @@ pub mod fit;
 pub mod grid;
 pub mod io;
 pub mod model;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod models;
 pub mod params;
 pub mod profile;

@@ -37,6 +37,7 @@ pub trait Factored<const L: usize>: Sized + Send + Sync + 'static {
         None
     }
 
+    /// Both factors at these parameters, as [`FactoredTerms`] keeps them.
     fn factors(&self, plan: &SlicePlan) -> Factors<L> {
         Factors {
             n: self.azimuthal_terms(plan),
@@ -48,7 +49,9 @@ pub trait Factored<const L: usize>: Sized + Send + Sync + 'static {
 /// The two factors of a [`Factored`] far field at one parameter set.
 #[derive(Clone, Debug)]
 pub struct Factors<const L: usize> {
+    /// Azimuthal term per slice and `|phi|`, indexed `[slice][phi][lobe]`.
     pub n: Vec<Vec<[f64; L]>>,
+    /// Longitudinal term per `(theta_i, theta_r)` pair, indexed `[pair][lobe]`.
     pub m: Vec<[f64; L]>,
 }
 
@@ -87,7 +90,9 @@ impl<const L: usize> Factors<L> {
 /// [`Factored::longitudinal_gradients`]), [`ModelTerms::jacobian`] combines them by the
 /// product rule: `d(sum_p M_p N_p) = sum_p (dM_p N_p + M_p dN_p)`.
 pub struct FactoredTerms<M, const L: usize> {
+    /// The point list's slice structure, which the factors index.
     pub plan: Arc<SlicePlan>,
+    /// Both factors at the parameters the terms were computed at.
     pub factors: Factors<L>,
     /// The parameters (internal units) the factors were computed at.
     params: Vec<f64>,
@@ -95,6 +100,7 @@ pub struct FactoredTerms<M, const L: usize> {
 }
 
 impl<M: Factored<L>, const L: usize> FactoredTerms<M, L> {
+    /// The terms of model `M` at `p` (internal units, validated) on `plan`.
     pub fn new(p: &[f64], plan: Arc<SlicePlan>) -> FactoredTerms<M, L> {
         let factors = M::from_params(p).factors(&plan);
         FactoredTerms {

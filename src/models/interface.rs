@@ -12,7 +12,9 @@ use crate::params::ParamSpec;
 /// A named parameter set of a model (file units, in [`FiberModel::specs`] order).
 #[derive(Clone, Copy, Debug)]
 pub struct Preset {
+    /// The preset's name, as `--params` accepts it (`red-fox`, `blond`).
     pub name: &'static str,
+    /// Parameter values in file units, in [`FiberModel::specs`] order.
     pub values: &'static [f64],
 }
 
@@ -21,7 +23,10 @@ pub struct Preset {
 /// tolerance (their values are not guaranteed to it), of how many.
 #[derive(Clone, Debug, Default)]
 pub struct Prediction {
+    /// Per-lobe values (no exposure) at every point, in point order.
     pub lobes: Vec<LobeValues>,
+    /// `(capped, slices)`: slices whose refinement hit its limit, of all the model's
+    /// slices.
     pub capped: (usize, usize),
 }
 
@@ -42,6 +47,7 @@ impl std::fmt::Debug for dyn FiberModel {
 }
 
 impl Integral {
+    /// The integral's name, as [`Integral::parse`] reads it and profiles record it.
     pub fn name(self) -> &'static str {
         match self {
             Integral::Far => "far",
@@ -65,7 +71,9 @@ impl Integral {
 /// instead of a model's own parameter names.
 #[derive(Clone, Copy)]
 pub struct Param {
+    /// The model the parameter belongs to.
     pub model: &'static dyn FiberModel,
+    /// Position in the model's parameter vector.
     pub index: usize,
 }
 
@@ -238,7 +246,7 @@ pub trait ModelTerms: Send + Sync {
 
     /// The model values at these terms' parameters and their derivatives with respect to
     /// every parameter (internal units), computed analytically (forward-mode derivatives,
-    /// [`dual`]); `None` (the default) when the model does not provide them, and the
+    /// [`super::dual`]); `None` (the default) when the model does not provide them, and the
     /// fitter differentiates by finite differences ([`ModelTerms::with_change`]).
     fn jacobian(&self, _points: &Points) -> Option<ValueJacobian> {
         None
@@ -249,15 +257,21 @@ pub trait ModelTerms: Send + Sync {
 /// derivatives `d[i * n_params + k] = d value_i / d p_k`, `p` in internal units.
 #[derive(Clone, Debug)]
 pub struct ValueJacobian {
+    /// Model values at every point, as [`ModelTerms::values`] gives them.
     pub values: Vec<f64>,
+    /// Number of parameters: the row length of `d`.
     pub n_params: usize,
+    /// Row-major derivatives, `d[i * n_params + k] = d value_i / d p_k`.
     pub d: Vec<f64>,
 }
 
 /// [`ModelTerms`] that keep only the values: every change recomputes them in full.
 pub struct PlainTerms {
+    /// The model whose far field the values are, which recomputes them on a change.
     pub model: &'static dyn FiberModel,
+    /// Far-field values (no exposure, lobes summed) at every point.
     pub values: Vec<f64>,
+    /// `(capped, slices)` of the prediction, as in [`Prediction::capped`].
     pub capped: (usize, usize),
 }
 
@@ -367,9 +381,17 @@ pub const U_MAX_TANH: f64 = 17.0;
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Map {
     /// `lo + span * sigmoid(u)`.
-    Sigmoid { lo: f64, span: f64 },
+    Sigmoid {
+        /// The lower bound (file units).
+        lo: f64,
+        /// The width of the range: the upper bound is `lo + span`.
+        span: f64,
+    },
     /// `scale * tanh(u)`.
-    Tanh { scale: f64 },
+    Tanh {
+        /// The half-width of the symmetric range `(-scale, scale)`.
+        scale: f64,
+    },
     /// `exp(u)`.
     Exp,
 }

@@ -1,8 +1,6 @@
 //! A parameter set of any registered model, and the parameter/fit JSON of DATA.md made
 //! generic: a `params` object keyed by the model's parameter names, and a `model` key
 //! naming the model (absent: `yan2017`, the files this project wrote before the zoo).
-// Documented: the lint is back on here while `models` as a whole is pending (lib.rs).
-#![warn(missing_docs)]
 
 use super::interface::FiberModel;
 use super::registry::{by_name, default_model};

@@ -13,6 +13,7 @@ type Cached = Arc<dyn Any + Send + Sync>;
 /// [`GridPlan`] and any other model's plan found on first use and kept.
 #[derive(Default)]
 pub struct Points {
+    /// The points `(theta_i, theta_r, phi)`, radians, in the order values are returned.
     pub pts: Vec<(f64, f64, f64)>,
     plan: OnceLock<Arc<GridPlan>>,
     plans: Mutex<Vec<(&'static str, Cached)>>,
@@ -49,14 +50,18 @@ impl Points {
         }
     }
 
+    /// Number of points.
     pub fn len(&self) -> usize {
         self.pts.len()
     }
 
+    /// Whether there are no points.
     pub fn is_empty(&self) -> bool {
         self.pts.is_empty()
     }
 
+    /// Append a point (radians); the cached plans are dropped, since they no longer cover
+    /// the list.
     pub fn push(&mut self, theta_i: f64, theta_r: f64, phi: f64) {
         self.pts.push((theta_i, theta_r, phi));
         self.plan = OnceLock::new();
@@ -111,8 +116,11 @@ impl Points {
 /// distinct pairs, and each point's indices into them.
 #[derive(Debug, Default)]
 pub struct SlicePlan {
+    /// Distinct slice coordinates, in order of first appearance.
     pub slices: Vec<f64>,
+    /// Per slice: its distinct `|phi|`, in order of first appearance.
     pub phis: Vec<Vec<f64>>,
+    /// Distinct `(theta_i, theta_r)` pairs, the longitudinal terms' arguments.
     pub pairs: Vec<(f64, f64)>,
     /// Per point: (slice, phi within the slice, pair).
     pub index: Vec<(u32, u32, u32)>,

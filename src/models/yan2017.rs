@@ -5,8 +5,6 @@
 //!
 //! A goniometer sample predicts `sum_p M_p N_p` (MODEL.md "What a goniometer sample
 //! predicts"): seed Eq. 4's `1/cos^2 theta_i` cancels the measure of its Eq. 2.
-// Documented: the lint is back on here while `models` as a whole is pending (lib.rs).
-#![warn(missing_docs)]
 
 use super::interface::{FiberModel, Integral, Map, ModelTerms, Param, Prediction, Preset};
 use super::points::Points;

@@ -224,10 +224,15 @@ pub fn near_quadrature(slice: &Slice, p: usize, phi: f64, s: f64, rel: f64) -> f
 /// Parameters as the far field reads them (internal units, validated at the boundary).
 #[derive(Clone, Copy, Debug)]
 pub struct Chiang {
+    /// Index of refraction of the fiber.
     pub eta: f64,
+    /// Longitudinal roughness, in (0, 1] (d'Eon's variance map applies at evaluation).
     pub beta_m: f64,
+    /// Azimuthal roughness, in (0, 1] (the logistic scale follows from it).
     pub beta_n: f64,
+    /// Cuticle scale tilt, radians.
     pub alpha: f64,
+    /// Absorption per unit fiber radius.
     pub sigma_a: f64,
 }
 

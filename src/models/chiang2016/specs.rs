@@ -7,9 +7,13 @@ use crate::params::ParamSpec;
 
 /// Parameter vector positions.
 pub const ETA: usize = 0;
+/// Position of `beta_m`, the longitudinal roughness.
 pub const BETA_M: usize = 1;
+/// Position of `beta_n`, the azimuthal roughness.
 pub const BETA_N: usize = 2;
+/// Position of `alpha`, the cuticle tilt (radians inside).
 pub const ALPHA: usize = 3;
+/// Position of `sigma_a`, the absorption per unit fiber radius.
 pub const SIGMA_A: usize = 4;
 
 /// pbrt-v4's and Mitsuba 3's parameters and their ranges (`alpha` bounded as the fur

@@ -16,8 +16,6 @@
 //! paths of all `h` that exit toward `phi`), so its far field is the model itself.
 //! [`Integral::NearQuadrature`] finds the same roots by an independent dense scan of
 //! `Phi(h)`, the reference the analytic root finder is tested against.
-// Documented: the lint is back on here while `models` as a whole is pending (lib.rs).
-#![warn(missing_docs)]
 
 pub mod lobes;
 #[cfg(test)]
