@@ -37,7 +37,6 @@ pub mod lm;
 mod options;
 pub mod output;
 mod polish;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod problem;
 pub mod reparam;
 mod run;
