@@ -25,7 +25,6 @@ pub mod model;
 pub mod models;
 pub mod params;
 pub mod profile;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod render;
 pub mod report;
 pub mod simulate;

@@ -56,8 +56,11 @@ pub const REBUILD: &str = "rebuild them with `furfit tables strand --out assets/
 /// The training domain of the network's inputs; inputs outside are clamped to it
 /// ([`StrandMlp::inputs`]).
 pub const ETA: (f64, f64) = (1.1, 2.0);
+/// Upper end of the training domain of `sigma_m_s` (per unit radius; the lower is 0).
 pub const SIGMA_M_S_MAX: f64 = 10.0;
+/// Upper end of the training domain of `sigma_m_a` (per unit radius; the lower is 0).
 pub const SIGMA_M_A_MAX: f64 = 5.0;
+/// Bound of the training domain of `|g|`.
 pub const G_MAX: f64 = 0.9;
 
 /// The weights of the 6-16-16-1 perceptron (module doc).
