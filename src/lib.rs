@@ -31,7 +31,6 @@ pub mod simulate;
 pub mod synth;
 pub mod text;
 pub mod timing;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod view;
 
 pub use error::{Error, Result};
