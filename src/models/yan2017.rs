@@ -1,7 +1,7 @@
 //! `yan2017`: the 5-lobe fur BCSDF of seed `000` (Yan et al. 2017) behind the model
 //! interface. The physics is [`crate::model`] and its grid prediction
-//! [`crate::model::grid_plan::GridPlan`]; this file only adapts them: the ten parameters of MODEL.md,
-//! the solver's maps, the plausible box and seed Table 4 as presets.
+//! [`crate::model::grid_plan::GridPlan`]; this file only adapts them: the ten parameters of
+//! MODEL.md, the solver's maps, the plausible box and seed Table 4 as presets.
 //!
 //! A goniometer sample predicts `sum_p M_p N_p` (MODEL.md "What a goniometer sample
 //! predicts"): seed Eq. 4's `1/cos^2 theta_i` cancels the measure of its Eq. 2.
