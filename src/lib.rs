@@ -22,18 +22,15 @@ pub mod fit;
 pub mod grid;
 pub mod io;
 pub mod model;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod models;
 pub mod params;
 pub mod profile;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod render;
 pub mod report;
 pub mod simulate;
 pub mod synth;
 pub mod text;
 pub mod timing;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod view;
 
 pub use error::{Error, Result};

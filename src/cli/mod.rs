@@ -387,7 +387,6 @@ pub mod stability;
 pub mod synth;
 pub mod tables;
 pub mod tables_strand;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod view;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.

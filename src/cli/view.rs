@@ -8,6 +8,7 @@ use anyhow::Context;
 use std::path::{Path, PathBuf};
 
 #[derive(clap::Args, Debug)]
+/// Arguments of `furfit view` (its `--help` text is the [`super::Command`] variant's).
 pub struct Args {
     /// Fit files (or parameter files, presets) to show, any model; one species each.
     #[arg(long, num_args = 1.., value_name = "FIT")]
@@ -128,6 +129,7 @@ fn view_of(a: &Args, light: &lights::Light) -> anyhow::Result<View> {
     Ok(v)
 }
 
+/// Run `furfit view`.
 pub fn run(a: Args) -> anyhow::Result<()> {
     if let Some(dir) = &a.serve {
         let listener = serve::bind(dir, a.port)?;

@@ -17,7 +17,7 @@
 //! (`hair_alpha_angles` on `local_I`) where pbrt tilts the camera's, so with a tilt the
 //! lobes peak where pbrt's do but their longitudinal shape differs slightly.
 
-use super::{clamp_named, Material, Written, MARKER};
+use super::material::{clamp_named, identifier, Material, Written, MARKER};
 use crate::error::{Num, Result};
 
 /// The Python script of `m`.
@@ -52,7 +52,7 @@ pub fn write(m: &Material) -> Result<Written> {
             &mut notes,
         )
     });
-    let name = super::identifier(&format!("furfit_{}", m.name));
+    let name = identifier(&format!("furfit_{}", m.name));
     let mut s = format!("# {MARKER} ({}) for Blender Cycles\n", crate::TOOL_VERSION);
     for line in m.header(&notes) {
         s.push_str(&format!("# {line}\n"));

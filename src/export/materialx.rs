@@ -21,7 +21,7 @@
 //! specification's text calls `cuticle_angle` above 0.5 a tilt toward the root; the
 //! reference implementation's formula, which renders, decides the sign here.)
 
-use super::{clamp_named, Material, Written, MARKER};
+use super::material::{clamp_named, comment_safe, identifier, Material, Written, MARKER};
 use crate::error::{Num, Result};
 use crate::models::chiang2016::lobes;
 
@@ -69,17 +69,14 @@ pub fn write(m: &Material) -> Result<Written> {
             )
         })
         .collect();
-    let id = super::identifier(&format!("furfit_{}", m.name));
+    let id = identifier(&format!("furfit_{}", m.name));
     let mut s = String::from("<?xml version=\"1.0\"?>\n");
     s.push_str(&format!(
         "<!-- {MARKER} ({}) for MaterialX 1.39 -->\n",
         crate::TOOL_VERSION
     ));
     for line in m.header(&notes) {
-        s.push_str(&format!(
-            "<!-- {} -->\n",
-            super::mitsuba::comment_safe(&line)
-        ));
+        s.push_str(&format!("<!-- {} -->\n", comment_safe(&line)));
     }
     s.push_str("<materialx version=\"1.39\">\n");
     s.push_str(&format!(

@@ -15,7 +15,7 @@
 //! single precision and refuses `int_ior == ext_ior`: an `eta` that rounds to 1 in `f32`
 //! is refused here.
 
-use super::{Material, Written, MARKER};
+use super::material::{comment_safe, identifier, Material, Written, MARKER};
 use crate::error::{Error, Num, Result};
 
 /// The XML document of `m`.
@@ -45,7 +45,7 @@ pub fn write(m: &Material) -> Result<Written> {
 /// The `<bsdf type="hair">` element (with `attrs` in its opening tag, each line after the
 /// first prefixed by `indent`), as the document and a scene embed it.
 pub fn bsdf_element(m: &Material, attrs: &str, indent: &str) -> String {
-    let id = super::identifier(&format!("furfit_{}", m.name));
+    let id = identifier(&format!("furfit_{}", m.name));
     let mut s = format!("{indent}<bsdf {attrs}type=\"hair\" id=\"{id}\">\n");
     let float = |name: &str, v: f64| {
         format!(
@@ -64,13 +64,4 @@ pub fn bsdf_element(m: &Material, attrs: &str, indent: &str) -> String {
     ));
     s.push_str(&format!("{indent}</bsdf>\n"));
     s
-}
-
-/// `text` safe inside an XML comment (which may not hold `--`).
-pub(crate) fn comment_safe(text: &str) -> String {
-    let mut t = text.replace("--", "- -");
-    if t.ends_with('-') {
-        t.push(' ');
-    }
-    t
 }

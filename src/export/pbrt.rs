@@ -15,7 +15,7 @@
 //! exactly constant for a grey one (equal r, g, b), a smooth spectrum whose r, g, b match
 //! the values otherwise.
 
-use super::{Material, Written, MARKER};
+use super::material::{Material, Written, MARKER};
 use crate::error::{Num, Result};
 
 /// The scene-file block of `m`.

@@ -9,7 +9,7 @@
 //! root and tip). furfit's environment is a vertical gradient; the scenes use its mean, a
 //! constant.
 
-use super::{Material, Written, MARKER};
+use super::material::{comment_safe, identifier, Material, Written, MARKER};
 use crate::error::{Error, Num, Result};
 use crate::render::math::V3;
 use crate::render::scene::build_lock;
@@ -103,10 +103,7 @@ pub fn mitsuba(m: &Material, lock: &Lock, curves: &str) -> Result<(Written, Stri
         crate::TOOL_VERSION
     ));
     for line in m.header(&material.notes) {
-        s.push_str(&format!(
-            "<!-- {} -->\n",
-            super::mitsuba::comment_safe(&line)
-        ));
+        s.push_str(&format!("<!-- {} -->\n", comment_safe(&line)));
     }
     s.push_str(&format!(
         r#"<!-- render: mitsuba THIS_FILE (-D spp=N -D width=W -D height=H to change the defaults), or mitsuba.load_file + mitsuba.render; {n} fibers -->
@@ -152,7 +149,7 @@ pub fn mitsuba(m: &Material, lock: &Lock, curves: &str) -> Result<(Written, Stri
         env = Num(lock.env),
     ));
     s.push_str(&super::mitsuba::bsdf_element(m, "", "    "));
-    let id = super::identifier(&format!("furfit_{}", m.name));
+    let id = identifier(&format!("furfit_{}", m.name));
     s.push_str(&format!(
         "    <shape type=\"bsplinecurve\">\n        <string name=\"filename\" value=\"{curves}\"/>\n        <ref id=\"{id}\"/>\n    </shape>\n</scene>\n"
     ));

@@ -1,4 +1,7 @@
+use super::material::exact;
 use super::*;
+use crate::models::chiang2016::Chiang2016;
+use crate::models::ModelParams;
 
 fn material(beta_m: f64, beta_n: f64, alpha: f64, sigma: [f64; 3]) -> Material {
     Material {

@@ -38,7 +38,6 @@ pub mod nested;
 mod options;
 pub mod output;
 mod polish;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod problem;
 pub mod reparam;
 mod run;
@@ -55,7 +54,7 @@ use problem::{FitData, LogResidualProblem};
 use std::sync::atomic::Ordering;
 use std::time::Instant;
 
-pub use options::{FitOptions, FitOutcome, TraceEntry, DEFAULT_FLOOR, STEP_SE};
+pub use options::{FitOptions, FitOutcome, NestedTest, TraceEntry, DEFAULT_FLOOR, STEP_SE};
 use run::Solved;
 
 /// Progress callback: a short stage message.
@@ -109,7 +108,7 @@ pub fn fit_data(
     let sub = LogResidualProblem::new(&sub_data, opts.layout.clone(), coarse)
         .with_cancel(opts.cancel.clone());
     let pre = nested::precheck(&sub, opts, red)?;
-    let done = |mut out: FitOutcome, test: nested::NestedTest, before: u64| {
+    let done = |mut out: FitOutcome, test: NestedTest, before: u64| {
         out.evaluations += before + test.evaluations;
         out.nested = Some(test);
         out.wall_time_s = clock.elapsed().as_secs_f64();

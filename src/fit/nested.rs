@@ -18,7 +18,7 @@
 //! parameters taken from each global start (presets and the Halton design: the same
 //! candidates the full fit scores), scored, and the best few polished by short LM runs.
 
-use super::options::{FitOptions, FitOutcome};
+use super::options::{FitOptions, FitOutcome, NestedTest};
 use super::problem::{FitData, LogResidualProblem};
 use super::run::run_lm;
 use super::starts;
@@ -44,65 +44,6 @@ const PROBE_FTOL: f64 = 1e-4;
 /// Iteration cap of a probe run: the probe asks whether the full model does better near
 /// the reduced optimum, not where its own optimum lies (the full fit finds that).
 const PROBE_ITERS: u64 = 12;
-
-/// What the nested-model stage decided, written to the fit file (`solver.nested`).
-#[derive(Clone, Debug)]
-pub struct NestedTest {
-    /// The reduction tried ([`Reduction::name`]).
-    pub name: &'static str,
-    /// Parameter indices the reduction holds, and their values (file units).
-    pub held: Vec<(usize, f64)>,
-    /// The reduced model was kept (the full model did not lower the cost by more than
-    /// noise).
-    pub kept_reduced: bool,
-    /// What decided: the F-test, or the global stage when the reduced model was not
-    /// worth fitting.
-    pub decided_by: &'static str,
-    /// Samples of the probe (the fit's subsample).
-    pub n: usize,
-    /// Parameters the full model adds (`q`).
-    pub q: usize,
-    /// Residual degrees of freedom of the full model on the probe's samples.
-    pub dof: usize,
-    /// The reduced model's cost `0.5 sum r^2` on the probe's samples.
-    pub cost_reduced: f64,
-    /// The best full-model cost the probe found.
-    pub cost_full: f64,
-    /// The F statistic.
-    pub f: f64,
-    /// `P(F_{q, dof} > f)`.
-    pub p_value: f64,
-    /// Model evaluations of the probe.
-    pub evaluations: u64,
-    /// Wall seconds of the probe.
-    pub seconds: f64,
-}
-
-impl NestedTest {
-    /// One line for the progress output.
-    pub fn summary(&self) -> String {
-        if self.f.is_nan() {
-            return format!(
-                "nested model {} not fitted: the best full-model start costs {:.3e} on the \
-                 subsample, the best nested one {:.3e}",
-                self.name, self.cost_full, self.cost_reduced
-            );
-        }
-        format!(
-            "nested model {}: F = {:.3} on ({}, {}) degrees of freedom, p = {:.2e}: {}",
-            self.name,
-            self.f,
-            self.q,
-            self.dof,
-            self.p_value,
-            if self.kept_reduced {
-                "kept (the full model lowers the cost by no more than noise)"
-            } else {
-                "the full model lowers the cost: fitting it"
-            }
-        )
-    }
-}
 
 /// The model's reduction, when this fit may try it: the model has one, it is asked for
 /// ([`FitOptions::nested`]), the user fixed none of its parameters, gave no `--init`
@@ -349,7 +290,9 @@ pub(super) fn skipped(red: &'static Reduction, pre: &Precheck, n: usize) -> Nest
 /// freedom of the larger model. `P(F > f) = I_{dof / (dof + q f)}(dof / 2, q / 2)` (the
 /// regularised incomplete beta function).
 pub fn f_test(c0: f64, c1: f64, q: usize, dof: usize) -> (f64, f64) {
-    if !(c1 > 0.0) || !(c0 > c1) {
+    // NaN costs compare false: no evidence either.
+    let improved = c1 > 0.0 && c0 > c1;
+    if !improved {
         return (0.0, 1.0);
     }
     let (q, d) = (q as f64, dof as f64);

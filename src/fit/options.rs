@@ -241,7 +241,7 @@ pub struct FitOutcome {
     /// Wall seconds of the profile intervals.
     pub profile_time_s: f64,
     /// What the nested-model stage decided, when it ran ([`super::nested`]).
-    pub nested: Option<super::nested::NestedTest>,
+    pub nested: Option<NestedTest>,
     /// Profile re-solves the solver failed on (scored at their start, so an interval end
     /// beside them may lie too far out).
     pub profile_failed: usize,
@@ -254,3 +254,62 @@ pub struct FitOutcome {
 /// trip of a `kappa = 0` profile to a degenerate optimum (absorption ~1e13), which it
 /// leaves with them out (`tests/fit_recovery.rs`).
 pub const DEFAULT_FLOOR: f64 = 1e-8;
+
+/// What the nested-model stage decided, written to the fit file (`solver.nested`).
+#[derive(Clone, Debug)]
+pub struct NestedTest {
+    /// The reduction tried ([`crate::models::Reduction::name`]).
+    pub name: &'static str,
+    /// Parameter indices the reduction holds, and their values (file units).
+    pub held: Vec<(usize, f64)>,
+    /// The reduced model was kept (the full model did not lower the cost by more than
+    /// noise).
+    pub kept_reduced: bool,
+    /// What decided: the F-test, or the global stage when the reduced model was not
+    /// worth fitting.
+    pub decided_by: &'static str,
+    /// Samples of the probe (the fit's subsample).
+    pub n: usize,
+    /// Parameters the full model adds (`q`).
+    pub q: usize,
+    /// Residual degrees of freedom of the full model on the probe's samples.
+    pub dof: usize,
+    /// The reduced model's cost `0.5 sum r^2` on the probe's samples.
+    pub cost_reduced: f64,
+    /// The best full-model cost the probe found.
+    pub cost_full: f64,
+    /// The F statistic.
+    pub f: f64,
+    /// `P(F_{q, dof} > f)`.
+    pub p_value: f64,
+    /// Model evaluations of the probe.
+    pub evaluations: u64,
+    /// Wall seconds of the probe.
+    pub seconds: f64,
+}
+
+impl NestedTest {
+    /// One line for the progress output.
+    pub fn summary(&self) -> String {
+        if self.f.is_nan() {
+            return format!(
+                "nested model {} not fitted: the best full-model start costs {:.3e} on the \
+                 subsample, the best nested one {:.3e}",
+                self.name, self.cost_full, self.cost_reduced
+            );
+        }
+        format!(
+            "nested model {}: F = {:.3} on ({}, {}) degrees of freedom, p = {:.2e}: {}",
+            self.name,
+            self.f,
+            self.q,
+            self.dof,
+            self.p_value,
+            if self.kept_reduced {
+                "kept (the full model lowers the cost by no more than noise)"
+            } else {
+                "the full model lowers the cost: fitting it"
+            }
+        )
+    }
+}

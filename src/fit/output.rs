@@ -6,7 +6,7 @@
 //! `solver.model_time_share`, `trace[].time_s`) is a deterministic function of the data,
 //! the options and the seed.
 
-use super::nested::NestedTest;
+use super::options::NestedTest;
 use super::{FitOptions, FitOutcome};
 use crate::models::{FiberModel, ModelParams, Param};
 use serde_json::{json, Map, Value};

@@ -26,6 +26,7 @@ use std::sync::{Arc, Mutex};
 /// One channel's valid samples, ready for the residuals.
 #[derive(Clone, Debug)]
 pub struct FitData {
+    /// The samples' goniometer angles, radians.
     pub points: Points,
     /// `ln y_i`.
     pub ln_y: Vec<f64>,
@@ -83,10 +84,12 @@ impl FitData {
         }
     }
 
+    /// Number of valid samples.
     pub fn len(&self) -> usize {
         self.ln_y.len()
     }
 
+    /// Whether there are no valid samples.
     pub fn is_empty(&self) -> bool {
         self.ln_y.is_empty()
     }
@@ -148,6 +151,7 @@ pub fn nrmse(m: &[f64], ln_y: &[f64], range: f64) -> (f64, f64) {
 /// values of the fixed ones.
 #[derive(Clone, Debug)]
 pub struct ParamLayout {
+    /// The model being fitted.
     pub model: &'static dyn FiberModel,
     /// File-unit value of each fixed parameter, `None` for free ones (model order).
     pub fixed: Vec<Option<f64>>,
@@ -224,8 +228,11 @@ impl ParamLayout {
 
 /// The residual operator handed to the solver (argmin [`Operator`] + [`Jacobian`]).
 pub struct LogResidualProblem<'a> {
+    /// The samples the residuals are taken against.
     pub data: &'a FitData,
+    /// Which parameters are solved for, and the fixed ones' values.
     pub layout: ParamLayout,
+    /// Far-field options of every model evaluation.
     pub far: FarOptions,
     /// Model evaluations (one per residual vector), including finite-difference columns.
     pub evals: AtomicU64,
@@ -251,6 +258,8 @@ type Cached = (DVector<f64>, DVector<f64>, Arc<dyn ModelTerms>);
 pub const FD_STEP: f64 = 1e-6;
 
 impl<'a> LogResidualProblem<'a> {
+    /// The problem of fitting `layout`'s free parameters to `data`, the model evaluated
+    /// with `far`.
     pub fn new(data: &'a FitData, layout: ParamLayout, far: FarOptions) -> Self {
         LogResidualProblem {
             data,

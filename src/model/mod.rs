@@ -19,11 +19,10 @@
 pub mod azimuthal;
 pub mod cp;
 pub mod far;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod fresnel;
 pub mod geometry;
+pub mod grid_plan;
 pub mod longitudinal;
-#[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod medulla;
 pub mod medulla_mc;
 pub mod multiscale;

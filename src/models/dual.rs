@@ -50,20 +50,34 @@ pub trait Real:
     /// This number with its value replaced by `v` (the derivatives kept): a shift by a
     /// constant, as wrapping an angle into [-pi, pi] is.
     fn with_value(self, v: f64) -> Self;
+    /// `sin x`, derivative `cos x`.
     fn sin(self) -> Self;
+    /// `cos x`, derivative `-sin x`.
     fn cos(self) -> Self;
+    /// `(sin x, cos x)` in one call.
     fn sin_cos(self) -> (Self, Self) {
         (self.sin(), self.cos())
     }
+    /// `tan x`, derivative `1 + tan^2 x`.
     fn tan(self) -> Self;
+    /// `asin x`, derivative `1 / sqrt(1 - x^2)`.
     fn asin(self) -> Self;
+    /// `atan2(y = self, x)`, the angle of the point `(x, y)`; derivative
+    /// `(x dy - y dx) / (x^2 + y^2)`.
     fn atan2(self, x: Self) -> Self;
+    /// `sqrt x`, derivative `1 / (2 sqrt x)`.
     fn sqrt(self) -> Self;
+    /// `e^x`, derivative `e^x`.
     fn exp(self) -> Self;
+    /// `ln x`, derivative `1 / x`.
     fn ln(self) -> Self;
+    /// `ln(1 + x)`, accurate near 0, derivative `1 / (1 + x)`.
     fn ln_1p(self) -> Self;
+    /// `tanh x`, derivative `1 - tanh^2 x`.
     fn tanh(self) -> Self;
+    /// `x^n` for an integer `n`, derivative `n x^(n - 1)`.
     fn powi(self, n: i32) -> Self;
+    /// `|x|`, derivative `sign(x) dx`.
     fn abs(self) -> Self;
     /// `1 / self`.
     fn recip(self) -> Self;
@@ -162,7 +176,9 @@ impl Real for f64 {
 /// A value `v` and its gradient `g` with respect to `N` parameters.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Dual<const N: usize> {
+    /// Value of the function at the point.
     pub v: f64,
+    /// Gradient: `d v / d p_k` for each of the `N` parameters.
     pub g: [f64; N],
 }
 

@@ -1,10 +1,9 @@
 //! A parameter set of any registered model, and the parameter/fit JSON of DATA.md made
 //! generic: a `params` object keyed by the model's parameter names, and a `model` key
 //! naming the model (absent: `yan2017`, the files this project wrote before the zoo).
-// Documented: the lint is back on here while `models` as a whole is pending (lib.rs).
-#![warn(missing_docs)]
 
-use super::{by_name, default_model, FiberModel};
+use super::interface::FiberModel;
+use super::registry::{by_name, default_model};
 use crate::error::{Error, Num, Result};
 use serde_json::{Map as JsonMap, Value};
 use std::path::Path;
@@ -383,7 +382,7 @@ fn parse_exposure(v: &Value) -> Result<f64> {
     }
 }
 
-fn check_bound(model: &dyn FiberModel, s: &super::ParamSpec, v: f64) -> Result<()> {
+fn check_bound(model: &dyn FiberModel, s: &crate::params::ParamSpec, v: f64) -> Result<()> {
     if s.contains(v) {
         Ok(())
     } else {

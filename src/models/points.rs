@@ -1,12 +1,9 @@
 //! Goniometer points with the grid structures models find in them, kept between
 //! evaluations (a fit evaluates the same points hundreds of times).
 
-use super::{LobeSet, LobeValues, ModelTerms, ValueJacobian};
-use crate::model::far::FarOptions;
-use crate::synth::GridPlan;
+use crate::model::grid_plan::GridPlan;
 use std::any::Any;
 use std::collections::HashMap;
-use std::marker::PhantomData;
 use std::sync::{Arc, Mutex, OnceLock};
 
 /// A model's grid structure of a point list, type-erased so each model keeps its own.
@@ -16,6 +13,7 @@ type Cached = Arc<dyn Any + Send + Sync>;
 /// [`GridPlan`] and any other model's plan found on first use and kept.
 #[derive(Default)]
 pub struct Points {
+    /// The points `(theta_i, theta_r, phi)`, radians, in the order values are returned.
     pub pts: Vec<(f64, f64, f64)>,
     plan: OnceLock<Arc<GridPlan>>,
     plans: Mutex<Vec<(&'static str, Cached)>>,
@@ -52,24 +50,29 @@ impl Points {
         }
     }
 
+    /// Number of points.
     pub fn len(&self) -> usize {
         self.pts.len()
     }
 
+    /// Whether there are no points.
     pub fn is_empty(&self) -> bool {
         self.pts.is_empty()
     }
 
+    /// Append a point (radians); the cached plans are dropped, since they no longer cover
+    /// the list.
     pub fn push(&mut self, theta_i: f64, theta_r: f64, phi: f64) {
         self.pts.push((theta_i, theta_r, phi));
         self.plan = OnceLock::new();
         self.plans = Mutex::new(Vec::new());
     }
 
-    /// The grid `theta_i x theta_r x phi` given in degrees ([`crate::synth::grid_points`]).
+    /// The grid `theta_i x theta_r x phi` given in degrees
+    /// ([`crate::model::grid_plan::grid_points`]).
     pub fn grid_degrees(theta_i: &[f64], theta_r: &[f64], phi: &[f64]) -> Points {
         Points::new(
-            crate::synth::grid_points(theta_i, theta_r, phi)
+            crate::model::grid_plan::grid_points(theta_i, theta_r, phi)
                 .into_iter()
                 .map(|(ti, tr, ph)| (ti.to_radians(), tr.to_radians(), ph.to_radians()))
                 .collect(),
@@ -113,8 +116,11 @@ impl Points {
 /// distinct pairs, and each point's indices into them.
 #[derive(Debug, Default)]
 pub struct SlicePlan {
+    /// Distinct slice coordinates, in order of first appearance.
     pub slices: Vec<f64>,
+    /// Per slice: its distinct `|phi|`, in order of first appearance.
     pub phis: Vec<Vec<f64>>,
+    /// Distinct `(theta_i, theta_r)` pairs, the longitudinal terms' arguments.
     pub pairs: Vec<(f64, f64)>,
     /// Per point: (slice, phi within the slice, pair).
     pub index: Vec<(u32, u32, u32)>,
@@ -151,170 +157,6 @@ impl SlicePlan {
             plan.index.push((s, f, pr));
         }
         plan
-    }
-}
-
-/// A far field that factors over a [`SlicePlan`]: `L` lobes, each the product of an
-/// azimuthal term per `(slice, |phi|)` and a longitudinal term per pair (Chiang,
-/// Marschner). [`FactoredTerms`] keeps both for the fitter.
-pub trait Factored<const L: usize>: Sized + Send + Sync + 'static {
-    /// The model at a parameter vector (internal units, validated).
-    fn from_params(p: &[f64]) -> Self;
-    /// Parameters that only the longitudinal terms read.
-    const LONGITUDINAL: &'static [usize];
-    /// The azimuthal term of every slice and `|phi|` of `plan`.
-    fn azimuthal_terms(&self, plan: &SlicePlan) -> Vec<Vec<[f64; L]>>;
-    /// The longitudinal term of every pair of `plan`.
-    fn longitudinal_terms(&self, plan: &SlicePlan) -> Vec<[f64; L]>;
-
-    /// The derivatives of [`Self::azimuthal_terms`] with respect to every parameter
-    /// (internal units), per slice `phis.len() * n_params` entries, entry
-    /// `phi * n_params + k` the derivative by parameter `k` (zero for one the terms do not
-    /// read). `None` (the default): not provided, and the fitter differentiates by
-    /// finite differences.
-    fn azimuthal_gradients(&self, _plan: &SlicePlan) -> Option<Vec<Vec<[f64; L]>>> {
-        None
-    }
-
-    /// The derivatives of [`Self::longitudinal_terms`] likewise: `pairs.len() * n_params`
-    /// entries, `pair * n_params + k`.
-    fn longitudinal_gradients(&self, _plan: &SlicePlan) -> Option<Vec<[f64; L]>> {
-        None
-    }
-
-    fn factors(&self, plan: &SlicePlan) -> Factors<L> {
-        Factors {
-            n: self.azimuthal_terms(plan),
-            m: self.longitudinal_terms(plan),
-        }
-    }
-}
-
-/// The two factors of a [`Factored`] far field at one parameter set.
-#[derive(Clone, Debug)]
-pub struct Factors<const L: usize> {
-    pub n: Vec<Vec<[f64; L]>>,
-    pub m: Vec<[f64; L]>,
-}
-
-impl<const L: usize> Factors<L> {
-    /// Per-lobe values at every point of `plan`.
-    pub fn lobes<'a>(&'a self, plan: &'a SlicePlan) -> impl Iterator<Item = [f64; L]> + 'a {
-        plan.index.iter().map(move |&(s, f, pr)| {
-            let n = &self.n[s as usize][f as usize];
-            let m = &self.m[pr as usize];
-            std::array::from_fn(|p| m[p] * n[p])
-        })
-    }
-
-    /// Per-lobe values as [`LobeValues`], the lobes outside `set` zero.
-    pub fn lobe_values<'a>(
-        &'a self,
-        plan: &'a SlicePlan,
-        set: LobeSet,
-    ) -> impl Iterator<Item = LobeValues> + 'a {
-        self.lobes(plan).map(move |v| {
-            let mut out = LobeValues::default();
-            for (i, x) in v.into_iter().enumerate() {
-                if set.0 & (1 << i) != 0 {
-                    out.0[i] = x;
-                }
-            }
-            out
-        })
-    }
-}
-
-/// [`ModelTerms`] of a [`Factored`] model: a step in one of its `LONGITUDINAL`
-/// parameters recomputes only the longitudinal terms, any other only the azimuthal ones.
-///
-/// When the model provides both factors' gradients ([`Factored::azimuthal_gradients`],
-/// [`Factored::longitudinal_gradients`]), [`ModelTerms::jacobian`] combines them by the
-/// product rule: `d(sum_p M_p N_p) = sum_p (dM_p N_p + M_p dN_p)`.
-pub struct FactoredTerms<M, const L: usize> {
-    pub plan: Arc<SlicePlan>,
-    pub factors: Factors<L>,
-    /// The parameters (internal units) the factors were computed at.
-    params: Vec<f64>,
-    model: PhantomData<fn() -> M>,
-}
-
-impl<M: Factored<L>, const L: usize> FactoredTerms<M, L> {
-    pub fn new(p: &[f64], plan: Arc<SlicePlan>) -> FactoredTerms<M, L> {
-        let factors = M::from_params(p).factors(&plan);
-        FactoredTerms {
-            plan,
-            factors,
-            params: p.to_vec(),
-            model: PhantomData,
-        }
-    }
-}
-
-impl<M: Factored<L>, const L: usize> ModelTerms for FactoredTerms<M, L> {
-    fn values(&self, _points: &Points, out: &mut [f64]) {
-        for (o, v) in out.iter_mut().zip(self.factors.lobes(&self.plan)) {
-            *o = v.iter().sum();
-        }
-    }
-
-    fn with_change(
-        &self,
-        p: &[f64],
-        changed: usize,
-        _points: &Points,
-        _far: &FarOptions,
-    ) -> Box<dyn ModelTerms> {
-        let model = M::from_params(p);
-        let factors = if M::LONGITUDINAL.contains(&changed) {
-            Factors {
-                n: self.factors.n.clone(),
-                m: model.longitudinal_terms(&self.plan),
-            }
-        } else {
-            Factors {
-                n: model.azimuthal_terms(&self.plan),
-                m: self.factors.m.clone(),
-            }
-        };
-        Box::new(FactoredTerms::<M, L> {
-            plan: self.plan.clone(),
-            factors,
-            params: p.to_vec(),
-            model: PhantomData,
-        })
-    }
-
-    fn jacobian(&self, _points: &Points) -> Option<ValueJacobian> {
-        let model = M::from_params(&self.params);
-        let (dn, dm) = rayon::join(
-            || model.azimuthal_gradients(&self.plan),
-            || model.longitudinal_gradients(&self.plan),
-        );
-        let (dn, dm) = (dn?, dm?);
-        let k = self.params.len();
-        let plan = &self.plan;
-        let mut values = vec![0.0; plan.index.len()];
-        let mut d = vec![0.0; plan.index.len() * k];
-        for (i, &(s, f, pr)) in plan.index.iter().enumerate() {
-            let (s, f, pr) = (s as usize, f as usize, pr as usize);
-            let n = &self.factors.n[s][f];
-            let m = &self.factors.m[pr];
-            values[i] = (0..L).map(|p| m[p] * n[p]).sum();
-            for j in 0..k {
-                let (dn, dm) = (&dn[s][f * k + j], &dm[pr * k + j]);
-                d[i * k + j] = (0..L).map(|p| dm[p] * n[p] + m[p] * dn[p]).sum();
-            }
-        }
-        Some(ValueJacobian {
-            values,
-            n_params: k,
-            d,
-        })
-    }
-
-    fn capped_slices(&self) -> (usize, usize) {
-        (0, self.plan.slices.len())
     }
 }
 

@@ -1,18 +1,19 @@
 //! `yan2017`: the 5-lobe fur BCSDF of seed `000` (Yan et al. 2017) behind the model
 //! interface. The physics is [`crate::model`] and its grid prediction
-//! [`crate::synth::GridPlan`]; this file only adapts them: the ten parameters of MODEL.md,
-//! the solver's maps, the plausible box and seed Table 4 as presets.
+//! [`crate::model::grid_plan::GridPlan`]; this file only adapts them: the ten parameters of
+//! MODEL.md, the solver's maps, the plausible box and seed Table 4 as presets.
 //!
 //! A goniometer sample predicts `sum_p M_p N_p` (MODEL.md "What a goniometer sample
 //! predicts"): seed Eq. 4's `1/cos^2 theta_i` cancels the measure of its Eq. 2.
-// Documented: the lint is back on here while `models` as a whole is pending (lib.rs).
-#![warn(missing_docs)]
 
-use super::{FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset, Reduction};
+use super::interface::{
+    FiberModel, Integral, Map, ModelTerms, Param, Prediction, Preset, Reduction,
+};
+use super::points::Points;
 use crate::model::far::{Decisions, FarOptions};
+use crate::model::grid_plan::{ModelKind, PairTerms};
 use crate::model::{FurModel, LobeSet, LobeValues};
 use crate::params::{FurParams, ParamId, ParamSpec, N_PARAMS, PRESETS, SPECS};
-use crate::synth::{ModelKind, PairTerms};
 use std::sync::Arc;
 
 /// The fur model (a unit struct: its state lives in [`FurModel`], built per parameter set).
@@ -217,7 +218,7 @@ impl FiberModel for Yan2017 {
 
 /// The two factors of the fur far field at one parameter set, all five lobes: `N_p` per
 /// `(theta_d, phi)` and the longitudinal terms per theta pair
-/// ([`crate::synth::GridPlan::azimuthal_terms`], `longitudinal_terms`).
+/// ([`crate::model::grid_plan::GridPlan::azimuthal_terms`], `longitudinal_terms`).
 #[derive(Clone, Debug)]
 pub struct FurTerms {
     n: Vec<Vec<LobeValues>>,
@@ -294,15 +295,15 @@ impl ModelTerms for FurTerms {
 
     fn capped_slices(&self) -> (usize, usize) {
         (
-            crate::synth::capped_slices(&self.decisions),
+            crate::model::grid_plan::capped_slices(&self.decisions),
             self.decisions.len(),
         )
     }
 }
 
-impl From<ParamId> for super::Param {
+impl From<ParamId> for Param {
     fn from(id: ParamId) -> Self {
-        super::Param {
+        Param {
             model: &Yan2017,
             index: id.index(),
         }

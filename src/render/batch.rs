@@ -29,7 +29,9 @@ pub struct RenderJob {
 /// interface, [`super::render_model_scene`]: near field, all lobes, no AOVs).
 #[derive(Clone, Debug)]
 pub enum JobParams {
+    /// The fur model's ten parameters (every renderer option applies).
     Fur(FurParams),
+    /// Another model's parameters for the r, g and b channels (internal units).
     Model(Box<[crate::models::ModelParams; 3]>),
 }
 

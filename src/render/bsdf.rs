@@ -100,12 +100,17 @@ const MIN_MASS: f64 = 1e-10;
 /// Which scale of the model a shading query uses.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
+    /// The near field at the hit's offset `h` (seed Sec. 4).
     Near,
+    /// The far field, averaged over `h` (seed Sec. 5.1).
     Far,
+    /// Near or far by the pixel footprint's coverage of the fiber: the offset range of seed
+    /// Eq. 26, its width from Eq. 27 (seed Sec. 5.2).
     Multiscale,
 }
 
 impl Mode {
+    /// Parse `near`, `far` or `multiscale` (`--mode`).
     pub fn parse(s: &str) -> crate::Result<Mode> {
         match s.to_ascii_lowercase().as_str() {
             "near" => Ok(Mode::Near),
@@ -116,6 +121,7 @@ impl Mode {
             ))),
         }
     }
+    /// The `--mode` name, as [`Mode::parse`] reads it.
     pub fn name(self) -> &'static str {
         match self {
             Mode::Near => "near",
@@ -173,6 +179,7 @@ pub enum MedullaEnergy {
 }
 
 impl MedullaEnergy {
+    /// Parse `strand`, `fit` or `conserve` (`--medulla-energy`).
     pub fn parse(s: &str) -> crate::Result<MedullaEnergy> {
         match s.trim().to_ascii_lowercase().as_str() {
             "strand" => Ok(MedullaEnergy::Strand),
@@ -184,6 +191,7 @@ impl MedullaEnergy {
         }
     }
 
+    /// The `--medulla-energy` name, as [`MedullaEnergy::parse`] reads it.
     pub fn name(self) -> &'static str {
         match self {
             MedullaEnergy::Strand => "strand",
@@ -196,6 +204,7 @@ impl MedullaEnergy {
 /// Per-lobe, per-channel values (`[lobe][channel]`).
 pub type LobeRgb = [[f64; 3]; 5];
 
+/// Sum over the lobes, per channel: the value a path carries.
 pub fn lobe_sum(v: &LobeRgb) -> Rgb {
     let mut s = [0.0; 3];
     for l in v {
@@ -219,7 +228,9 @@ pub enum Tint {
     Ratios([f64; 3]),
     /// Absorption per channel r, g, b, replacing the parameters' own.
     Absorption {
+        /// Cortex absorption `sigma_c_a` per channel, per unit radius.
         sigma_c_a: [f64; 3],
+        /// Medulla absorption `sigma_m_a` per channel, per unit radius.
         sigma_m_a: [f64; 3],
     },
 }
@@ -252,6 +263,7 @@ impl Default for Tint {
 }
 
 impl Tint {
+    /// No tint: every channel has the parameters' own absorption.
     pub const GREY: Tint = Tint::Ratios([1.0, 1.0, 1.0]);
 
     /// `params` with channel `c`'s absorption.
@@ -317,10 +329,13 @@ impl Tint {
 /// A sampled light-side direction.
 #[derive(Clone, Copy, Debug)]
 pub struct BsdfSample {
+    /// Light-side inclination (radians, from the normal plane).
     pub theta: f64,
+    /// Light-side azimuth relative to the camera side's (radians).
     pub phi: f64,
     /// The offset the sample was drawn at.
     pub h: f64,
+    /// The lobe the sample was drawn from.
     pub lobe: Lobe,
     /// `sum M N` per lobe at the sampled `h` over the conditional pdf: the per-lobe parts
     /// of the sample weight `f cos / pdf_w`.
@@ -428,6 +443,8 @@ fn trunc_sample(mu: f64, s: f64, (qa, qb): (f64, f64), u: f64) -> f64 {
 }
 
 impl FiberBsdf {
+    /// The BCSDF of `params` per channel under `tint`, restricted to `lobes` (medulla
+    /// energy as fitted, no Strand scale).
     pub fn new(params: &FurParams, tint: Tint, lobes: LobeSet) -> FiberBsdf {
         let models = [0, 1, 2].map(|c| FurModel::new(&tint.apply(params, c)));
         let lobes = lobes.intersect(models[0].active_lobes());
@@ -457,6 +474,7 @@ impl FiberBsdf {
         self.lobes
     }
 
+    /// The fur model of channel `c` (0, 1, 2 for r, g, b), its absorption tinted.
     pub fn model(&self, c: usize) -> &FurModel {
         &self.models[c]
     }
@@ -1057,12 +1075,17 @@ impl<'a> PdfQuery<'a> {
 /// normal-plane projection, `w = u x v`.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
+    /// The fiber tangent, root to tip.
     pub u: V3,
+    /// The camera direction projected on the normal plane (`phi = 0`).
     pub v: V3,
+    /// `u x v`, completing the right-handed frame.
     pub w: V3,
 }
 
 impl Frame {
+    /// The frame of tangent `u` (unit) and camera-side direction `wo`; any normal-plane `v`
+    /// when `wo` runs along the fiber.
     pub fn new(u: V3, wo: V3) -> Frame {
         let mut v = wo - u * wo.dot(u);
         if v.length() < 1e-9 {
@@ -1090,6 +1113,8 @@ impl Frame {
         )
     }
 
+    /// The unit world direction of local `(theta, phi)`: the inverse of
+    /// [`Frame::to_local`].
     pub fn to_world(&self, theta: f64, phi: f64) -> V3 {
         let (st, ct) = theta.sin_cos();
         let (sp, cp) = phi.sin_cos();

@@ -86,6 +86,7 @@ const STACK: usize = 192;
 /// A ray-fiber hit.
 #[derive(Clone, Copy, Debug)]
 pub struct Hit {
+    /// Ray parameter at the closest approach (the ray's direction is unit).
     pub t: f64,
     /// Point on the ray at closest approach.
     pub p: V3,
@@ -95,7 +96,9 @@ pub struct Hit {
     pub h: f64,
     /// Fiber radius at the hit (world units).
     pub radius: f64,
+    /// Index of the fiber hit.
     pub fiber: u32,
+    /// Index of the segment hit, into [`Bvh::segments`].
     pub segment: u32,
 }
 
@@ -216,6 +219,7 @@ pub struct DirTree {
 }
 
 impl DirTree {
+    /// The direction the tree was built along (toward the light).
     pub fn dir(&self) -> V3 {
         self.dir
     }
@@ -351,6 +355,7 @@ impl Bvh {
         })
     }
 
+    /// The segments, in the order [`Hit::segment`] indexes them.
     pub fn segments(&self) -> &[Segment] {
         &self.segs
     }
@@ -713,6 +718,9 @@ fn build_rec(order: &mut [usize], first: usize, ctx: &BuildCtx) -> Vec<Node> {
     nodes
 }
 
+/// The hit of the unit ray `o + t d`, `t` in `(tmin, tmax)`, with segment `s`: at the ray's
+/// closest approach to the segment's axis, inside the radius interpolated from `ra` to `rb`
+/// (`segment` left 0 for the caller).
 #[inline(always)]
 pub fn intersect_segment(s: &Segment, o: V3, d: V3, tmin: f64, tmax: f64) -> Option<Hit> {
     let e = s.b - s.a;

@@ -33,7 +33,10 @@ pub fn default_thetas_deg() -> Vec<f64> {
 /// One inclination's albedo.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct FurnaceRow {
+    /// Camera-side inclination, degrees.
     pub theta_deg: f64,
+    /// Directional albedo at that inclination: the share of a white furnace's light the
+    /// fiber returns.
     pub albedo: f64,
     /// Standard error of `albedo` (Monte Carlo).
     pub se: f64,
@@ -135,10 +138,13 @@ pub fn extremes(rows: &[FurnaceRow]) -> (f64, f64) {
 /// One curve of the furnace report: a fit, its variant, a mode.
 #[derive(Clone, Debug)]
 pub struct Curve {
+    /// The fit's name (file stem).
     pub fit: String,
     /// `fitted` or `lossless`.
     pub variant: &'static str,
+    /// How the scattered lobes' energy was treated.
     pub mode: MedullaEnergy,
+    /// One row per inclination.
     pub rows: Vec<FurnaceRow>,
 }
 

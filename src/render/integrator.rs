@@ -37,9 +37,11 @@ pub trait Bcsdf: Sync {
     type Side: Copy;
     /// The MIS pdf's state at one vertex.
     type Mis: Copy;
+    /// The per-vertex state of camera side `theta_o`, shared by sampling and the MIS pdf.
     fn camera_side(&self, theta_o: f64) -> Self::Side;
     /// Per-lobe values for camera-side `theta_o`, light side `(theta, phi)`, offsets `hr`.
     fn eval(&self, theta_o: f64, theta: f64, phi: f64, hr: HRange) -> LobeRgb;
+    /// The MIS pdf's state at one vertex over the offsets `hr`.
     fn mis_prepare(&self, side: &Self::Side, hr: HRange) -> Self::Mis;
     /// The pdf MIS weighs a direction by (`(theta, phi)` measure).
     fn pdf_mis_prepared(&self, mp: &Self::Mis, theta: f64, phi: f64) -> f64;
@@ -69,20 +71,30 @@ impl Bcsdf for FiberBsdf {
 
 /// Everything a path needs, borrowed.
 pub struct Integrator<'a, B: Bcsdf = FiberBsdf> {
+    /// The fibers' acceleration structure.
     pub bvh: &'a Bvh,
     /// Shadow-ray tree along `light`'s direction ([`DirTree`]); `None` uses `bvh`.
     pub light_tree: Option<&'a DirTree>,
+    /// The fibers' BCSDF.
     pub bsdf: &'a B,
+    /// The camera primary rays start from.
     pub camera: &'a Camera,
+    /// The key light, if any.
     pub light: Option<DirectionalLight>,
+    /// The environment (sky) light.
     pub env: Environment,
+    /// Which scale of the model the BCSDF queries use.
     pub mode: Mode,
+    /// Fiber vertices a path may have at most.
     pub max_depth: usize,
     /// First vertex (0-based) after which a path may be ended by Russian roulette, with
     /// survival probability `min(max throughput, 0.95)` and the throughput divided by it
     /// (unbiased). 2 in renders; `>= max_depth` turns roulette off (tests compare both).
     pub roulette_from: usize,
+    /// Multiplier of every footprint coverage (module doc): 0 near field everywhere, huge
+    /// far field everywhere.
     pub footprint_scale: f64,
+    /// Cone spread (radians) of rays after a fiber scattering (module doc; 1 by default).
     pub secondary_spread: f64,
     /// Also sample the environment at every vertex (next-event estimation with MIS).
     pub env_nee: bool,
@@ -91,7 +103,10 @@ pub struct Integrator<'a, B: Bcsdf = FiberBsdf> {
 /// Radiance of one camera path, split into beauty and per-lobe AOVs.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct PathResult {
+    /// Radiance of the whole path.
     pub beauty: Rgb,
+    /// Radiance per lobe of the first fiber vertex, indexed by
+    /// [`crate::model::Lobe::index`].
     pub lobes: [Rgb; 5],
     /// Rays traced (closest-hit and shadow).
     pub rays: u64,

@@ -42,6 +42,7 @@ pub enum Sampling {
 }
 
 impl Sampling {
+    /// Parse `lobes`, `ishair` or `uniform` (`--sampling`).
     pub fn parse(s: &str) -> crate::Result<Sampling> {
         match s.trim().to_ascii_lowercase().as_str() {
             "lobes" => Ok(Sampling::Lobes),
@@ -53,6 +54,7 @@ impl Sampling {
         }
     }
 
+    /// The `--sampling` name, as [`Sampling::parse`] reads it.
     pub fn name(self) -> &'static str {
         match self {
             Sampling::Lobes => "lobes",
@@ -65,14 +67,18 @@ impl Sampling {
 /// A Cauchy distribution of `theta` truncated to [-pi/2, pi/2].
 #[derive(Clone, Copy, Debug, Default)]
 pub struct CauchyTheta {
+    /// Location: the lobe's centre inclination.
     pub mu: f64,
+    /// Scale (half width at half maximum).
     pub gamma: f64,
     /// `atan((-pi/2 - mu) / gamma)`, `atan((pi/2 - mu) / gamma)`.
     pub a: f64,
+    /// The upper end, `atan((pi/2 - mu) / gamma)` (see `a`).
     pub b: f64,
 }
 
 impl CauchyTheta {
+    /// The truncated Cauchy of location `mu` and scale `gamma`.
     pub fn new(mu: f64, gamma: f64) -> CauchyTheta {
         CauchyTheta {
             mu,
@@ -82,11 +88,13 @@ impl CauchyTheta {
         }
     }
 
+    /// The inclination at uniform `u` in [0, 1) (inverse CDF).
     pub fn sample(&self, u: f64) -> f64 {
         let t = self.mu + self.gamma * (self.a + u * (self.b - self.a)).tan();
         t.clamp(-FRAC_PI_2, FRAC_PI_2)
     }
 
+    /// The density of [`Self::sample`]'s draws at `theta`, per radian.
     pub fn pdf(&self, theta: f64) -> f64 {
         if theta.abs() > FRAC_PI_2 || self.b <= self.a {
             return 0.0;

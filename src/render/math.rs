@@ -6,18 +6,24 @@ use std::ops::{Add, Mul, Neg, Sub};
 /// A 3-vector / point.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct V3 {
+    /// First component.
     pub x: f64,
+    /// Second component.
     pub y: f64,
+    /// Third component.
     pub z: f64,
 }
 
 impl V3 {
+    /// The vector `(x, y, z)`.
     pub const fn new(x: f64, y: f64, z: f64) -> V3 {
         V3 { x, y, z }
     }
+    /// Dot product.
     pub fn dot(self, o: V3) -> f64 {
         self.x * o.x + self.y * o.y + self.z * o.z
     }
+    /// Cross product `self x o`.
     pub fn cross(self, o: V3) -> V3 {
         V3::new(
             self.y * o.z - self.z * o.y,
@@ -25,6 +31,7 @@ impl V3 {
             self.x * o.y - self.y * o.x,
         )
     }
+    /// Euclidean length.
     pub fn length(self) -> f64 {
         self.dot(self).sqrt()
     }
@@ -37,12 +44,15 @@ impl V3 {
             self
         }
     }
+    /// Componentwise minimum (bounding boxes).
     pub fn min(self, o: V3) -> V3 {
         V3::new(self.x.min(o.x), self.y.min(o.y), self.z.min(o.z))
     }
+    /// Componentwise maximum (bounding boxes).
     pub fn max(self, o: V3) -> V3 {
         V3::new(self.x.max(o.x), self.y.max(o.y), self.z.max(o.z))
     }
+    /// Component `a` (0 = x, 1 = y, 2 = z).
     pub fn axis(self, a: usize) -> f64 {
         match a {
             0 => self.x,

@@ -33,6 +33,7 @@ pub mod sampler_study;
 pub mod scene;
 pub mod select;
 pub mod strand;
+pub mod strand_albedo;
 pub mod strand_train;
 pub mod study;
 pub mod study_run;
@@ -74,12 +75,16 @@ pub const MAX_RADIANCE: f64 = 1e6;
 /// A linear RGB image, row-major, top row first.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Image {
+    /// Width, pixels.
     pub width: usize,
+    /// Height, pixels.
     pub height: usize,
+    /// Pixels, row-major, top row first.
     pub data: Vec<Rgb>,
 }
 
 impl Image {
+    /// A black image of `width x height`.
     pub fn new(width: usize, height: usize) -> Image {
         Image {
             width,
@@ -100,6 +105,7 @@ impl Image {
         (s / n).sqrt()
     }
 
+    /// The largest channel value of any pixel (for scaling previews).
     pub fn max_value(&self) -> f64 {
         self.data
             .iter()
@@ -111,9 +117,13 @@ impl Image {
 /// Camera placement (degrees for angles).
 #[derive(Clone, Debug)]
 pub struct CameraSpec {
+    /// Distance from the camera's target (world units).
     pub dist: f64,
+    /// Elevation above the horizontal plane, degrees.
     pub elev_deg: f64,
+    /// Azimuth about the vertical axis, degrees.
     pub azim_deg: f64,
+    /// Vertical field of view, degrees.
     pub fov_deg: f64,
 }
 
@@ -131,23 +141,37 @@ impl Default for CameraSpec {
 /// Everything that defines one render.
 #[derive(Clone, Debug)]
 pub struct RenderSettings {
+    /// Image width, pixels.
     pub width: usize,
+    /// Image height, pixels.
     pub height: usize,
+    /// Samples (camera paths) per pixel.
     pub spp: usize,
+    /// Seed of every pixel's random stream (renders do not depend on the thread count).
     pub seed: u64,
     /// Worker threads (0 = rayon's default).
     pub threads: usize,
+    /// Which scale of the model shading uses (`--mode`).
     pub mode: Mode,
+    /// The lobes rendered (others 0).
     pub lobes: LobeSet,
+    /// Fiber vertices a path may have at most.
     pub max_depth: usize,
     /// [`Integrator::roulette_from`] (default 2).
     pub roulette_from: usize,
+    /// [`Integrator::footprint_scale`].
     pub footprint_scale: f64,
+    /// [`Integrator::secondary_spread`].
     pub secondary_spread: f64,
+    /// Where the camera stands.
     pub camera: CameraSpec,
+    /// The key light, if any.
     pub light: Option<DirectionalLight>,
+    /// The environment (sky) light.
     pub env: Environment,
+    /// The procedural lock rendered.
     pub strand: StrandSpec,
+    /// Per-channel absorption (a fit's r, g, b colour or ratios).
     pub tint: Tint,
     /// Render only this window `(x0, y0, w, h)` of the full frame.
     pub region: Option<(usize, usize, usize, usize)>,
@@ -210,9 +234,11 @@ impl Default for RenderSettings {
 /// A rendered frame: beauty, per-lobe AOVs (first fiber vertex) and statistics.
 #[derive(Clone, Debug)]
 pub struct RenderOutput {
+    /// The full path radiance per pixel.
     pub beauty: Image,
     /// Indexed by [`crate::model::Lobe::index`].
     pub lobes: [Image; 5],
+    /// Rays traced (closest-hit and shadow).
     pub rays: u64,
     /// Seconds tracing paths (excludes `setup_seconds`).
     pub seconds: f64,
@@ -222,6 +248,7 @@ pub struct RenderOutput {
 }
 
 impl RenderOutput {
+    /// Rays per second of tracing (`rays / seconds`).
     pub fn rays_per_second(&self) -> f64 {
         self.rays as f64 / self.seconds.max(1e-9)
     }
@@ -233,6 +260,7 @@ type TableKey = ([u64; 10], [u64; 7], LobeSet, bool);
 /// Prepared scene (geometry is reused across renders of a study), with the far-field
 /// tables of the parameter sets rendered so far (a study renders one set many times).
 pub struct Scene {
+    /// The lock's acceleration structure.
     pub bvh: Bvh,
     tables: Mutex<Vec<(TableKey, Arc<ntable::FarTable>)>>,
     /// Shadow-ray trees of the key light directions rendered so far.
@@ -245,6 +273,7 @@ pub struct Scene {
 type EnergyKey = ([u64; 10], [u64; 7], Option<std::path::PathBuf>);
 
 impl Scene {
+    /// The scene of lock `strand` (builds its BVH).
     pub fn build(strand: &StrandSpec) -> Scene {
         Scene {
             bvh: Bvh::build(scene::build_lock(strand)),

@@ -14,6 +14,7 @@ use crate::models::NearBsdf;
 
 /// A model's near field as the integrator's [`Bcsdf`].
 pub struct ModelBsdf {
+    /// The model's near field ([`crate::models::FiberModel::render_bsdf`]).
     pub inner: Box<dyn NearBsdf>,
 }
 

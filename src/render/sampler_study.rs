@@ -19,6 +19,7 @@ use crate::params::FurParams;
 /// One [`Convergence`] per sampler.
 #[derive(Clone, Debug)]
 pub struct SamplerStudy {
+    /// Each sampler with its convergence curve.
     pub runs: Vec<(Sampling, Convergence)>,
 }
 

@@ -14,10 +14,13 @@ use std::f64::consts::{PI, TAU};
 /// One straight piece of a fiber.
 #[derive(Clone, Copy, Debug)]
 pub struct Segment {
+    /// Start point (root side).
     pub a: V3,
+    /// End point (tip side).
     pub b: V3,
     /// Fiber radius at `a` and `b` (world units).
     pub ra: f64,
+    /// Fiber radius at `b` (see `ra`).
     pub rb: f64,
     /// Index of the fiber this segment belongs to.
     pub fiber: u32,
@@ -32,11 +35,15 @@ pub const MAX_FIBERS: usize = 100_000;
 /// Parameters of the procedural lock.
 #[derive(Clone, Debug)]
 pub struct StrandSpec {
+    /// Number of fibers in the lock.
     pub fibers: usize,
+    /// Straight segments per fiber.
     pub segments_per_fiber: usize,
     /// Fiber radius at the root (world units; the lock is about 1.1 units long).
     pub radius: f64,
+    /// Number of clumps the fibers gather into.
     pub clumps: usize,
+    /// Seed of the lock's random layout.
     pub seed: u64,
 }
 
@@ -113,14 +120,19 @@ pub fn build_lock(spec: &StrandSpec) -> Vec<Segment> {
 /// Pinhole camera looking at `target` from spherical position (`dist`, `elev`, `azim`).
 #[derive(Clone, Copy, Debug)]
 pub struct Camera {
+    /// Camera position.
     pub eye: V3,
     /// Unit look-at direction `omega_lookat` of seed Eq. 27.
     pub forward: V3,
+    /// Unit image-plane right.
     pub right: V3,
+    /// Unit image-plane up.
     pub up: V3,
     /// `tan(fov_y / 2)`.
     pub tan_half: f64,
+    /// Image width, pixels.
     pub width: usize,
+    /// Image height, pixels.
     pub height: usize,
 }
 
@@ -171,11 +183,14 @@ impl Camera {
 /// `top` straight up; equal values give a constant environment.
 #[derive(Clone, Copy, Debug)]
 pub struct Environment {
+    /// Radiance straight up, r, g, b.
     pub top: [f64; 3],
+    /// Radiance straight down, r, g, b.
     pub bottom: [f64; 3],
 }
 
 impl Environment {
+    /// A uniform environment of radiance `v` in every channel.
     pub fn constant(v: f64) -> Environment {
         Environment {
             top: [v; 3],
@@ -183,11 +198,13 @@ impl Environment {
         }
     }
 
+    /// Radiance arriving from direction `d` (unit; linear in `d.y` between bottom and top).
     pub fn radiance(&self, d: V3) -> [f64; 3] {
         let t = 0.5 * (d.y + 1.0);
         [0, 1, 2].map(|c| self.bottom[c] + (self.top[c] - self.bottom[c]) * t)
     }
 
+    /// Whether the environment adds no light (its sampling is skipped).
     pub fn is_black(&self) -> bool {
         self.top.iter().chain(self.bottom.iter()).all(|v| *v <= 0.0)
     }
@@ -197,7 +214,9 @@ impl Environment {
 /// surface facing it.
 #[derive(Clone, Copy, Debug)]
 pub struct DirectionalLight {
+    /// Unit direction toward the light.
     pub dir: V3,
+    /// Irradiance on a surface facing the light, r, g, b.
     pub irradiance: [f64; 3],
 }
 

@@ -27,6 +27,7 @@ pub const N_H: usize = 41;
 /// [`crate::model::Lobe::index`]) and the scattered lobes' frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Selection {
+    /// Probability of each lobe, indexed by [`crate::model::Lobe::index`].
     pub probs: [f64; 5],
     /// Medulla entry offset `x` of the `C^N` query.
     pub x_med: f64,

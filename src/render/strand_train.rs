@@ -27,7 +27,9 @@ use rayon::prelude::*;
 pub struct Sample {
     /// `eta, kappa, sigma_m_s, sigma_m_a, g, theta` (radians).
     pub raw: [f64; 6],
+    /// The Monte Carlo's physical albedo `E_phys` at these inputs.
     pub albedo: f64,
+    /// Standard error of `albedo`.
     pub se: f64,
 }
 

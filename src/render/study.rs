@@ -13,17 +13,22 @@ const BOOTSTRAP_SEED: u64 = 0x5eed_b007;
 /// One point of a convergence curve.
 #[derive(Clone, Debug)]
 pub struct ConvergencePoint {
+    /// The render mode of this point.
     pub mode: Mode,
     /// Which independent render (seed) of this spp, from 0.
     pub repeat: usize,
+    /// Samples per pixel.
     pub spp: usize,
+    /// Path-tracing seconds of the render.
     pub seconds: f64,
+    /// RMSE of the render against the reference.
     pub rmse: f64,
 }
 
 /// Result of [`convergence`].
 #[derive(Clone, Debug)]
 pub struct Convergence {
+    /// Every render of the curve.
     pub points: Vec<ConvergencePoint>,
     /// Reference render time per mode.
     pub reference_seconds: Vec<(Mode, f64)>,
@@ -225,6 +230,7 @@ impl Convergence {
         s
     }
 
+    /// The points as CSV (`mode,repeat,spp,seconds,rmse`).
     pub fn to_csv(&self) -> String {
         let mut s = String::from("mode,repeat,spp,seconds,rmse\n");
         for p in &self.points {
@@ -329,8 +335,10 @@ pub enum BudgetLighting {
 }
 
 impl BudgetLighting {
+    /// Every lighting, in report order.
     pub const ALL: [BudgetLighting; 3] = [Self::Full, Self::Key, Self::KeyDirect];
 
+    /// One line for the report.
     pub fn describe(self) -> &'static str {
         match self {
             Self::Full => "key light + environment, multiple scattering (the default scene)",
@@ -549,6 +557,7 @@ pub fn plot_convergence_bytes(
 /// One variant of the culling study.
 #[derive(Clone, Debug)]
 pub struct CullingRow {
+    /// The variant's name in the report.
     pub name: String,
     /// Path-tracing seconds.
     pub seconds: f64,

@@ -281,9 +281,144 @@ enum Region {
     Medulla,
 }
 
-/// Trace one path: collimated light from `theta_i` (inclination of the direction toward the
-/// light), hitting the fiber at a uniformly random offset over its projected width.
-pub fn trace_path(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Outcome {
+/// A path inside the fiber between events: position (`z` dropped: the fiber is
+/// translation-invariant along it), direction, weight, region, and the tallies an
+/// [`Exit`] reports.
+struct Walk {
+    p: V3,
+    d: V3,
+    w: f64,
+    /// Axial travel since entry.
+    z: f64,
+    region: Region,
+    cuticle_n: u32,
+    scatters: u32,
+    phi_i: f64,
+}
+
+/// The medulla's semi-axes and how its boundary acts (fixed per fiber).
+struct MedullaShape {
+    mx: f64,
+    my: f64,
+    present: bool,
+    /// `eta_m == eta`: the boundary is no interface.
+    index_matched: bool,
+}
+
+impl Walk {
+    /// The path leaving through the cuticle now.
+    fn exit(&self) -> Outcome {
+        Outcome::Exit(Exit {
+            dir: self.d,
+            phi_i: self.phi_i,
+            weight: self.w,
+            cuticle: self.cuticle_n,
+            scatters: self.scatters,
+        })
+    }
+
+    /// Move `t` along the direction through a medium absorbing `sigma_a` per unit radius.
+    #[inline]
+    fn advance(&mut self, t: f64, sigma_a: f64) {
+        self.w *= (-sigma_a * t).exp();
+        self.p = add(self.p, scale(self.d, t));
+        self.z += self.d[2] * t;
+    }
+
+    /// Cross the medulla boundary where the path stands (`into` the medulla or out of
+    /// it), refracting or reflecting at an interface.
+    fn medulla_boundary(
+        &mut self,
+        f: &Fiber,
+        m: &MedullaShape,
+        into: bool,
+        rng: &mut Xoshiro256PlusPlus,
+    ) {
+        let other = if into {
+            Region::Medulla
+        } else {
+            Region::Cortex
+        };
+        if m.index_matched {
+            self.region = other;
+        } else {
+            let nm = ellipse_normal(self.p, m.mx, m.my);
+            let (nd, crossed) = medulla_interface(f, self.d, nm, into, rng);
+            self.d = nd;
+            if crossed {
+                self.region = other;
+            }
+        }
+    }
+
+    /// One segment in the cortex: to the medulla or to the cuticle, where the path may
+    /// leave (`Some`).
+    fn cortex_step(
+        &mut self,
+        f: &Fiber,
+        m: &MedullaShape,
+        rng: &mut Xoshiro256PlusPlus,
+    ) -> Option<Outcome> {
+        let t_out = match ellipse_roots(self.p, self.d, f.ax, f.ay) {
+            Some((_, t1)) => t1.max(0.0),
+            None => return Some(Outcome::Guided(self.w)),
+        };
+        let t_med = if m.present {
+            match ellipse_roots(self.p, self.d, m.mx, m.my) {
+                Some((t0, _)) if t0 > 1e-12 => t0,
+                _ => f64::INFINITY,
+            }
+        } else {
+            f64::INFINITY
+        };
+        if t_med < t_out {
+            self.advance(t_med, f.sigma_c_a);
+            self.medulla_boundary(f, m, true, rng);
+            return None;
+        }
+        self.advance(t_out, f.sigma_c_a);
+        // Re-project onto the boundary to stop rounding drift over many bounces.
+        let p = self.p;
+        let k = 1.0 / ((p[0] / f.ax).powi(2) + (p[1] / f.ay).powi(2)).sqrt();
+        self.p = [p[0] * k, p[1] * k, 0.0];
+        self.cuticle_n += 1;
+        let n0 = ellipse_normal(self.p, f.ax, f.ay);
+        let (nd, crossed) = cuticle(f, self.d, n0, false, rng);
+        self.d = nd;
+        crossed.then(|| self.exit())
+    }
+
+    /// One segment in the medulla: a scattering or the boundary. `false` when the path
+    /// is tangential to the boundary (treated as leaving it, with no segment).
+    fn medulla_step(&mut self, f: &Fiber, m: &MedullaShape, rng: &mut Xoshiro256PlusPlus) -> bool {
+        let t_b = match ellipse_roots(self.p, self.d, m.mx, m.my) {
+            Some((_, t1)) => t1.max(0.0),
+            None => {
+                self.region = Region::Cortex;
+                return false;
+            }
+        };
+        let s = if f.sigma_m_s > 0.0 {
+            -(1.0 - rng.random::<f64>()).ln() / f.sigma_m_s
+        } else {
+            f64::INFINITY
+        };
+        if s < t_b {
+            self.advance(s, f.sigma_m_a);
+            self.d = hg_scatter(self.d, f.g, rng);
+            self.scatters += 1;
+        } else {
+            self.advance(t_b, f.sigma_m_a);
+            self.medulla_boundary(f, m, false, rng);
+        }
+        true
+    }
+}
+
+/// Where a path from `theta_i` first meets the fiber: the light's azimuth `phi_i` (random
+/// when the fiber rotates), the propagation direction and the hit point at a uniformly
+/// random offset over the projected width; `None` for a grazing miss.
+fn launch(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Option<(f64, V3, V3)> {
     let phi_i = if f.rotate {
         std::f64::consts::TAU * rng.random::<f64>()
     } else {
@@ -292,7 +427,7 @@ pub fn trace_path(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Outc
     let (si, ci) = theta_i.sin_cos();
     let (sp, cp) = phi_i.sin_cos();
     // Propagation direction: away from the light.
-    let mut d: V3 = [-ci * cp, -ci * sp, -si];
+    let d: V3 = [-ci * cp, -ci * sp, -si];
     // Offset across the projected width along e = (-sin phi_i, cos phi_i).
     let e = [-sp, cp, 0.0];
     let half_w = (f.ax * f.ax * e[0] * e[0] + f.ay * f.ay * e[1] * e[1]).sqrt();
@@ -303,135 +438,67 @@ pub fn trace_path(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Outc
         far * sp + h * half_w * e[1],
         0.0,
     ];
-    let mut p = match ellipse_roots(start, d, f.ax, f.ay) {
-        Some((t0, _)) => add(start, scale(d, t0)),
-        // |h| -> 1 rounding: a grazing miss counts as a grazing R event of weight 0.
-        None => return Outcome::Absorbed,
+    let (t0, _) = ellipse_roots(start, d, f.ax, f.ay)?;
+    Some((phi_i, d, add(start, scale(d, t0))))
+}
+
+/// Trace one path: collimated light from `theta_i` (inclination of the direction toward the
+/// light), hitting the fiber at a uniformly random offset over its projected width.
+pub fn trace_path(f: &Fiber, theta_i: f64, rng: &mut Xoshiro256PlusPlus) -> Outcome {
+    // |h| -> 1 rounding: a grazing miss counts as a grazing R event of weight 0.
+    let Some((phi_i, d, p)) = launch(f, theta_i, rng) else {
+        return Outcome::Absorbed;
     };
-    let mut w = 1.0f64;
-    let mut cuticle_n = 1u32;
-    let mut scatters = 0u32;
     let n0 = ellipse_normal(p, f.ax, f.ay);
-    let (nd, crossed) = cuticle(f, d, n0, true, rng);
-    d = nd;
+    let (d, crossed) = cuticle(f, d, n0, true, rng);
+    let mut walk = Walk {
+        p,
+        d,
+        w: 1.0,
+        z: 0.0,
+        region: Region::Cortex,
+        cuticle_n: 1,
+        scatters: 0,
+        phi_i,
+    };
     if !crossed {
-        return Outcome::Exit(Exit {
-            dir: d,
-            phi_i,
-            weight: w,
-            cuticle: 1,
-            scatters: 0,
-        });
+        return walk.exit();
     }
-    let (mx, my) = (f.kappa * f.ax, f.kappa * f.ay);
-    let has_medulla = f.kappa > 0.0;
-    let index_matched = (f.eta_m - f.eta).abs() < 1e-12;
-    let mut region = Region::Cortex;
+    let m = MedullaShape {
+        mx: f.kappa * f.ax,
+        my: f.kappa * f.ay,
+        present: f.kappa > 0.0,
+        index_matched: (f.eta_m - f.eta).abs() < 1e-12,
+    };
     let mut events = 1u32;
-    // Axial travel since entry (the fiber is translation-invariant along z, so `p` drops z).
-    let mut z = 0.0f64;
     loop {
         events += 1;
-        if events > MAX_EVENTS || cuticle_n > MAX_CUTICLE_HITS || z.abs() > GUIDED_LENGTH {
-            return Outcome::Guided(w);
+        if events > MAX_EVENTS || walk.cuticle_n > MAX_CUTICLE_HITS || walk.z.abs() > GUIDED_LENGTH
+        {
+            return Outcome::Guided(walk.w);
         }
-        if events > RR_AFTER && w < RR_WEIGHT {
-            let q = w / RR_WEIGHT;
+        if events > RR_AFTER && walk.w < RR_WEIGHT {
+            let q = walk.w / RR_WEIGHT;
             if rng.random::<f64>() >= q {
                 return Outcome::Absorbed;
             }
-            w = RR_WEIGHT;
+            walk.w = RR_WEIGHT;
         }
-        match region {
+        match walk.region {
             Region::Cortex => {
-                let t_out = match ellipse_roots(p, d, f.ax, f.ay) {
-                    Some((_, t1)) => t1.max(0.0),
-                    None => return Outcome::Guided(w),
-                };
-                let t_med = if has_medulla {
-                    match ellipse_roots(p, d, mx, my) {
-                        Some((t0, _)) if t0 > 1e-12 => t0,
-                        _ => f64::INFINITY,
-                    }
-                } else {
-                    f64::INFINITY
-                };
-                if t_med < t_out {
-                    w *= (-f.sigma_c_a * t_med).exp();
-                    p = add(p, scale(d, t_med));
-                    z += d[2] * t_med;
-                    if index_matched {
-                        region = Region::Medulla;
-                    } else {
-                        let nm = ellipse_normal(p, mx, my);
-                        let (nd, crossed) = medulla_interface(f, d, nm, true, rng);
-                        d = nd;
-                        if crossed {
-                            region = Region::Medulla;
-                        }
-                    }
-                } else {
-                    w *= (-f.sigma_c_a * t_out).exp();
-                    p = add(p, scale(d, t_out));
-                    z += d[2] * t_out;
-                    // Re-project onto the boundary to stop rounding drift over many bounces.
-                    let k = 1.0 / ((p[0] / f.ax).powi(2) + (p[1] / f.ay).powi(2)).sqrt();
-                    p = [p[0] * k, p[1] * k, 0.0];
-                    cuticle_n += 1;
-                    let n0 = ellipse_normal(p, f.ax, f.ay);
-                    let (nd, crossed) = cuticle(f, d, n0, false, rng);
-                    d = nd;
-                    if crossed {
-                        return Outcome::Exit(Exit {
-                            dir: d,
-                            phi_i,
-                            weight: w,
-                            cuticle: cuticle_n,
-                            scatters,
-                        });
-                    }
+                if let Some(out) = walk.cortex_step(f, &m, rng) {
+                    return out;
                 }
             }
             Region::Medulla => {
-                let t_b = match ellipse_roots(p, d, mx, my) {
-                    Some((_, t1)) => t1.max(0.0),
-                    None => {
-                        // Tangential to the medulla boundary: treat as leaving it.
-                        region = Region::Cortex;
-                        continue;
-                    }
-                };
-                let s = if f.sigma_m_s > 0.0 {
-                    -(1.0 - rng.random::<f64>()).ln() / f.sigma_m_s
-                } else {
-                    f64::INFINITY
-                };
-                if s < t_b {
-                    w *= (-f.sigma_m_a * s).exp();
-                    p = add(p, scale(d, s));
-                    z += d[2] * s;
-                    d = hg_scatter(d, f.g, rng);
-                    scatters += 1;
-                } else {
-                    w *= (-f.sigma_m_a * t_b).exp();
-                    p = add(p, scale(d, t_b));
-                    z += d[2] * t_b;
-                    if index_matched {
-                        region = Region::Cortex;
-                    } else {
-                        let nm = ellipse_normal(p, mx, my);
-                        let (nd, crossed) = medulla_interface(f, d, nm, false, rng);
-                        d = nd;
-                        if crossed {
-                            region = Region::Cortex;
-                        }
-                    }
+                if !walk.medulla_step(f, &m, rng) {
+                    continue;
                 }
             }
         }
         // Keep the direction unit length against rounding drift.
         if events.is_multiple_of(64) {
-            d = normalize(d);
+            walk.d = normalize(walk.d);
         }
     }
 }

@@ -37,6 +37,7 @@ pub struct Wall {
 }
 
 impl Wall {
+    /// The wall's outward unit normal.
     pub fn normal(&self) -> V3 {
         if self.axis == 0 {
             V3::new(self.sign, 0.0, 0.0)
@@ -106,8 +107,11 @@ pub fn weight(fv: f32) -> f32 {
 /// (the tile repeats along the wall).
 #[derive(Clone, Debug)]
 pub struct FinCoverage {
+    /// Texels per row, along the wall (the tile's resolution).
     pub res: usize,
+    /// Rows over the stack's height ([`ROWS_PER_SHELL`] per shell).
     pub rows: usize,
+    /// Coverage per wall, `[wall][row * res + i]`, in [0, 1].
     pub cov: Vec<Vec<f32>>,
 }
 

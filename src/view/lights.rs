@@ -13,23 +13,32 @@ use super::prt::Rgb25;
 use super::sh::{self, Mat3, Rule};
 use std::f64::consts::PI;
 
+/// What a light is: both kinds are exactly of SH order <= 4 (module doc).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Kind {
     /// RGB total irradiance of the lobe.
     Lobe([f64; 3]),
+    /// `render`'s vertical gradient, linear in `y` (SH order 1).
     Sky {
+        /// Radiance straight up, r, g, b.
         top: [f64; 3],
+        /// Radiance straight down, r, g, b.
         bottom: [f64; 3],
     },
 }
 
+/// One environment light of the viewer, with the direction it starts at.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
+    /// The `--light` name.
     pub name: &'static str,
+    /// The page's label for it.
     pub label: &'static str,
+    /// Its radiance (defined about `+y`).
     pub kind: Kind,
-    /// Whether the light follows the light orbit (the sky stays upright by default).
+    /// Elevation (degrees) the light starts at: the sky stays upright by default.
     pub default_elev: f64,
+    /// Azimuth (degrees) the light starts at.
     pub default_azim: f64,
 }
 

@@ -41,13 +41,17 @@ use std::time::Instant;
 /// One fit to show: its name, model, parameter lines and RGB BCSDF table.
 #[derive(Clone, Debug)]
 pub struct Species {
+    /// The species' name (the fit's file stem).
     pub name: String,
+    /// The model's registry name (`yan2017`, ...).
     pub model: String,
+    /// The model's one-line title.
     pub title: String,
     /// `name = value unit` per parameter, in the model's order.
     pub params: Vec<String>,
     /// How the colour was made.
     pub colour: String,
+    /// The fitted BCSDF as SH matrices per camera inclination.
     pub table: prt::BcsdfTable,
     /// Seconds to tabulate the BCSDF.
     pub seconds: f64,
@@ -137,11 +141,17 @@ fn sig(v: f64, n: i32) -> f64 {
 /// Camera placement, as `render`'s (degrees), looking at the middle of the fur.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct View {
+    /// Distance from the middle of the fur (tile units).
     pub dist: f64,
+    /// Camera elevation above the swatch's plane, degrees.
     pub elev_deg: f64,
+    /// Camera azimuth, degrees (0 toward `+z`).
     pub azim_deg: f64,
+    /// Vertical field of view, degrees.
     pub fov_deg: f64,
+    /// Light elevation, degrees (the light's `+y` turned there).
     pub light_elev_deg: f64,
+    /// Light azimuth, degrees.
     pub light_azim_deg: f64,
     /// Exposure in EV (ACES + sRGB as `render`).
     pub exposure_ev: f64,
@@ -163,11 +173,15 @@ impl Default for View {
 
 /// Everything the page and `--still` share.
 pub struct ViewData {
+    /// How the fur was grown.
     pub fur: shells::FurSpec,
+    /// The shells' quantised transfer and coverage textures.
     pub packed: pack::Packed,
     /// Fin coverage, 8-bit (`[wall][row][texel]`, [`fins::pack`]), `fin_rows` rows.
     pub fin_bytes: Vec<u8>,
+    /// Fin texture rows per wall.
     pub fin_rows: usize,
+    /// The fits shown, one each.
     pub species: Vec<Species>,
     /// Seconds: growing + coverage, transfer, packing.
     pub seconds: [f64; 3],

@@ -25,10 +25,15 @@ const RANGE_ALPHA: f32 = 1e-3;
 /// value `offset + scale * byte / 255` with `scale`, `offset` per `[s * 28 + channel]`.
 #[derive(Clone, Debug)]
 pub struct Packed {
+    /// Texels per tile side.
     pub res: usize,
+    /// Number of shells.
     pub shells: usize,
+    /// The bytes, laid out as the struct doc says.
     pub bytes: Vec<u8>,
+    /// Per shell and channel `[s * 28 + channel]`: the byte's scale.
     pub scale: Vec<f32>,
+    /// Per shell and channel: the value of byte 0.
     pub offset: Vec<f32>,
 }
 

@@ -35,12 +35,16 @@ use std::f64::consts::PI;
 /// Per-texel SH transfer of the transmittance, `[shell][coefficient][texel]`.
 #[derive(Clone, Debug)]
 pub struct Transfer {
+    /// Texels per tile side.
     pub res: usize,
+    /// Number of shells.
     pub shells: usize,
+    /// The transfer, `[shell][coefficient][texel]`.
     pub v: Vec<f32>,
 }
 
 impl Transfer {
+    /// The texels of SH coefficient `k` in shell `s`.
     pub fn at(&self, s: usize, k: usize) -> &[f32] {
         let n = self.res * self.res;
         &self.v[(s * N_COEFFS + k) * n..(s * N_COEFFS + k + 1) * n]
@@ -189,15 +193,20 @@ fn accumulate(block: &mut [f32], taus: &[Vec<f32>], steps: &[Step], res: usize) 
 /// (`m[((c * n_o + o) * 25 + j) * 25 + k]`), `theta_o` at midpoints of `[-90, 90]` degrees.
 #[derive(Clone, Debug)]
 pub struct BcsdfTable {
+    /// Camera inclinations `theta_o` tabulated.
     pub n_o: usize,
+    /// The matrices, `m[((c * n_o + o) * 25 + j) * 25 + k]`.
     pub m: Vec<f32>,
 }
 
 /// Quadrature of [`bcsdf_table`]: midpoints in `theta` and `phi`.
 #[derive(Clone, Copy, Debug)]
 pub struct TableSize {
+    /// Quadrature nodes in the light's `theta`.
     pub n_theta: usize,
+    /// Quadrature nodes in the light's `phi`.
     pub n_phi: usize,
+    /// Camera inclinations tabulated.
     pub n_o: usize,
 }
 

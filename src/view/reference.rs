@@ -30,10 +30,15 @@ use std::sync::Arc;
 /// How the reference is traced.
 #[derive(Clone, Debug)]
 pub struct RefSettings {
+    /// Image width, pixels.
     pub width: usize,
+    /// Image height, pixels.
     pub height: usize,
+    /// Samples per pixel.
     pub spp: usize,
+    /// Seed of the pixels' random streams.
     pub seed: u64,
+    /// Single scattering only, what the PRT computes (module doc).
     pub single: bool,
     /// Fibers rooted this far around the tile are traced (tile units).
     pub margin: f64,

@@ -61,7 +61,9 @@ pub fn reconstruct(c: &[f64; N_COEFFS], d: [f64; 3]) -> f64 {
 /// A quadrature rule on the sphere: unit directions and weights summing to `4 pi`.
 #[derive(Clone, Debug)]
 pub struct Rule {
+    /// Unit directions of the nodes.
     pub dirs: Vec<[f64; 3]>,
+    /// Weights, summing to `4 pi`.
     pub weights: Vec<f64>,
 }
 
@@ -136,10 +138,12 @@ pub fn project(rule: &Rule, f: impl Fn([f64; 3]) -> f64) -> [f64; N_COEFFS] {
 /// A 3x3 rotation, rows `r[i]`: `d' = r d`.
 pub type Mat3 = [[f64; 3]; 3];
 
+/// `r d`: the rotation applied to `d`.
 pub fn mat_vec(r: &Mat3, d: [f64; 3]) -> [f64; 3] {
     [0, 1, 2].map(|i| r[i][0] * d[0] + r[i][1] * d[1] + r[i][2] * d[2])
 }
 
+/// The inverse rotation.
 pub fn transpose(r: &Mat3) -> Mat3 {
     [0, 1, 2].map(|i| [r[0][i], r[1][i], r[2][i]])
 }

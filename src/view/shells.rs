@@ -25,6 +25,7 @@ pub const EXTENT: f64 = 1.0;
 pub struct FurSpec {
     /// Texels per tile side.
     pub res: usize,
+    /// Number of shells stacked over the skin.
     pub shells: usize,
     /// Fibers per tile.
     pub fibers: usize,
@@ -40,7 +41,9 @@ pub struct FurSpec {
     pub tilt_deg: f64,
     /// Per-fiber random spread of the tilt (degrees).
     pub spread_deg: f64,
+    /// Straight segments per fiber.
     pub segments: usize,
+    /// Seed of the fibers' random layout.
     pub seed: u64,
 }
 

@@ -20,10 +20,15 @@ pub use super::shells::EXTENT;
 /// What one picture shows.
 #[derive(Clone, Debug)]
 pub struct Still {
+    /// Image width, pixels.
     pub width: usize,
+    /// Image height, pixels.
     pub height: usize,
+    /// Camera and light placement.
     pub view: View,
+    /// Which species of the view data, by index.
     pub species: usize,
+    /// The environment light.
     pub light: Light,
     /// Show the environment behind the fur (the page does); off for the comparison with
     /// a reference that has none behind it.

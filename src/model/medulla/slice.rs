@@ -10,7 +10,9 @@ use std::sync::{Arc, OnceLock};
 /// The tables at one `(tau, g)`: per-rank weights plus shared factors.
 #[derive(Clone, Debug)]
 pub struct MedullaSlice {
+    /// The medulla's scattering optical thickness `tau` at which the tables were sliced.
     pub tau: f64,
+    /// The Henyey-Greenstein anisotropy `g` at which the tables were sliced.
     pub g: f64,
     pub(super) wn: Vec<f64>,
     pub(super) wm: [Vec<f64>; 2],

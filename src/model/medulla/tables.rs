@@ -22,8 +22,11 @@ pub enum Side {
 /// Kind of a stored tensor.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum TableKind {
+    /// The azimuthal table `C^N(tau, g, x, psi)` (seed Sec. 3).
     Cn = 0,
+    /// The longitudinal table `C^M` of the front side (seed Eq. 19).
     CmFront = 1,
+    /// The longitudinal table `C^M` of the back side (seed Eq. 19).
     CmBack = 2,
 }
 
@@ -31,7 +34,9 @@ pub enum TableKind {
 /// interpolation of each factor along its axis.
 #[derive(Clone, Debug, PartialEq)]
 pub struct CpTable {
+    /// CP rank `R`: the number of rank-one terms summed.
     pub rank: usize,
+    /// Node coordinates of each of the four axes, ascending.
     pub axes: [Vec<f64>; 4],
     /// `factors[m][i * rank + r]`, lambda folded into mode 0.
     pub factors: [Vec<f64>; 4],
@@ -117,10 +122,13 @@ impl CpTable {
 /// The medulla tables: three CP-compressed tensors and their build metadata.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MedullaTables {
+    /// The azimuthal table `C^N(tau, g, x, psi)` (seed Sec. 3).
     pub cn: Arc<CpTable>,
+    /// The longitudinal tables `C^M`, front and back (seed Eq. 19).
     pub cm: [Arc<CpTable>; 2],
     /// Seed and nominal paths per cell of the build.
     pub seed: u64,
+    /// Nominal Monte Carlo paths per cell of the build.
     pub paths: u64,
 }
 

@@ -18,8 +18,8 @@
 //! being that of what is drawn.
 
 use super::lobes::{self, Slice, P_MAX};
-use super::{ALPHA, BETA_M, BETA_N, ETA, SIGMA_A};
-use crate::models::{LobeRgb, NearBsdf};
+use super::specs::{ALPHA, BETA_M, BETA_N, ETA, SIGMA_A};
+use crate::models::bsdf::{LobeRgb, NearBsdf};
 use std::f64::consts::PI;
 
 /// One channel's parameters and what they fix: the variances `v_p`, the logistic scale.

@@ -17,7 +17,8 @@
 use super::lobes::{self, Slice, P_MAX};
 use crate::model::quadrature::{adaptive_gk, GaussLegendre};
 use crate::models::dual::{Dual, Real};
-use crate::models::{Factored, SlicePlan as Plan};
+use crate::models::factored::Factored;
+use crate::models::points::SlicePlan as Plan;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// Largest change of `Phi` over one panel, in logistic scales `s`.
@@ -223,16 +224,21 @@ pub fn near_quadrature(slice: &Slice, p: usize, phi: f64, s: f64, rel: f64) -> f
 /// Parameters as the far field reads them (internal units, validated at the boundary).
 #[derive(Clone, Copy, Debug)]
 pub struct Chiang {
+    /// Index of refraction of the fiber.
     pub eta: f64,
+    /// Longitudinal roughness, in (0, 1] (d'Eon's variance map applies at evaluation).
     pub beta_m: f64,
+    /// Azimuthal roughness, in (0, 1] (the logistic scale follows from it).
     pub beta_n: f64,
+    /// Cuticle scale tilt, radians.
     pub alpha: f64,
+    /// Absorption per unit fiber radius.
     pub sigma_a: f64,
 }
 
 impl Factored<{ P_MAX + 1 }> for Chiang {
     fn from_params(p: &[f64]) -> Chiang {
-        use super::{ALPHA, BETA_M, BETA_N, ETA, SIGMA_A};
+        use super::specs::{ALPHA, BETA_M, BETA_N, ETA, SIGMA_A};
         Chiang {
             eta: p[ETA],
             beta_m: p[BETA_M],
@@ -243,7 +249,7 @@ impl Factored<{ P_MAX + 1 }> for Chiang {
     }
 
     /// `beta_m` and `alpha` reach only `M_p`.
-    const LONGITUDINAL: &'static [usize] = &[super::BETA_M, super::ALPHA];
+    const LONGITUDINAL: &'static [usize] = &[super::specs::BETA_M, super::specs::ALPHA];
 
     /// `N̄_p` of every slice (`theta_o`) and `|phi|` of `plan`.
     fn azimuthal_terms(&self, plan: &Plan) -> Vec<Vec<[f64; P_MAX + 1]>> {
@@ -276,10 +282,10 @@ impl Factored<{ P_MAX + 1 }> for Chiang {
     /// hand ([`SliceNodes::eval_gradient`]): about 1.5 times one evaluation of the terms
     /// for all three, where finite differences take three.
     fn azimuthal_gradients(&self, plan: &Plan) -> Option<Vec<Vec<[f64; P_MAX + 1]>>> {
-        use super::{BETA_N, ETA, SIGMA_A};
+        use super::specs::{BETA_N, ETA, SIGMA_A};
         use rayon::prelude::*;
         const BY: [usize; 3] = [ETA, BETA_N, SIGMA_A];
-        let k = super::SPECS.len();
+        let k = super::specs::SPECS.len();
         let eta = Dual::<3>::variable(self.eta, 0);
         let sigma_a = Dual::<3>::variable(self.sigma_a, 2);
         let s = lobes::logistic_scale(Dual::<3>::variable(self.beta_n, 1));
@@ -304,8 +310,8 @@ impl Factored<{ P_MAX + 1 }> for Chiang {
 
     /// Forward-mode derivatives ([`Dual`]) by `(beta_m, alpha)`.
     fn longitudinal_gradients(&self, plan: &Plan) -> Option<Vec<[f64; P_MAX + 1]>> {
-        use super::{ALPHA, BETA_M};
-        let k = super::SPECS.len();
+        use super::specs::{ALPHA, BETA_M};
+        let k = super::specs::SPECS.len();
         let v = lobes::variances(Dual::<2>::variable(self.beta_m, 0));
         let alpha = Dual::<2>::variable(self.alpha, 1);
         let mut out = vec![[0.0; P_MAX + 1]; plan.pairs.len() * k];

@@ -118,7 +118,9 @@ pub fn longitudinal_lobes<T: Real>(
 /// `Slice<Dual<N>>` carries the derivatives with respect to `eta` and `sigma_a`.
 #[derive(Clone, Copy, Debug)]
 pub struct Slice<T = f64> {
+    /// Index of refraction of the fiber.
     pub eta: T,
+    /// `cos theta_o` of the slice's outgoing inclination.
     pub cos_theta_o: f64,
     /// `eta' = sqrt(eta^2 - sin^2 theta_o) / cos theta_o` (pbrt's `etap`).
     pub eta_prime: T,
@@ -127,6 +129,8 @@ pub struct Slice<T = f64> {
 }
 
 impl<T: Real> Slice<T> {
+    /// The slice of `theta_o` (radians) for index `eta` and absorption `sigma_a` per unit
+    /// radius.
     pub fn new(eta: T, sigma_a: T, theta_o: f64) -> Slice<T> {
         let (sin_o, cos_o) = theta_o.sin_cos();
         // At exactly grazing theta_o, cos -> 0: a floor keeps eta' finite (it only enters
@@ -238,6 +242,7 @@ pub fn wrap(x: f64) -> f64 {
 /// as pbrt-v4's `HairBxDF::SigmaAFromConcentration` and Mitsuba 3's `hair` use them), in
 /// r, g, b, per unit fiber radius.
 pub const EUMELANIN_SIGMA_A: [f64; 3] = [0.419, 0.697, 1.37];
+/// Pheomelanin's absorption per unit concentration, r, g, b (see [`EUMELANIN_SIGMA_A`]).
 pub const PHEOMELANIN_SIGMA_A: [f64; 3] = [0.187, 0.4, 1.05];
 
 /// `sigma_a` in r, g, b of eumelanin and pheomelanin concentrations.

@@ -14,67 +14,25 @@
 pub mod bsdf;
 pub mod far;
 pub mod lobes;
+mod specs;
 #[cfg(test)]
 mod tests;
 
-use super::SlicePlan as Plan;
-use super::{spec, FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset};
-use super::{Factored, FactoredTerms, Factors};
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
+use crate::models::bsdf::NearBsdf;
+use crate::models::factored::{Factored, FactoredTerms, Factors};
+use crate::models::interface::{FiberModel, Integral, Map, ModelTerms, Prediction, Preset};
+use crate::models::points::{Points, SlicePlan as Plan};
 use crate::params::ParamSpec;
 use far::Chiang;
+use specs::SPECS;
 use std::sync::Arc;
+
+pub use specs::{ALPHA, BETA_M, BETA_N, ETA, SIGMA_A};
 
 /// The model (its state lives in [`far::Chiang`], built per parameter set).
 pub struct Chiang2016;
-
-/// Parameter vector positions.
-pub const ETA: usize = 0;
-pub const BETA_M: usize = 1;
-pub const BETA_N: usize = 2;
-pub const ALPHA: usize = 3;
-pub const SIGMA_A: usize = 4;
-
-/// pbrt-v4's and Mitsuba 3's parameters and their ranges (`alpha` bounded as the fur
-/// model's: TRT's tilt `4 alpha` is then at most 80 deg).
-static SPECS: [ParamSpec; 5] = [
-    spec(
-        "eta",
-        "index of refraction",
-        "-",
-        (1.0, true, 3.0, false),
-        false,
-    ),
-    spec(
-        "beta_m",
-        "longitudinal roughness",
-        "-",
-        (0.0, true, 1.0, false),
-        false,
-    ),
-    spec(
-        "beta_n",
-        "azimuthal roughness",
-        "-",
-        (0.0, true, 1.0, false),
-        false,
-    ),
-    spec(
-        "alpha",
-        "cuticle scale tilt",
-        "deg",
-        (-20.0, false, 20.0, false),
-        true,
-    ),
-    spec(
-        "sigma_a",
-        "absorption",
-        "1/radius",
-        (0.0, false, f64::INFINITY, true),
-        false,
-    ),
-];
 
 /// pbrt-v4's defaults (`eta` 1.55, `beta_m` = `beta_n` = 0.3, `alpha` 2 deg) with the
 /// green channel of d'Eon's eumelanin at 0.3, 1.3 and 8 (blond, brown, black), and a
@@ -196,7 +154,7 @@ impl FiberModel for Chiang2016 {
     }
 
     /// pbrt-v4's `HairBxDF` at the camera ray's offset ([`bsdf::ChiangBsdf`]).
-    fn render_bsdf(&self, rgb: [&[f64]; 3]) -> Option<Box<dyn super::NearBsdf>> {
+    fn render_bsdf(&self, rgb: [&[f64]; 3]) -> Option<Box<dyn NearBsdf>> {
         Some(Box::new(bsdf::ChiangBsdf::new(rgb)))
     }
 }

@@ -16,18 +16,17 @@
 //! paths of all `h` that exit toward `phi`), so its far field is the model itself.
 //! [`Integral::NearQuadrature`] finds the same roots by an independent dense scan of
 //! `Phi(h)`, the reference the analytic root finder is tested against.
-// Documented: the lint is back on here while `models` as a whole is pending (lib.rs).
-#![warn(missing_docs)]
 
 pub mod lobes;
 #[cfg(test)]
 mod tests;
 
-use super::{spec, FiberModel, Integral, Map, ModelTerms, Points, Prediction, Preset};
-use super::{Factored, FactoredTerms, Factors, SlicePlan as Plan};
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::models::dual::{Dual, Real};
+use crate::models::factored::{Factored, FactoredTerms, Factors};
+use crate::models::interface::{spec, FiberModel, Integral, Map, ModelTerms, Prediction, Preset};
+use crate::models::points::{Points, SlicePlan as Plan};
 use crate::params::ParamSpec;
 use lobes::{Glints, RootFinder, Section, LOBES};
 use std::sync::Arc;

@@ -379,10 +379,13 @@ pub struct FarSlice<'a> {
 /// Work counters (for reports).
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SliceStats {
+    /// Closed-form segments of the unscattered lobes (`Phi` pieces of R, TT, TRT).
     pub unscattered_segments: usize,
+    /// Gauss-Legendre segments of the unscattered lobes (where no closed form holds).
     pub gl_segments: usize,
     /// Gauss-Legendre nodes over those segments (each a Gaussian every `phi` pays for).
     pub gl_nodes: usize,
+    /// Segments of the scattered lobes TTs, TRTs.
     pub scattered_segments: usize,
     /// The counts above per lobe, indexed by [`Lobe::index`]: closed-form pieces (`Phi`
     /// pieces of R, TT, TRT; segments of TTs, TRTs), Gauss-Legendre pieces and their nodes
@@ -396,8 +399,11 @@ pub struct SliceStats {
 /// One lobe's share of [`SliceStats`].
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct LobeWork {
+    /// Closed-form pieces: `Phi` pieces (R, TT, TRT) or segments (TTs, TRTs).
     pub closed_form: usize,
+    /// Gauss-Legendre pieces (unscattered lobes only).
     pub gl_segments: usize,
+    /// Gauss-Legendre nodes over those pieces.
     pub gl_nodes: usize,
 }
 
