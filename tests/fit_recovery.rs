@@ -229,6 +229,28 @@ fn nested_model_is_kept_for_hair_and_left_for_fur() {
     assert!((kappa - 0.75).abs() < 0.05, "kappa {kappa}");
 }
 
+/// A faint medulla (kappa 0.02, 2 % noise) that the global stage does not see plainly:
+/// the nested model is fitted first, and the F-test must find the medulla's signal and
+/// fit the full model, which reaches the noise floor (NRMSE within 5 % of it) where the
+/// nested model cannot.
+#[test]
+fn nested_model_test_finds_a_faint_medulla() {
+    let truth =
+        FurParams::from_file_units([1.55, 0.02, 3.0, 4.0, 5.0, 0.1, 2.0, 0.15, 0.4, 1.2]).unwrap();
+    let data = synth(&truth, 0.02, 7);
+    let fit = fit_data(&data, &opts(), None).unwrap();
+    let t = fit.nested.as_ref().expect("the nested stage ran");
+    eprintln!("{t:?}, nrmse {}", fit.nrmse);
+    assert!(!t.kept_reduced, "{t:?}");
+    assert!(fit.params.fur().unwrap().kappa > 0.0);
+    let floor = 0.02 / data.range;
+    assert!(
+        fit.nrmse <= 1.05 * floor,
+        "NRMSE {} vs floor {floor}",
+        fit.nrmse
+    );
+}
+
 #[test]
 fn noise_free_fit_is_exact() {
     recovery_z(fur_truth(), 0.0, 42, &opts());

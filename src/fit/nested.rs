@@ -37,6 +37,9 @@ pub const ALPHA: f64 = 1e-3;
 /// Best full-model starts whose held parameters make the probe's hybrids.
 const PROBE_HYBRIDS: usize = 8;
 
+/// How far toward a start's value the faint hybrids put the switch ([`probe`]).
+const FAINT: f64 = 0.1;
+
 /// Relative cost change that ends a probe run: well under the cost difference the test
 /// needs at `q = 4`, `n = 1500` (~1.2 % for `p = ALPHA`).
 const PROBE_FTOL: f64 = 1e-4;
@@ -205,16 +208,23 @@ pub(super) fn probe(
     )?;
     let c0 = polished.cost;
     let base = r_opts.layout.file_values(polished.u.as_slice());
-    // Hybrids: the reduced optimum with the held parameters of the best full starts.
+    // Hybrids: the reduced optimum with the held parameters of the best full starts, the
+    // switch (the first held parameter) at the start's value and, faint, a tenth of the
+    // way there: without a signal the faint one starts next to C0 and its run ends in a
+    // few steps; with one, the run grows it.
+    let (switch, off) = red.fixed[0];
     let hybrids: Vec<DVector<f64>> = pre
         .top_full
         .iter()
-        .map(|c| {
-            let mut v = base.clone();
-            for &(i, _) in red.fixed {
-                v[i] = c[i];
-            }
-            DVector::from_vec(full.layout.to_u(&v))
+        .flat_map(|c| {
+            [1.0, FAINT].map(|share| {
+                let mut v = base.clone();
+                for &(i, _) in red.fixed {
+                    v[i] = c[i];
+                }
+                v[switch] = off + share * (c[switch] - off);
+                DVector::from_vec(full.layout.to_u(&v))
+            })
         })
         .collect();
     let scores: Vec<f64> = hybrids
