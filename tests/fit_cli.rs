@@ -695,3 +695,60 @@ fn fit_notes_the_samples_it_leaves_out() {
         "{err}"
     );
 }
+
+/// The nested model through the binary: a `kappa = 0` profile (the mouse preset without
+/// its medulla) keeps it and says so in the fit file (`solver.nested.kept`, the four held
+/// parameters under `uncertainty.fixed`, `kappa` 0); `--full-model` fits the full model
+/// and records no nested stage; the mouse's own profile (a medulla) records the skip.
+#[test]
+fn nested_model_is_recorded_and_can_be_skipped() {
+    let tmp = tempfile::tempdir().unwrap();
+    let root = tmp.path();
+    let mut hair = furfit::FurParams::preset("mouse").unwrap();
+    hair.kappa = 0.0;
+    let params = root.join("hair.json");
+    std::fs::write(&params, hair.to_json_value().to_string()).unwrap();
+    let dir = root.join("measurements/hair");
+    std::fs::create_dir_all(&dir).unwrap();
+    let o = furfit()
+        .args(["synth", "--params"])
+        .arg(&params)
+        .args([
+            "--theta-i",
+            "-20,20",
+            "--theta-r",
+            "-60:60:5",
+            "--phi",
+            "-165:180:15",
+        ])
+        .arg("--out")
+        .arg(dir.join("profile.csv"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v = fit(root, "hair", "fits/hair.json", "3");
+    let n = &v["solver"]["nested"];
+    assert_eq!(n["kept"], true, "{n}");
+    assert_eq!(v["params"]["kappa"], 0.0);
+    let fixed = v["uncertainty"]["fixed"].as_array().unwrap();
+    for key in ["kappa", "sigma_m_s", "sigma_m_a", "g"] {
+        assert!(fixed.iter().any(|f| f == key), "{key} not in {fixed:?}");
+    }
+    let o = fit_cmd(root)
+        .arg("measurements/hair")
+        .args(["--full-model", "--out", "fits/full.json"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let full: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(root.join("fits/full.json")).unwrap())
+            .unwrap();
+    assert!(full["solver"]["nested"].is_null());
+    make_species(root, "mouse");
+    let m = fit(root, "mouse", "fits/mouse.json", "3");
+    assert_eq!(m["solver"]["nested"]["kept"], false);
+    assert!(m["solver"]["nested"]["decided_by"]
+        .as_str()
+        .unwrap()
+        .starts_with("global stage"));
+}

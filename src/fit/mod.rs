@@ -12,6 +12,11 @@
 //!    samples.)
 //! 3. **Uncertainty** from the Jacobian at the optimum ([`uncertainty`]).
 //!
+//! Before these, when the model has a nested reduction (the fur model without a medulla),
+//! [`nested`] decides whether to run them for the reduced model first: it is fitted when
+//! the global stage's first starts do not show the full model's signal plainly, and kept
+//! unless an F-test says the full model lowers the cost by more than noise.
+//!
 //! Cost: Jacobians are forward differences, one column per free parameter in parallel,
 //! each recomputing only the model terms its parameter can change
 //! ([`crate::models::ModelTerms::with_change`]: `alpha` and `beta_m` touch only `M_p`,

@@ -73,7 +73,7 @@ pub(super) fn reduced_options(opts: &FitOptions, red: &Reduction) -> FitOptions 
 /// presets and first [`PRECHECK_HALTON`] Halton points) scored on the subsample, and the
 /// same points with the reduction applied. When the best full start beats the best
 /// reduced one, the data carry the extra lobes' signal plainly (every medullated
-/// species: by 170x to 400,000x in cost) and the reduced model is not fitted; otherwise
+/// species: by 116x to 376x in cost) and the reduced model is not fitted; otherwise
 /// it is fitted first and the F-test decides. A wrong skip only costs time: the full
 /// model is then fitted, as without this stage.
 pub(super) struct Precheck {
