@@ -389,6 +389,7 @@ pub mod tables;
 pub mod tables_strand;
 #[allow(missing_docs)] // docs: pending (file being split/rewritten)
 pub mod view;
+mod view_decompose;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]
