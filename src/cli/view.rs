@@ -114,7 +114,7 @@ fn fur(a: &Args) -> FurSpec {
     }
 }
 
-pub(super) fn view_of(a: &Args, light: &lights::Light) -> anyhow::Result<View> {
+fn view_of(a: &Args, light: &lights::Light) -> anyhow::Result<View> {
     let mut v = View {
         exposure_ev: a.ev,
         light_elev_deg: light.default_elev,
@@ -213,7 +213,25 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     if a.reference && a.decompose {
-        return super::view_decompose::run(&a, &data, &out, (w, h));
+        let views = lights::LIGHTS
+            .iter()
+            .map(|l| view_of(&a, l))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let traced = data
+            .species
+            .iter()
+            .zip(&a.params)
+            .map(|(sp, spec)| traced_fur(spec, sp))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        return super::view_decompose::run(&super::view_decompose::Job {
+            data: &data,
+            out: &out,
+            size: (w, h),
+            spp: a.spp,
+            dirs,
+            views,
+            traced,
+        });
     }
     if a.reference {
         return run_reference(&a, &data, &out, (w, h));
@@ -364,7 +382,7 @@ fn run_reference(
 
 /// The fur-model parameters and tint the reference traces a species with; `None` (and a
 /// note) for a model the renderer does not trace.
-pub(super) fn traced_fur(
+fn traced_fur(
     spec: &str,
     sp: &view::Species,
 ) -> anyhow::Result<Option<(crate::params::FurParams, crate::render::bsdf::Tint)>> {
@@ -453,7 +471,7 @@ fn packing_report(
     ])
 }
 
-pub(super) fn parse_dirs(s: &str) -> anyhow::Result<(usize, usize)> {
+fn parse_dirs(s: &str) -> anyhow::Result<(usize, usize)> {
     let bad = || anyhow::anyhow!("--dirs '{s}': expected NZxNPHI");
     let (nz, np) = s.split_once(['x', 'X']).ok_or_else(bad)?;
     let p = |v: &str| v.trim().parse::<usize>().map_err(|_| bad());

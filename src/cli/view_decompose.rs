@@ -12,10 +12,11 @@
 //! and compared pairwise (relative RMSE at 4 and 16 px blocks, mean bias), into
 //! `--out/decompose.{md,csv}`.
 
-use super::view::{parse_dirs, traced_fur, view_of, Args};
+use crate::params::FurParams;
+use crate::render::bsdf::Tint;
 use crate::render::{output, Image};
 use crate::view::prt::{self, Shadowing};
-use crate::view::{self, direct, lights, pack, reference, sh, shells, still, ViewData};
+use crate::view::{self, direct, lights, pack, reference, sh, shells, still, View, ViewData};
 use std::path::Path;
 
 /// One comparison's figures: relative RMSE at 4 and 16 px blocks, mean bias.
@@ -74,13 +75,24 @@ fn per_pixel_view(
     }
 }
 
-pub(super) fn run(
-    a: &Args,
-    data: &ViewData,
-    out: &Path,
-    (w, h): (usize, usize),
-) -> anyhow::Result<()> {
-    let dirs = parse_dirs(&a.dirs)?;
+/// What the decomposition runs on (worked out by `furfit view`'s options).
+pub(super) struct Job<'a> {
+    pub data: &'a ViewData,
+    pub out: &'a Path,
+    pub size: (usize, usize),
+    pub spp: usize,
+    /// The transfer's sweep directions (`--dirs`).
+    pub dirs: (usize, usize),
+    /// The view of each light ([`lights::LIGHTS`]' order).
+    pub views: Vec<View>,
+    /// Per species, the fur-model parameters and tint the reference traces, if any.
+    pub traced: Vec<Option<(FurParams, Tint)>>,
+}
+
+type Row = (String, String, String, [f64; 3]);
+
+pub(super) fn run(job: &Job) -> anyhow::Result<()> {
+    let (data, out, (w, h), dirs) = (job.data, job.out, job.size, job.dirs);
     let rule = sh::Rule::product(dirs.0, dirs.1);
     let fibers = shells::grow(&data.fur);
     let pieces = shells::pieces(&data.fur, &fibers);
@@ -97,14 +109,14 @@ pub(super) fn run(
         .collect();
     let margin = 0.6;
     let bvh = reference::geometry(data, margin);
-    let mut rows: Vec<(String, String, String, [f64; 3])> = Vec::new();
+    let mut rows: Vec<Row> = Vec::new();
     let mut files = Vec::new();
-    for (i, (sp, spec)) in data.species.iter().zip(&a.params).enumerate() {
-        let Some((fp, tint)) = traced_fur(spec, sp)? else {
+    for (i, (sp, traced)) in data.species.iter().zip(&job.traced).enumerate() {
+        let Some((fp, tint)) = traced else {
             continue;
         };
-        for light in lights::LIGHTS {
-            let v = view_of(a, &light)?;
+        for (light, &v) in lights::LIGHTS.iter().zip(&job.views) {
+            let light = *light;
             let st = still::Still {
                 width: w,
                 height: h,
@@ -121,14 +133,14 @@ pub(super) fn run(
             let rs = |shadows| reference::RefSettings {
                 width: w,
                 height: h,
-                spp: a.spp,
+                spp: job.spp,
                 seed: 11,
                 single: true,
                 shadows,
                 margin,
             };
-            let pt_on = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(true))?;
-            let pt_off = reference::render(&bvh, data, &fp, tint, &light, &v, &rs(false))?;
+            let pt_on = reference::render(&bvh, data, fp, *tint, &light, &v, &rs(true))?;
+            let pt_off = reference::render(&bvh, data, fp, *tint, &light, &v, &rs(false))?;
             let mask = reference::mask(data, &v, w, h, -0.1);
             let direct_img = |sv| {
                 let t = prt::transfer_pieces(&data.fur, &pieces, &rule, sv, &dl.cells, 3);
@@ -205,19 +217,31 @@ pub(super) fn run(
             }
         }
     }
+    write(out, &rows, files)
+}
+
+/// `decompose.{md,csv}` and the PNGs into `out`.
+fn write(
+    out: &Path,
+    rows: &[Row],
+    mut files: Vec<(std::path::PathBuf, Vec<u8>)>,
+) -> anyhow::Result<()> {
     let mut md = vec![
         "| species | light | comparison | rel. RMSE 4 px | 16 px | means |".to_string(),
         "|---|---|---|---|---|---|".to_string(),
     ];
     let mut csv = String::from("species,light,comparison,rel_rmse_4px,rel_rmse_16px,mean_bias\n");
-    for (s, l, what, f) in &rows {
+    for (s, l, what, f) in rows {
         md.push(format!(
             "| {s} | {l} | {what} | {:.1} % | {:.1} % | {:+.1} % |",
             100.0 * f[0],
             100.0 * f[1],
             100.0 * f[2]
         ));
-        csv.push_str(&format!("{s},{l},{what},{:.5},{:.5},{:.5}\n", f[0], f[1], f[2]));
+        csv.push_str(&format!(
+            "{s},{l},{what},{:.5},{:.5},{:.5}\n",
+            f[0], f[1], f[2]
+        ));
     }
     let md = format!("{}\n", md.join("\n"));
     std::fs::create_dir_all(out)?;

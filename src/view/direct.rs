@@ -59,7 +59,10 @@ pub fn lighting(
     for w in &gw {
         bounds.push(bounds.last().copied().unwrap_or(-1.0) + w);
     }
-    debug_assert!(gz.iter().enumerate().all(|(i, z)| *z > bounds[i] && *z < bounds[i + 1]));
+    debug_assert!(gz
+        .iter()
+        .enumerate()
+        .all(|(i, z)| *z > bounds[i] && *z < bounds[i + 1]));
     let r = fiber_frame(wo, u);
     let rt = sh::transpose(&r);
     let theta_o = wo.dot(u).clamp(-1.0, 1.0).asin();
@@ -145,5 +148,38 @@ mod tests {
         for (i, (d, _)) in dirs.iter().enumerate() {
             assert_eq!(cell_of(*d, &bounds, np), i, "{d:?}");
         }
+    }
+}
+
+#[cfg(test)]
+mod lighting_tests {
+    use super::*;
+    use crate::view::prt::{bcsdf_table, frame_lighting, TableSize};
+
+    /// With nothing in the way (`T = 1`), the SH reconstruction is `c_0 sqrt(4 pi)` and
+    /// the direct integration the sum of the cells' `∫ g`: both `∫ g dw`. The cells
+    /// partition the sphere, so their sum equals this module's own SH `c_0 sqrt(4 pi)` to
+    /// rounding (1e-9 relative); the page's tabulated BCSDF (2-degree grid, linear in the
+    /// camera inclination) agrees within 2 % (the tolerance of
+    /// `prt::tests::unshadowed_radiance_matches_direct_integral`).
+    #[test]
+    fn unshadowed_direct_equals_sh() {
+        let fur = crate::FurParams::preset("cat").unwrap();
+        let mp = ModelParams::from(fur);
+        let ch = [mp.clone(), mp.clone(), mp.clone()];
+        let light = crate::view::lights::LIGHTS[0].coeffs(55.0, -40.0);
+        let wo = V3::new(0.26, 0.64, 0.72).normalized();
+        let u = V3::new(0.5, 0.866, 0.0).normalized();
+        let d = lighting(&ch, &light, wo, u, (8, 16), (180, 360));
+        let k0 = (4.0 * PI).sqrt();
+        let cells: f64 = d.cells.iter().map(|c| c[0] as f64).sum();
+        let sh_exact = d.c[0][0] * k0;
+        assert!(
+            (cells / sh_exact - 1.0).abs() < 1e-6,
+            "{cells} vs {sh_exact}"
+        );
+        let table = bcsdf_table(&ch, TableSize::default());
+        let page = frame_lighting(&table, &light, wo, u)[0][0] * k0;
+        assert!((page / cells - 1.0).abs() < 0.02, "{page} vs {cells}");
     }
 }

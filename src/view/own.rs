@@ -24,8 +24,7 @@
 //! depth in [`MISSES`] shells running (the fiber has left the ray; curl brings it back
 //! by less than a texel), and the kernel's weights below [`TAIL`] are left out.
 
-use super::prt::Step;
-use super::shells::{Patch, Pieces};
+use super::shells::{Patch, Pieces, TexelFibers};
 
 /// Shells in a row without any of the fiber's depth on the kernel that end its march.
 pub const MISSES: usize = 2;
@@ -107,11 +106,19 @@ impl Kernel {
     }
 }
 
+/// What the march along a fiber needs of one sweep direction
+/// ([`super::prt`]'s `Step`): its kernel, its whole-texel shift per shell, `1 / |d_y|`.
+pub struct Sweep {
+    pub kernel: Kernel,
+    pub shift: (i64, i64),
+    pub inv_cos: f32,
+}
+
 /// The fibers of every texel, for [`Shadowing::Others`](super::prt::Shadowing::Others).
 pub struct Own<'a> {
     pieces: &'a Pieces,
     /// Per shell: `(start, entries)`, [`Pieces::by_texel`].
-    by_texel: Vec<(Vec<u32>, Vec<(u32, f32)>)>,
+    by_texel: Vec<TexelFibers>,
 }
 
 impl<'a> Own<'a> {
@@ -125,11 +132,11 @@ impl<'a> Own<'a> {
     /// Replace `e` (row `j` of shell `s`, `exp(-tau)` per texel) by the texel's fibers'
     /// mean transmittance through the other fibers (module doc), for sweep direction
     /// `st` (`up`: toward `+y`). Texels no fiber covers keep `exp(-tau)`.
-    pub(super) fn transmittance(
+    pub fn transmittance(
         &self,
         e: &mut [f32],
         tau: &[f32],
-        st: &Step,
+        st: &Sweep,
         s: usize,
         j: usize,
         up: bool,
@@ -154,15 +161,15 @@ impl<'a> Own<'a> {
 
     /// `tau_f`: fiber `f`'s own optical depth on the sweep's ray from texel `x` of shell
     /// `s` (module doc).
-    pub(super) fn tau_own(&self, f: usize, s: usize, x: (usize, usize), st: &Step, up: bool) -> f32 {
+    pub fn tau_own(&self, f: usize, s: usize, x: (usize, usize), st: &Sweep, up: bool) -> f32 {
         let p = self.pieces;
-        let kern = st.kernel.as_ref().expect("a kernel for Shadowing::Others");
+        let kern = &st.kernel;
         let res = p.res as i64;
         // The texel in the fiber's own (unwrapped) coordinates.
         let home = p.patch(f, s);
         let xi = home.i0 + (x.0 as i64 - home.i0).rem_euclid(res);
         let xj = home.j0 + (x.1 as i64 - home.j0).rem_euclid(res);
-        let (ox, _, oz, _) = st.shift;
+        let (ox, oz) = st.shift;
         let (mut tau, mut misses) = (0.0f32, 0);
         for k in 1..p.shells {
             let s2 = if up {
@@ -193,5 +200,116 @@ impl<'a> Own<'a> {
             }
         }
         tau * st.inv_cos
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::prt::{sh_weights, transfer_pieces, Shadowing};
+    use super::super::sh::{Rule, N_COEFFS};
+    use super::super::shells::{pieces, FurSpec};
+    use crate::render::math::V3;
+    use std::f64::consts::PI;
+
+    fn spec() -> FurSpec {
+        FurSpec {
+            res: 32,
+            shells: 8,
+            radius: 0.02,
+            ..FurSpec::default()
+        }
+    }
+
+    /// `v_0` (the SH constant: the texel's mean transmittance times sqrt(4 pi)) of every
+    /// texel fiber 0 covers in shells `0..upto`, per shadowing.
+    fn v0_of_fiber0(fibers: &[Vec<V3>], sv: Shadowing, upto: usize) -> Vec<f32> {
+        let spec = spec();
+        let p = pieces(&spec, fibers);
+        let rule = Rule::product(8, 16);
+        let t = transfer_pieces(&spec, &p, &rule, sv, &sh_weights(&rule), N_COEFFS);
+        let mut out = Vec::new();
+        for s in 0..upto {
+            let q = p.patch(0, s);
+            for b in 0..q.h {
+                for a in 0..q.w {
+                    // Texels fiber 0 covers well and no other fiber does.
+                    let od = p.vals[q.at + b * q.w + a];
+                    let (i, j) = (
+                        (q.i0 + a as i64).rem_euclid(32) as usize,
+                        (q.j0 + b as i64).rem_euclid(32) as usize,
+                    );
+                    let others: f32 = (1..fibers.len())
+                        .map(|f| {
+                            let r = p.patch(f, s);
+                            let (da, db) = (
+                                (i as i64 - r.i0).rem_euclid(32) as usize,
+                                (j as i64 - r.j0).rem_euclid(32) as usize,
+                            );
+                            if da < r.w && db < r.h {
+                                p.vals[r.at + db * r.w + da]
+                            } else {
+                                0.0
+                            }
+                        })
+                        .sum();
+                    if od > 0.1 && others == 0.0 {
+                        out.push(t.at(s, 0)[j * 32 + i]);
+                    }
+                }
+            }
+        }
+        out
+    }
+
+    /// A single straight fiber, tilted as the comb, is not shadowed by itself with
+    /// `Others`: every texel it covers transmits everything (`v_0 = sqrt(4 pi)`; the
+    /// kernel's tail cut and f32 rounding: 1e-3 relative). With `All` the same texels
+    /// are darkened by the fiber's own pieces above and below (by more than 1 %: the
+    /// effect this mode is there to remove).
+    #[test]
+    fn a_lone_straight_fiber_does_not_shadow_itself() {
+        let spec = spec();
+        let root = V3::new(0.3, 0.0, 0.5);
+        let t = spec.comb();
+        let fiber: Vec<V3> = (0..=8)
+            .map(|i| root + t * (spec.height() / t.y * i as f64 / 8.0 * 0.999))
+            .collect();
+        let full = (4.0 * PI).sqrt() as f32;
+        let others = v0_of_fiber0(std::slice::from_ref(&fiber), Shadowing::Others, 8);
+        let all = v0_of_fiber0(&[fiber], Shadowing::All, 8);
+        assert!(!others.is_empty() && others.len() == all.len());
+        for v in &others {
+            assert!((v / full - 1.0).abs() < 1e-3, "{v} vs {full}");
+        }
+        let darkest = all.iter().copied().fold(f32::INFINITY, f32::min);
+        assert!(darkest < 0.99 * full, "All mode: {darkest} vs {full}");
+    }
+
+    /// The other fibers still shadow: a vertical fiber under a roof of horizontal ones
+    /// (nine bars across the tile at 80 % of the height) loses light with `Others` (more than 1 %),
+    /// and less than with `All` (which adds the fiber's own pieces).
+    #[test]
+    fn other_fibers_still_shadow() {
+        let spec = spec();
+        let h = spec.height();
+        let stem = vec![V3::new(0.5, 0.0, 0.5), V3::new(0.5, 0.5 * h, 0.5)];
+        let y = 0.8 * h;
+        let mut fibers = vec![stem];
+        for k in 0..9 {
+            let z = 0.42 + 0.02 * k as f64;
+            fibers.push(
+                (0..=8)
+                    .map(|i| V3::new(i as f64 / 8.0 - 0.001, y, z))
+                    .collect(),
+            );
+        }
+        let full = (4.0 * PI).sqrt() as f32;
+        let others = v0_of_fiber0(&fibers, Shadowing::Others, 3);
+        let all = v0_of_fiber0(&fibers, Shadowing::All, 3);
+        assert!(!others.is_empty() && others.len() == all.len());
+        for (o, a) in others.iter().zip(&all) {
+            assert!(*o < 0.99 * full, "others: {o} vs {full}");
+            assert!(*a < *o - 1e-3 * full, "all {a} >= others {o}");
+        }
     }
 }

@@ -264,7 +264,7 @@ impl Pieces {
 
     /// Per shell, the fibers covering each texel with their optical depth there, as
     /// `(start, entries)`: texel `t`'s are `entries[start[t]..start[t + 1]]`.
-    pub fn by_texel(&self) -> Vec<(Vec<u32>, Vec<(u32, f32)>)> {
+    pub fn by_texel(&self) -> Vec<TexelFibers> {
         let (res, shells) = (self.res, self.shells);
         (0..shells)
             .into_par_iter()
@@ -295,6 +295,10 @@ impl Pieces {
             .collect()
     }
 }
+
+/// One shell's fibers per texel, `(start, entries)`: texel `t`'s `(fiber, optical depth)`
+/// pairs are `entries[start[t]..start[t + 1]]` ([`Pieces::by_texel`]).
+pub type TexelFibers = (Vec<u32>, Vec<(u32, f32)>);
 
 /// Cut every fiber into its shells' pieces ([`Pieces`]): per slab, the part of each
 /// segment inside it, splatted as a capsule seen from above (4x4 samples per texel).

@@ -173,7 +173,14 @@ fn corner_weights(px: usize, py: usize, width: usize, height: usize) -> [f32; 4]
 
 /// Radiance and coverage at tile point `(x, z)` of shell `s`: the blend of `tex`'s
 /// radiance (one, or the four corners' with `wts`), the first's coverage.
-fn shade(tex: &[Vec<Vec<[f32; 4]>>], wts: &[f32; 4], s: usize, res: usize, x: f64, z: f64) -> [f32; 4] {
+fn shade(
+    tex: &[Vec<Vec<[f32; 4]>>],
+    wts: &[f32; 4],
+    s: usize,
+    res: usize,
+    x: f64,
+    z: f64,
+) -> [f32; 4] {
     let mut t = sample(&tex[0][s], res, x, z);
     if tex.len() == 4 {
         let a = t[3];
@@ -191,7 +198,10 @@ fn shade(tex: &[Vec<Vec<[f32; 4]>>], wts: &[f32; 4], s: usize, res: usize, x: f6
 /// ([`corner_lighting`]) blended per pixel. The page's drawing of any transfer
 /// ([`super::direct`]).
 pub fn render_tex(data: &ViewData, s: &Still, tex: &[Vec<Vec<[f32; 4]>>]) -> Image {
-    assert!(tex.len() == 1 || tex.len() == 4, "one texture set or four corners'");
+    assert!(
+        tex.len() == 1 || tex.len() == 4,
+        "one texture set or four corners'"
+    );
     let l = s.light.coeffs(s.view.light_elev_deg, s.view.light_azim_deg);
     let cam = camera(data, &s.view, s.width, s.height);
     let order = shell_order(data, cam.eye.y);
