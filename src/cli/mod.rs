@@ -388,6 +388,7 @@ pub mod synth;
 pub mod tables;
 pub mod tables_strand;
 pub mod view;
+mod view_decompose;
 
 /// furfit: fit the 5-lobe fur BCSDF to goniometric profiles, report, check and preview.
 #[derive(Parser, Debug)]

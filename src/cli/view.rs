@@ -32,6 +32,15 @@ pub struct Args {
     /// Path-trace the same fibers and write PRT-vs-reference errors into --out (yan2017 fits).
     #[arg(long)]
     pub reference: bool,
+    /// With --reference: the error's decomposition instead (SH truncation: the transfer
+    /// integrated against the light directly; visibility: PRT and path tracer both
+    /// without shadowing; each shadowing with its own), into --out/decompose.{md,csv}.
+    #[arg(long)]
+    pub decompose: bool,
+    /// Which fibers shadow in the transfer: others (a fiber never shadows itself), all
+    /// (the shells' density as is, seed 003 Eq. 4), off.
+    #[arg(long, default_value = "others")]
+    pub shadowing: String,
     /// Species shown by --still: index into --params (0-based) or name.
     #[arg(long, default_value = "0")]
     pub species: String,
@@ -159,7 +168,14 @@ pub fn run(a: Args) -> anyhow::Result<()> {
     } else {
         page::check_out(&out, a.force).context("--out")?;
     }
-    let data = view::build(&fur(&a), &a.params, prt::TableSize::default(), dirs)?;
+    let shadowing = prt::Shadowing::parse(&a.shadowing)?;
+    let data = view::build(
+        &fur(&a),
+        &a.params,
+        prt::TableSize::default(),
+        dirs,
+        shadowing,
+    )?;
     for s in &data.species {
         println!(
             "{}: {} ({}), BCSDF table {:.2} s, colour: {}",
@@ -167,8 +183,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         );
     }
     println!(
-        "shells: {} x {}^2 texels, {} fibers; coverage {:.2} s, transfer ({} directions) {:.2} s, packing {:.2} s",
-        data.fur.shells, data.fur.res, data.fur.fibers, data.seconds[0], data.n_dirs, data.seconds[1], data.seconds[2]
+        "shells: {} x {}^2 texels, {} fibers; coverage {:.2} s, transfer ({} directions, shadowing {}) {:.2} s, packing {:.2} s",
+        data.fur.shells, data.fur.res, data.fur.fibers, data.seconds[0], data.n_dirs, data.shadowing.name(), data.seconds[1], data.seconds[2]
     );
     if a.still {
         let species = species_index(&data, &a.species)?;
@@ -197,6 +213,27 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         crate::io::write_atomic(&out, &bytes)?;
         println!("wrote {}", out.display());
         return Ok(());
+    }
+    if a.reference && a.decompose {
+        let views = lights::LIGHTS
+            .iter()
+            .map(|l| view_of(&a, l))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        let traced = data
+            .species
+            .iter()
+            .zip(&a.params)
+            .map(|(sp, spec)| traced_fur(spec, sp))
+            .collect::<anyhow::Result<Vec<_>>>()?;
+        return super::view_decompose::run(&super::view_decompose::Job {
+            data: &data,
+            out: &out,
+            size: (w, h),
+            spp: a.spp,
+            dirs,
+            views,
+            traced,
+        });
     }
     if a.reference {
         return run_reference(&a, &data, &out, (w, h));
@@ -255,19 +292,9 @@ fn run_reference(
         "species,light,rel_rmse_single_1px,rel_rmse_single_4px,rel_rmse_single_16px,mean_bias_single,pt_noise_4px,pt_noise_16px,rel_rmse_full_4px,rel_rmse_full_16px,mean_bias_full,pt_seconds\n",
     );
     for (i, (sp, spec)) in data.species.iter().zip(&a.params).enumerate() {
-        let (mp, _, json) = crate::models::ModelParams::load(spec, None)?;
-        let Some(fp) = mp.fur() else {
-            println!(
-                "{}: {} is not yan2017; the renderer traces the fur model only: skipped",
-                sp.name, sp.model
-            );
+        let Some((fp, tint)) = traced_fur(spec, sp)? else {
             continue;
         };
-        let tint = json
-            .as_ref()
-            .and_then(|v| crate::params::fit_channels(v, spec).ok())
-            .and_then(|c| crate::render::bsdf::Tint::from_fit_channels(&c))
-            .unwrap_or_default();
         for light in lights::LIGHTS {
             let v = view_of(a, &light)?;
             let st = still::Still {
@@ -287,6 +314,7 @@ fn run_reference(
                 spp: a.spp,
                 seed,
                 single,
+                shadows: true,
                 margin,
             };
             let t0 = std::time::Instant::now();
@@ -354,6 +382,28 @@ fn run_reference(
     Ok(())
 }
 
+/// The fur-model parameters and tint the reference traces a species with; `None` (and a
+/// note) for a model the renderer does not trace.
+fn traced_fur(
+    spec: &str,
+    sp: &view::Species,
+) -> anyhow::Result<Option<(crate::params::FurParams, crate::render::bsdf::Tint)>> {
+    let (mp, _, json) = crate::models::ModelParams::load(spec, None)?;
+    let Some(fp) = mp.fur() else {
+        println!(
+            "{}: {} is not yan2017; the renderer traces the fur model only: skipped",
+            sp.name, sp.model
+        );
+        return Ok(None);
+    };
+    let tint = json
+        .as_ref()
+        .and_then(|v| crate::params::fit_channels(v, spec).ok())
+        .and_then(|c| crate::render::bsdf::Tint::from_fit_channels(&c))
+        .unwrap_or_default();
+    Ok(Some((fp, tint)))
+}
+
 /// The packing's own error, per species and light at the view of `--reference`: the
 /// texel radiance `sum_k c_k v_k` from 8-bit textures (what the page uses) and from half
 /// floats, against the unquantised transfer ([`crate::view::pack::radiance_error`]).
@@ -365,11 +415,20 @@ fn packing_report(
 ) -> anyhow::Result<Vec<(PathBuf, Vec<u8>)>> {
     let dirs = data.n_dirs;
     let fibers = view::shells::grow(&data.fur);
-    let cov = view::shells::coverage(&data.fur, &fibers);
+    let pieces = view::shells::pieces(&data.fur, &fibers);
+    let cov = pieces.coverage();
     let (nz, np) = parse_dirs(&a.dirs)?;
     let rule = view::sh::Rule::product(nz, np);
     debug_assert_eq!(rule.dirs.len(), dirs);
-    let t = prt::transfer(&data.fur, &cov, &rule);
+    let weights = prt::sh_weights(&rule);
+    let t = prt::transfer_pieces(
+        &data.fur,
+        &pieces,
+        &rule,
+        data.shadowing,
+        &weights,
+        view::sh::N_COEFFS,
+    );
     let mut md = vec![
         "| species | light | 8-bit, per-shell scale and offset (page) | half float |".to_string(),
         "|---|---|---|---|".to_string(),

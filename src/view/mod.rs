@@ -8,6 +8,9 @@
 //! * [`prt`]: the per-texel transfer (self-shadowing through the shells) and the BCSDF's
 //!   SH matrices, combined per frame into 25 lighting coefficients;
 //! * [`fins`]: fin textures at the swatch's borders, where the surface turns edge-on;
+//! * [`own`]: the fiber-aware self-shadowing (a fiber does not shadow itself);
+//! * [`direct`]: the transfer integrated against the light directly (no SH), to measure
+//!   the SH truncation;
 //! * [`pack`]: the transfer packed into 8-bit textures with per-shell scale and offset;
 //! * [`still`]: the page's reconstruction on the CPU (`--still`);
 //! * [`page`]: the static WebGL2 page; [`serve`]: a local HTTP server for it;
@@ -21,8 +24,10 @@
 // (as in src/render/).
 #![allow(clippy::needless_range_loop)]
 
+pub mod direct;
 pub mod fins;
 pub mod lights;
+pub mod own;
 pub mod pack;
 pub mod page;
 pub mod prt;
@@ -53,6 +58,8 @@ pub struct Species {
     pub colour: String,
     /// The fitted BCSDF as SH matrices per camera inclination.
     pub table: prt::BcsdfTable,
+    /// The r, g, b parameter sets the table was made of.
+    pub channels: [ModelParams; 3],
     /// Seconds to tabulate the BCSDF.
     pub seconds: f64,
 }
@@ -124,6 +131,7 @@ pub fn load_species(spec: &str, size: prt::TableSize) -> crate::Result<Species> 
         params,
         colour,
         table,
+        channels,
         seconds: t0.elapsed().as_secs_f64(),
     })
 }
@@ -187,6 +195,8 @@ pub struct ViewData {
     pub seconds: [f64; 3],
     /// Sweep directions of the transfer.
     pub n_dirs: usize,
+    /// Which fibers shadow in the transfer.
+    pub shadowing: prt::Shadowing,
 }
 
 /// The target the camera looks at: the middle of the fur over the tile's centre.
@@ -200,6 +210,7 @@ pub fn build(
     fits: &[String],
     size: prt::TableSize,
     dirs: (usize, usize),
+    shadowing: prt::Shadowing,
 ) -> crate::Result<ViewData> {
     fur.validate()?;
     if !dirs.0.is_multiple_of(2) || dirs.0 < 2 || dirs.1 < 3 {
@@ -214,11 +225,13 @@ pub fn build(
         .collect::<crate::Result<Vec<_>>>()?;
     let t0 = Instant::now();
     let fibers = shells::grow(fur);
-    let cov = shells::coverage(fur, &fibers);
+    let pieces = shells::pieces(fur, &fibers);
+    let cov = pieces.coverage();
     let fin = fins::coverage(fur, &fibers);
     let t1 = Instant::now();
     let rule = sh::Rule::product(dirs.0, dirs.1);
-    let transfer = prt::transfer(fur, &cov, &rule);
+    let weights = prt::sh_weights(&rule);
+    let transfer = prt::transfer_pieces(fur, &pieces, &rule, shadowing, &weights, sh::N_COEFFS);
     let t2 = Instant::now();
     let packed = pack::pack_u8(&transfer, &cov);
     let t3 = Instant::now();
@@ -234,5 +247,6 @@ pub fn build(
             (t3 - t2).as_secs_f64(),
         ],
         n_dirs: rule.dirs.len(),
+        shadowing,
     })
 }

@@ -178,7 +178,12 @@ mod tests {
         let v: Vec<f32> = (0..2 * N_COEFFS * n)
             .map(|i| ((i * 37 % 101) as f32 / 10.0) - 3.0)
             .collect();
-        let t = Transfer { res, shells: 2, v };
+        let t = Transfer {
+            res,
+            shells: 2,
+            k: N_COEFFS,
+            v,
+        };
         let cov = vec![vec![0.5f32; n]; 2];
         let p = pack_u8(&t, &cov);
         for s in 0..2 {

@@ -10,21 +10,25 @@
 //!
 //! * `T(x, .)` depends on the texel, not on the camera: it is projected per texel onto the
 //!   25 SH functions (`v_k(x)`, [`transfer`]), with transmittance ray-marched through the
-//!   shells' density (seed Eq. 4).
+//!   shells' density (seed Eq. 4), by default without the texel's own fibers
+//!   ([`Shadowing::Others`]).
 //! * `P` depends on the camera, not on the texel (the swatch is combed: one tangent): for
 //!   each camera inclination `theta_o` to the fiber the 25x25 matrix
 //!   `B_jk(theta_o) = ∫∫ P Y_j Y_k dtheta dphi` is tabulated in the fiber frame
 //!   ([`BcsdfTable`]). Per frame the light's SH vector is rotated into that frame,
 //!   multiplied by `B` and rotated back ([`frame_lighting`]): the coefficients `c_k` of
-//!   `L P / cos theta`.
+//!   `L P / cos theta`. `P` also depends on the view direction, which turns across the
+//!   picture: the page takes `c` at the four corners' view directions and blends them per
+//!   fragment ([`super::still::corner_lighting`]).
 //! * Run time: `L_o(x) = sum_k c_k v_k(x)`, a 25-term dot product per texel (seed Sec. 2.4).
 //!
 //! For an order-4 light (all of [`super::lights`]) `c` is exact; the only truncation is
-//! of `T`, which is smooth. Per-fiber tangents (curl, spread) and multiple scattering are
+//! of `T`, which is smooth (measured: 0.6-1.7 %, [`super::direct`]). Per-fiber tangents (curl, spread) and multiple scattering are
 //! left out (the path-traced reference has both; see `reports/viewer/`).
 
+use super::own::{self, Own};
 use super::sh::{self, Mat3, Rule, N_COEFFS};
-use super::shells::FurSpec;
+use super::shells::{FurSpec, Pieces};
 use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::models::{Integral, ModelParams, Points};
@@ -32,22 +36,62 @@ use crate::render::math::V3;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
-/// Per-texel SH transfer of the transmittance, `[shell][coefficient][texel]`.
+/// Per-texel transfer of the transmittance, `[shell][coefficient][texel]`: `k` planes
+/// per shell (the 25 SH coefficients, or RGB radiance for [`super::direct`]).
 #[derive(Clone, Debug)]
 pub struct Transfer {
     /// Texels per tile side.
     pub res: usize,
     /// Number of shells.
     pub shells: usize,
-    /// The transfer, `[shell][coefficient][texel]`.
+    /// Planes per shell (25 SH coefficients, or 3 RGB radiances).
+    pub k: usize,
+    /// The transfer, `[shell][plane][texel]`.
     pub v: Vec<f32>,
 }
 
 impl Transfer {
-    /// The texels of SH coefficient `k` in shell `s`.
+    /// The texels of plane `k` (an SH coefficient) in shell `s`.
     pub fn at(&self, s: usize, k: usize) -> &[f32] {
         let n = self.res * self.res;
-        &self.v[(s * N_COEFFS + k) * n..(s * N_COEFFS + k + 1) * n]
+        &self.v[(s * self.k + k) * n..(s * self.k + k + 1) * n]
+    }
+}
+
+/// Which fibers shadow a texel in the transfer's ray march.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Shadowing {
+    /// None: `T = 1` (a measurement: the BCSDF against the light alone).
+    Off,
+    /// Every fiber's pieces above (below) the texel, the shading fiber's own included
+    /// (seed 003 Eq. 4 as written: the shells' density alone).
+    All,
+    /// The other fibers' pieces only: a fiber is a convex tube and does not shadow
+    /// itself (the path tracer skips the hit fiber for its shadow rays). The texel's own
+    /// fibers are known from [`super::shells::Pieces`]; see [`super::own`].
+    Others,
+}
+
+impl Shadowing {
+    /// Parse `--shadowing` (`others`, `all`, `off`).
+    pub fn parse(s: &str) -> crate::Result<Shadowing> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "off" => Ok(Shadowing::Off),
+            "all" => Ok(Shadowing::All),
+            "others" => Ok(Shadowing::Others),
+            _ => Err(crate::Error::Invalid(format!(
+                "--shadowing '{s}': expected others, all or off"
+            ))),
+        }
+    }
+
+    /// The option's spelling.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Shadowing::Off => "off",
+            Shadowing::All => "all",
+            Shadowing::Others => "others",
+        }
     }
 }
 
@@ -61,28 +105,84 @@ pub fn sweep_dirs(rule: &Rule) -> Vec<([f64; 3], f64)> {
         .collect()
 }
 
+/// The SH weights `w_d Y_k(d)` of every sweep direction: what turns the transmittances
+/// into the 25 transfer coefficients.
+pub fn sh_weights(rule: &Rule) -> Vec<Vec<f32>> {
+    sweep_dirs(rule)
+        .iter()
+        .map(|(d, w)| sh::eval(*d).iter().map(|y| (w * y) as f32).collect())
+        .collect()
+}
+
 /// Project the transmittance of every texel onto the SH basis with the directions of
-/// `rule` (polar axis up; `n_z` even). `cov` is the shells' coverage ([`super::shells::coverage`]).
-///
-/// Transmittance toward `w` from shell `s` multiplies `(1 - alpha)^(1 / |w_y|)` of every
-/// shell the ray crosses above (`w_y > 0`) or below, at the texel it crosses, read
-/// bilinearly with wrap: a sweep shell by shell keeps it O(1) per texel and direction.
-/// A fiber does not shadow the shell it is in.
+/// `rule` (polar axis up; `n_z` even). `cov` is the shells' coverage
+/// ([`super::shells::coverage`]); every fiber shadows ([`Shadowing::All`]).
 pub fn transfer(spec: &FurSpec, cov: &[Vec<f32>], rule: &Rule) -> Transfer {
-    let (res, shells) = (spec.res, spec.shells);
-    let n = res * res;
     let od: Vec<Vec<f32>> = cov
         .iter()
         .map(|c| c.iter().map(|a| -(1.0 - a.min(0.9999)).ln()).collect())
         .collect();
-    let mut v = vec![0.0f32; shells * N_COEFFS * n];
+    sweep(spec, &od, None, rule, &sh_weights(rule), N_COEFFS)
+}
+
+/// The transfer of the fibers' `pieces` with `shadowing`, weighted per sweep direction
+/// by `weights` (`k` each: [`sh_weights`] for the PRT, RGB for [`super::direct`]).
+pub fn transfer_pieces(
+    spec: &FurSpec,
+    pieces: &Pieces,
+    rule: &Rule,
+    shadowing: Shadowing,
+    weights: &[Vec<f32>],
+    k: usize,
+) -> Transfer {
+    let (res, shells) = (spec.res, spec.shells);
+    let n = res * res;
+    if shadowing == Shadowing::Off {
+        // T = 1: every texel gets the weights' sums.
+        let sums: Vec<f32> = (0..k).map(|c| weights.iter().map(|w| w[c]).sum()).collect();
+        let mut v = vec![0.0f32; shells * k * n];
+        for (i, plane) in v.chunks_mut(n).enumerate() {
+            plane.fill(sums[i % k]);
+        }
+        return Transfer { res, shells, k, v };
+    }
+    let od: Vec<Vec<f32>> = pieces
+        .optical_depth()
+        .iter()
+        .map(|p| p.iter().map(|&o| o as f32).collect())
+        .collect();
+    let own = (shadowing == Shadowing::Others).then(|| Own::new(pieces));
+    sweep(spec, &od, own.as_ref(), rule, weights, k)
+}
+
+/// Transmittance toward `w` from shell `s` multiplies `(1 - alpha)^(1 / |w_y|)` (optical
+/// depth `od / |w_y|`) of every shell the ray crosses above (`w_y > 0`) or below, at the
+/// texel it crosses, read bilinearly with wrap: a sweep shell by shell keeps it O(1) per
+/// texel and direction. A fiber does not shadow the shell it is in. With `own`, each
+/// texel's own fibers' share of that depth is taken out again ([`Own`]).
+fn sweep(
+    spec: &FurSpec,
+    od: &[Vec<f32>],
+    own: Option<&Own>,
+    rule: &Rule,
+    weights: &[Vec<f32>],
+    k: usize,
+) -> Transfer {
+    let (res, shells) = (spec.res, spec.shells);
+    let n = res * res;
+    let mut v = vec![0.0f32; shells * k * n];
     let dirs = sweep_dirs(rule);
     for up in [true, false] {
-        let pass: Vec<&([f64; 3], f64)> = dirs.iter().filter(|(d, _)| (d[1] > 0.0) == up).collect();
+        let pass: Vec<usize> = (0..dirs.len())
+            .filter(|&i| (dirs[i].0[1] > 0.0) == up)
+            .collect();
         if pass.is_empty() {
             continue;
         }
-        let steps: Vec<Step> = pass.iter().map(|(d, w)| Step::new(*d, *w, spec)).collect();
+        let steps: Vec<Step> = pass
+            .iter()
+            .map(|&i| Step::new(dirs[i].0, weights[i].clone(), spec, own.is_some()))
+            .collect();
         let mut taus = vec![vec![0.0f32; n]; steps.len()];
         let order: Vec<usize> = if up {
             (0..shells).rev().collect()
@@ -96,36 +196,44 @@ pub fn transfer(spec: &FurSpec, cov: &[Vec<f32>], rule: &Rule) -> Transfer {
                     st.advance(tau, &od[prev], res);
                 });
             }
-            let block = &mut v[s * N_COEFFS * n..(s + 1) * N_COEFFS * n];
-            accumulate(block, &taus, &steps, res);
+            let block = &mut v[s * k * n..(s + 1) * k * n];
+            let own_s = own.map(|o| (o, s, up));
+            accumulate(block, &taus, &steps, res, k, own_s);
         }
     }
-    Transfer { res, shells, v }
+    Transfer { res, shells, k, v }
 }
 
-/// One sweep direction: its SH weights and the per-shell shift in texels.
+/// One sweep direction: its weights and the per-shell shift in texels.
 struct Step {
-    wy: [f32; N_COEFFS],
+    w: Vec<f32>,
     inv_cos: f32,
     /// Integer and fractional shift in `x` (`i`) and `z` (`j`).
     shift: (i64, f32, i64, f32),
+    /// The repeated bilinear resampling as a kernel ([`super::own`]), if needed.
+    own: Option<own::Sweep>,
 }
 
 impl Step {
-    fn new(d: [f64; 3], w: f64, spec: &FurSpec) -> Step {
-        let y = sh::eval(d);
+    fn new(d: [f64; 3], w: Vec<f32>, spec: &FurSpec, kernel: bool) -> Step {
         let ay = d[1].abs();
         let k = spec.dy() * spec.res as f64 / ay;
         let (sx, sz) = (d[0] * k, d[2] * k);
+        let shift = (
+            sx.floor() as i64,
+            (sx - sx.floor()) as f32,
+            sz.floor() as i64,
+            (sz - sz.floor()) as f32,
+        );
         Step {
-            wy: std::array::from_fn(|i| (w * y[i]) as f32),
+            w,
             inv_cos: (1.0 / ay) as f32,
-            shift: (
-                sx.floor() as i64,
-                (sx - sx.floor()) as f32,
-                sz.floor() as i64,
-                (sz - sz.floor()) as f32,
-            ),
+            shift,
+            own: kernel.then(|| own::Sweep {
+                kernel: own::Kernel::new(shift.1, shift.3, spec.shells),
+                shift: (shift.0, shift.2),
+                inv_cos: (1.0 / ay) as f32,
+            }),
         }
     }
 
@@ -156,23 +264,35 @@ impl Step {
     }
 }
 
-/// `block[k][texel] += sum_dirs w Y_k(d) exp(-tau_d(texel))`, row-parallel.
-fn accumulate(block: &mut [f32], taus: &[Vec<f32>], steps: &[Step], res: usize) {
+/// `block[c][texel] += sum_dirs w_c(d) T_d(texel)`, row-parallel, with
+/// `T_d = exp(-tau_d)`, or with `own = (fibers, shell, up)` the texel's fibers' mean
+/// transmittance through the others ([`Own::transmittance`]).
+fn accumulate(
+    block: &mut [f32],
+    taus: &[Vec<f32>],
+    steps: &[Step],
+    res: usize,
+    k: usize,
+    own: Option<(&Own, usize, bool)>,
+) {
     let n = res * res;
-    // Rows of all 25 coefficient planes: split the block into per-row work by index.
     let rows: Vec<(usize, Vec<f32>)> = (0..res)
         .into_par_iter()
         .map(|j| {
-            let mut acc = vec![0.0f32; N_COEFFS * res];
+            let mut acc = vec![0.0f32; k * res];
             let mut e = vec![0.0f32; res];
             for (tau, st) in taus.iter().zip(steps) {
-                for (ei, t) in e.iter_mut().zip(&tau[j * res..(j + 1) * res]) {
+                let row = &tau[j * res..(j + 1) * res];
+                for (ei, t) in e.iter_mut().zip(row) {
                     *ei = (-t).exp();
                 }
-                for k in 0..N_COEFFS {
-                    let wk = st.wy[k];
-                    for (a, ei) in acc[k * res..(k + 1) * res].iter_mut().zip(&e) {
-                        *a += wk * ei;
+                if let (Some((o, s, up)), Some(sw)) = (own, &st.own) {
+                    o.transmittance(&mut e, row, sw, s, j, up);
+                }
+                for c in 0..k {
+                    let wc = st.w[c];
+                    for (a, ei) in acc[c * res..(c + 1) * res].iter_mut().zip(&e) {
+                        *a += wc * ei;
                     }
                 }
             }
@@ -180,9 +300,9 @@ fn accumulate(block: &mut [f32], taus: &[Vec<f32>], steps: &[Step], res: usize) 
         })
         .collect();
     for (j, acc) in rows {
-        for k in 0..N_COEFFS {
-            let dst = &mut block[k * n + j * res..k * n + (j + 1) * res];
-            for (d, a) in dst.iter_mut().zip(&acc[k * res..(k + 1) * res]) {
+        for c in 0..k {
+            let dst = &mut block[c * n + j * res..c * n + (j + 1) * res];
+            for (d, a) in dst.iter_mut().zip(&acc[c * res..(c + 1) * res]) {
                 *d += a;
             }
         }

@@ -40,6 +40,9 @@ pub struct RefSettings {
     pub seed: u64,
     /// Single scattering only, what the PRT computes (module doc).
     pub single: bool,
+    /// Shadow rays (and, to the sky, bounce rays) meet the fibers; off (with `single`):
+    /// every fiber sees the whole light, to compare with the PRT's `--shadowing off`.
+    pub shadows: bool,
     /// Fibers rooted this far around the tile are traced (tile units).
     pub margin: f64,
 }
@@ -77,6 +80,14 @@ pub fn render(
             (Environment { top, bottom }, None)
         }
     };
+    if !s.shadows {
+        if !s.single {
+            return Err(crate::Error::Invalid(
+                "the unshadowed reference is single scattering only".into(),
+            ));
+        }
+        return Ok(unshadowed(bvh, &bsdf, &cam, env, lobe, &rot, s));
+    }
     let depth = match (s.single, lobe.is_some()) {
         (true, true) => 1,
         (true, false) => 2,
@@ -135,6 +146,75 @@ pub fn render(
         height: s.height,
         data: rows.into_iter().flatten().collect(),
     })
+}
+
+/// Single scattering with nothing in the light's way: the first fiber on the camera ray
+/// (`bvh`), lit by the whole lobe (directions drawn from it, as [`render`]) or the whole
+/// sky (BCSDF-sampled directions, not traced): what the integrator's first vertex does
+/// without its shadow and bounce rays.
+fn unshadowed(
+    bvh: &Bvh,
+    bsdf: &FiberBsdf,
+    cam: &crate::render::scene::Camera,
+    env: Environment,
+    lobe: Option<[f64; 3]>,
+    rot: &sh::Mat3,
+    s: &RefSettings,
+) -> Image {
+    use crate::render::bsdf::{lobe_sum, Frame, HRange, MIN_COS};
+    let rows: Vec<Vec<[f64; 3]>> = (0..s.height)
+        .into_par_iter()
+        .map(|py| {
+            (0..s.width)
+                .map(|px| {
+                    let idx = (py * s.width + px) as u64;
+                    let mut rng = Xoshiro256PlusPlus::seed_from_u64(
+                        s.seed ^ idx.wrapping_mul(0x9E37_79B9_7F4A_7C15),
+                    );
+                    let mut acc = [0.0; 3];
+                    for _ in 0..s.spp {
+                        let (jx, jy): (f64, f64) = (rng.random(), rng.random());
+                        let dir = cam.ray_dir(px as f64 + jx, py as f64 + jy);
+                        let Some(hit) = bvh.intersect(cam.eye, dir, 0.0, f64::INFINITY, None)
+                        else {
+                            let le = env.radiance(dir);
+                            (0..3).for_each(|c| acc[c] += le[c]);
+                            continue;
+                        };
+                        let frame = Frame::new(hit.u, -dir);
+                        let theta_o = frame.to_local(-dir).0;
+                        let hr = HRange::Span(-1.0, 1.0);
+                        if let Some(e) = lobe {
+                            let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+                            let c = 2.0 * u1.powf(0.2) - 1.0;
+                            let r = (1.0 - c * c).max(0.0).sqrt();
+                            let a = std::f64::consts::TAU * u2;
+                            let d = sh::mat_vec(rot, [r * a.cos(), c, r * a.sin()]);
+                            let ld = V3::new(d[0], d[1], d[2]).normalized();
+                            let (tl, pl) = frame.to_local(ld);
+                            let mn = lobe_sum(&bsdf.eval(theta_o, tl, pl, hr));
+                            let k = 1.0 / tl.cos().max(MIN_COS);
+                            (0..3).for_each(|c| acc[c] += mn[c] * e[c] * k);
+                        } else {
+                            let side = bsdf.camera_side(theta_o);
+                            let u = [rng.random(), rng.random(), rng.random(), rng.random()];
+                            if let Some(smp) = bsdf.sample(&side, hr, u) {
+                                let w = lobe_sum(&smp.weight);
+                                let le = env.radiance(frame.to_world(smp.theta, smp.phi));
+                                (0..3).for_each(|c| acc[c] += w[c] * le[c]);
+                            }
+                        }
+                    }
+                    acc.map(|v| v / s.spp as f64)
+                })
+                .collect()
+        })
+        .collect();
+    Image {
+        width: s.width,
+        height: s.height,
+        data: rows.into_iter().flatten().collect(),
+    }
 }
 
 fn base_copy<'a>(b: &Integrator<'a>) -> Integrator<'a> {

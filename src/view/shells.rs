@@ -193,44 +193,205 @@ pub fn segments(spec: &FurSpec, fibers: &[Vec<V3>], margin: f64) -> Vec<Segment>
 /// texel that the fibers' pieces inside the shell's slab cover seen from above, fibers
 /// combined as independent occluders (`1 - prod (1 - c)`), 4x4 samples per texel.
 pub fn coverage(spec: &FurSpec, fibers: &[Vec<V3>]) -> Vec<Vec<f32>> {
-    let dy = spec.dy();
-    let res = spec.res;
-    (0..spec.shells)
-        .into_par_iter()
-        .map(|s| {
-            let (lo, hi) = (s as f64 * dy, (s + 1) as f64 * dy);
-            // log(1 - alpha) accumulated per texel.
-            let mut log_t = vec![0.0f64; res * res];
-            for f in fibers {
-                let n = (f.len() - 1) as f64;
-                for (i, w) in f.windows(2).enumerate() {
-                    let (a, b) = (w[0], w[1]);
-                    let (ya, yb) = (a.y.min(b.y), a.y.max(b.y));
-                    if yb < lo || ya >= hi {
-                        continue;
-                    }
-                    // The part of the segment inside the slab.
-                    let clip = |y: f64| {
-                        if (b.y - a.y).abs() < 1e-12 {
-                            0.5
-                        } else {
-                            ((y - a.y) / (b.y - a.y)).clamp(0.0, 1.0)
-                        }
-                    };
-                    let (t0, t1) = (clip(lo), clip(hi));
-                    let (p, q) = (a + (b - a) * t0.min(t1), a + (b - a) * t0.max(t1));
-                    let r = spec.radius * (1.0 - 0.5 * (i as f64 + 0.5) / n);
-                    splat_capsule(&mut log_t, res, p, q, r);
-                }
-            }
-            log_t.iter().map(|l| (1.0 - l.exp()) as f32).collect()
-        })
-        .collect()
+    pieces(spec, fibers).coverage()
 }
 
-/// Add the capsule `p`-`q` of radius `r` (projected on `xz`) to `log_t`, wrapping around
-/// the tile.
-fn splat_capsule(log_t: &mut [f64], res: usize, p: V3, q: V3, r: f64) {
+/// One fiber's optical depth `-ln(1 - c)` in one shell, on the smallest texel rectangle
+/// holding it: texel `(i0 + a, j0 + b)` (unwrapped: the fiber's own continuous
+/// coordinates, which may leave `[0, res)`) at `vals[at + b * w + a]`.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Patch {
+    /// First texel column (unwrapped).
+    pub i0: i64,
+    /// First texel row (unwrapped).
+    pub j0: i64,
+    /// Width in texels (0: the fiber does not reach the shell).
+    pub w: usize,
+    /// Height in texels.
+    pub h: usize,
+    /// Offset of its first value in [`Pieces::vals`].
+    pub at: usize,
+}
+
+/// Every fiber's pieces, shell by shell: what [`coverage`] combines, kept apart so the
+/// transfer can tell a texel's own fibers from the others ([`super::prt::Shadowing`]).
+/// The shells' optical depth is exactly the sum of the pieces' (coverage combines
+/// pieces as independent occluders: `ln(1 - alpha) = sum ln(1 - c)`).
+#[derive(Clone, Debug)]
+pub struct Pieces {
+    /// Texels per tile side.
+    pub res: usize,
+    /// Number of shells.
+    pub shells: usize,
+    /// `[fiber * shells + shell]`; `w == 0`: the fiber does not reach that shell.
+    pub patches: Vec<Patch>,
+    /// The patches' optical depths, each patch row-major at its `at`.
+    pub vals: Vec<f32>,
+}
+
+/// A fully covered texel stays finite: 1 - 1e-4 at most per piece (and per texel).
+pub const MAX_OD: f64 = 9.210_340_371_976_182; // -ln(1e-4)
+
+impl Pieces {
+    /// The patch of `fiber` in shell `s`.
+    pub fn patch(&self, fiber: usize, s: usize) -> &Patch {
+        &self.patches[fiber * self.shells + s]
+    }
+
+    /// Number of fibers.
+    pub fn fibers(&self) -> usize {
+        self.patches.len() / self.shells.max(1)
+    }
+
+    /// The shells' optical depth `[shell][texel]`: the pieces summed (wrapped), at most
+    /// [`MAX_OD`].
+    pub fn optical_depth(&self) -> Vec<Vec<f64>> {
+        let (res, shells) = (self.res, self.shells);
+        let mut od = vec![vec![0.0f64; res * res]; shells];
+        for f in 0..self.fibers() {
+            for (s, plane) in od.iter_mut().enumerate() {
+                let p = self.patch(f, s);
+                for b in 0..p.h {
+                    let j = (p.j0 + b as i64).rem_euclid(res as i64) as usize;
+                    for a in 0..p.w {
+                        let i = (p.i0 + a as i64).rem_euclid(res as i64) as usize;
+                        plane[j * res + i] += self.vals[p.at + b * p.w + a] as f64;
+                    }
+                }
+            }
+        }
+        for v in od.iter_mut().flatten() {
+            *v = v.min(MAX_OD);
+        }
+        od
+    }
+
+    /// Coverage `1 - exp(-od)` of every shell texel (what [`coverage`] returns).
+    pub fn coverage(&self) -> Vec<Vec<f32>> {
+        self.optical_depth()
+            .iter()
+            .map(|p| p.iter().map(|o| (1.0 - (-o).exp()) as f32).collect())
+            .collect()
+    }
+
+    /// Per shell, the fibers covering each texel with their optical depth there, as
+    /// `(start, entries)`: texel `t`'s are `entries[start[t]..start[t + 1]]`.
+    pub fn by_texel(&self) -> Vec<TexelFibers> {
+        let (res, shells) = (self.res, self.shells);
+        (0..shells)
+            .into_par_iter()
+            .map(|s| {
+                let mut lists: Vec<Vec<(u32, f32)>> = vec![Vec::new(); res * res];
+                for f in 0..self.fibers() {
+                    let p = self.patch(f, s);
+                    for b in 0..p.h {
+                        let j = (p.j0 + b as i64).rem_euclid(res as i64) as usize;
+                        for a in 0..p.w {
+                            let i = (p.i0 + a as i64).rem_euclid(res as i64) as usize;
+                            let v = self.vals[p.at + b * p.w + a];
+                            if v > 0.0 {
+                                lists[j * res + i].push((f as u32, v));
+                            }
+                        }
+                    }
+                }
+                let mut start = Vec::with_capacity(res * res + 1);
+                let mut entries = Vec::new();
+                for l in lists {
+                    start.push(entries.len() as u32);
+                    entries.extend(l);
+                }
+                start.push(entries.len() as u32);
+                (start, entries)
+            })
+            .collect()
+    }
+}
+
+/// One shell's fibers per texel, `(start, entries)`: texel `t`'s `(fiber, optical depth)`
+/// pairs are `entries[start[t]..start[t + 1]]` ([`Pieces::by_texel`]).
+pub type TexelFibers = (Vec<u32>, Vec<(u32, f32)>);
+
+/// Cut every fiber into its shells' pieces ([`Pieces`]): per slab, the part of each
+/// segment inside it, splatted as a capsule seen from above (4x4 samples per texel).
+pub fn pieces(spec: &FurSpec, fibers: &[Vec<V3>]) -> Pieces {
+    let dy = spec.dy();
+    let (res, shells) = (spec.res, spec.shells);
+    let per_fiber: Vec<Vec<(Patch, Vec<f32>)>> = fibers
+        .par_iter()
+        .map(|f| {
+            let n = (f.len() - 1) as f64;
+            (0..shells)
+                .map(|s| {
+                    let (lo, hi) = (s as f64 * dy, (s + 1) as f64 * dy);
+                    // (i, j) unwrapped -> log(1 - c), summed over the fiber's pieces.
+                    let mut cells: Vec<((i64, i64), f64)> = Vec::new();
+                    for (i, w) in f.windows(2).enumerate() {
+                        let (a, b) = (w[0], w[1]);
+                        let (ya, yb) = (a.y.min(b.y), a.y.max(b.y));
+                        if yb < lo || ya >= hi {
+                            continue;
+                        }
+                        // The part of the segment inside the slab.
+                        let clip = |y: f64| {
+                            if (b.y - a.y).abs() < 1e-12 {
+                                0.5
+                            } else {
+                                ((y - a.y) / (b.y - a.y)).clamp(0.0, 1.0)
+                            }
+                        };
+                        let (t0, t1) = (clip(lo), clip(hi));
+                        let (p, q) = (a + (b - a) * t0.min(t1), a + (b - a) * t0.max(t1));
+                        let r = spec.radius * (1.0 - 0.5 * (i as f64 + 0.5) / n);
+                        splat_capsule(&mut cells, res, p, q, r);
+                    }
+                    to_patch(&cells)
+                })
+                .collect()
+        })
+        .collect();
+    let mut patches = Vec::with_capacity(fibers.len() * shells);
+    let mut vals = Vec::new();
+    for (mut p, v) in per_fiber.into_iter().flatten() {
+        p.at = vals.len();
+        vals.extend(v);
+        patches.push(p);
+    }
+    Pieces {
+        res,
+        shells,
+        patches,
+        vals,
+    }
+}
+
+/// The smallest rectangle holding `cells`, dense, as optical depth.
+fn to_patch(cells: &[((i64, i64), f64)]) -> (Patch, Vec<f32>) {
+    if cells.is_empty() {
+        return (Patch::default(), Vec::new());
+    }
+    let i0 = cells.iter().map(|c| c.0 .0).min().unwrap_or(0);
+    let i1 = cells.iter().map(|c| c.0 .0).max().unwrap_or(0);
+    let j0 = cells.iter().map(|c| c.0 .1).min().unwrap_or(0);
+    let j1 = cells.iter().map(|c| c.0 .1).max().unwrap_or(0);
+    let (w, h) = ((i1 - i0 + 1) as usize, (j1 - j0 + 1) as usize);
+    let mut v = vec![0.0f64; w * h];
+    for ((i, j), l) in cells {
+        v[(j - j0) as usize * w + (i - i0) as usize] -= l;
+    }
+    let p = Patch {
+        i0,
+        j0,
+        w,
+        h,
+        at: 0,
+    };
+    (p, v.iter().map(|x| x.min(MAX_OD) as f32).collect())
+}
+
+/// Add the capsule `p`-`q` of radius `r` (projected on `xz`) to `cells` as `log(1 - c)`
+/// per covered texel (unwrapped texel coordinates).
+fn splat_capsule(cells: &mut Vec<((i64, i64), f64)>, res: usize, p: V3, q: V3, r: f64) {
     let texel = 1.0 / res as f64;
     let (x0, x1) = (p.x.min(q.x) - r, p.x.max(q.x) + r);
     let (z0, z1) = (p.z.min(q.z) - r, p.z.max(q.z) + r);
@@ -240,12 +401,7 @@ fn splat_capsule(log_t: &mut [f64], res: usize, p: V3, q: V3, r: f64) {
         for i in i0..=i1 {
             let c = capsule_share((p.x, p.z), (q.x, q.z), r, (texel, texel), (i, j));
             if c > 0.0 {
-                let (wi, wj) = (
-                    i.rem_euclid(res as i64) as usize,
-                    j.rem_euclid(res as i64) as usize,
-                );
-                // A fully covered texel stays finite: 1 - 1e-4 at most per piece.
-                log_t[wj * res + wi] += (1.0 - c.min(0.9999)).ln();
+                cells.push(((i, j), (1.0 - c.min(0.9999)).ln()));
             }
         }
     }

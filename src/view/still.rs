@@ -133,10 +133,81 @@ pub fn shell_order(data: &ViewData, eye_y: f64) -> Vec<usize> {
     below
 }
 
-/// Render the still (linear radiance).
+/// The lighting coefficients at the four corners of the picture (top-left, top-right,
+/// bottom-left, bottom-right), each for its own view direction (the corner pixel's ray,
+/// reversed): the BCSDF depends on the view direction, which turns by the field of view
+/// across the picture (24 degrees by default), so one camera-to-target direction for
+/// the whole frame leaves a large-scale error (`reports/viewer/prt_error.md`). Between
+/// the corners the coefficients are interpolated bilinearly in the picture, as the page
+/// does per fragment.
+pub fn corner_lighting(
+    data: &ViewData,
+    species: usize,
+    light: &Light,
+    v: &View,
+    width: usize,
+    height: usize,
+) -> [Rgb25; 4] {
+    let l = light.coeffs(v.light_elev_deg, v.light_azim_deg);
+    let cam = camera(data, v, width, height);
+    let (w, h) = (width as f64, height as f64);
+    [(0.0, 0.0), (w, 0.0), (0.0, h), (w, h)].map(|(px, py)| {
+        let wo = -cam.ray_dir(px, py);
+        frame_lighting(&data.species[species].table, &l, wo, data.fur.comb())
+    })
+}
+
+/// Render the still (linear radiance): the page's picture.
 pub fn render(data: &ViewData, s: &Still) -> Image {
-    let (l, c) = lighting(data, s.species, &s.light, &s.view, s.width, s.height);
-    let tex = texel_radiance(&data.packed, &c);
+    let c = corner_lighting(data, s.species, &s.light, &s.view, s.width, s.height);
+    let tex = c.map(|c| texel_radiance(&data.packed, &c));
+    render_tex(data, s, &tex)
+}
+
+/// Bilinear weights of the four corners' lighting at pixel `(px, py)` (centres).
+fn corner_weights(px: usize, py: usize, width: usize, height: usize) -> [f32; 4] {
+    let sx = (px as f32 + 0.5) / width as f32;
+    let sy = (py as f32 + 0.5) / height as f32;
+    [
+        (1.0 - sx) * (1.0 - sy),
+        sx * (1.0 - sy),
+        (1.0 - sx) * sy,
+        sx * sy,
+    ]
+}
+
+/// Radiance and coverage at tile point `(x, z)` of shell `s`: the blend of `tex`'s
+/// radiance (one, or the four corners' with `wts`), the first's coverage.
+fn shade(
+    tex: &[Vec<Vec<[f32; 4]>>],
+    wts: &[f32; 4],
+    s: usize,
+    res: usize,
+    x: f64,
+    z: f64,
+) -> [f32; 4] {
+    let mut t = sample(&tex[0][s], res, x, z);
+    if tex.len() == 4 {
+        let a = t[3];
+        let ts: Vec<[f32; 4]> = (1..4).map(|q| sample(&tex[q][s], res, x, z)).collect();
+        for ch in 0..3 {
+            t[ch] = wts[0] * t[ch] + (0..3).map(|q| wts[q + 1] * ts[q][ch]).sum::<f32>();
+        }
+        t[3] = a;
+    }
+    t
+}
+
+/// Render the still from given texel radiance and coverage (`tex[q][shell][texel]`, as
+/// [`texel_radiance`]): one set for the whole picture, or four, the corners' lighting
+/// ([`corner_lighting`]) blended per pixel. The page's drawing of any transfer
+/// ([`super::direct`]).
+pub fn render_tex(data: &ViewData, s: &Still, tex: &[Vec<Vec<[f32; 4]>>]) -> Image {
+    assert!(
+        tex.len() == 1 || tex.len() == 4,
+        "one texture set or four corners'"
+    );
+    let l = s.light.coeffs(s.view.light_elev_deg, s.view.light_azim_deg);
     let cam = camera(data, &s.view, s.width, s.height);
     let order = shell_order(data, cam.eye.y);
     let (back, front) = fins::order(cam.eye);
@@ -146,6 +217,7 @@ pub fn render(data: &ViewData, s: &Still) -> Image {
         .map(|py| {
             (0..s.width)
                 .map(|px| {
+                    let wts = corner_weights(px, py, s.width, s.height);
                     let d = cam.ray_dir(px as f64 + 0.5, py as f64 + 0.5);
                     let slant = (1.0 / d.y.abs().max(SLANT_MIN_COS)) as f32;
                     let mut col = if s.background {
@@ -157,14 +229,14 @@ pub fn render(data: &ViewData, s: &Still) -> Image {
                     };
                     if s.fins {
                         for &w in &back {
-                            fin(data, &tex, cam.eye, d, w, &mut col);
+                            fin(data, tex, &wts, cam.eye, d, w, &mut col);
                         }
                     }
                     for &sh_i in &order {
                         if let Some(p) = hit_shell(data, cam.eye, d, sh_i) {
                             // Radiance and coverage filtered apart, then
                             // premultiplied: what the shader does with its samples.
-                            let t = sample(&tex[sh_i], res, p.x, p.z);
+                            let t = shade(tex, &wts, sh_i, res, p.x, p.z);
                             let a = slant_alpha(t[3], slant);
                             for ch in 0..3 {
                                 col[ch] = t[ch] * a + (1.0 - a) * col[ch];
@@ -173,7 +245,7 @@ pub fn render(data: &ViewData, s: &Still) -> Image {
                     }
                     if s.fins {
                         for &w in &front {
-                            fin(data, &tex, cam.eye, d, w, &mut col);
+                            fin(data, tex, &wts, cam.eye, d, w, &mut col);
                         }
                     }
                     col.map(|v| v as f64)
@@ -205,7 +277,15 @@ fn hit_shell(data: &ViewData, eye: V3, d: V3, s: usize) -> Option<V3> {
 /// Composite wall `w`'s fin over `col`, if the ray meets it ([`super::fins`]): coverage
 /// from the fin texture, radiance of the shell at that height and place, as the page's
 /// fin shader.
-fn fin(data: &ViewData, tex: &[Vec<[f32; 4]>], eye: V3, d: V3, w: usize, col: &mut [f32; 3]) {
+fn fin(
+    data: &ViewData,
+    tex: &[Vec<Vec<[f32; 4]>>],
+    wts: &[f32; 4],
+    eye: V3,
+    d: V3,
+    w: usize,
+    col: &mut [f32; 3],
+) {
     let Some((p, fv)) = fins::hit(&data.fur, eye, d, w) else {
         return;
     };
@@ -229,7 +309,7 @@ fn fin(data: &ViewData, tex: &[Vec<[f32; 4]>], eye: V3, d: V3, w: usize, col: &m
         return;
     }
     let s = ((p.y / data.fur.dy()).floor().max(0.0) as usize).min(data.fur.shells - 1);
-    let t = sample(&tex[s], data.packed.res, p.x, p.z);
+    let t = shade(tex, wts, s, data.packed.res, p.x, p.z);
     for ch in 0..3 {
         col[ch] = t[ch] * a + (1.0 - a) * col[ch];
     }

@@ -160,28 +160,42 @@
     for (int k = 0; k < 25; k++) c += vec3(uL[k], uL[25 + k], uL[50 + k]) * y[k];
     o = vec4(c * uShow, 1.0);
   }`);
+  // The lighting of the four picture corners (top-left, top-right, bottom-left,
+  // bottom-right; each for its own view direction), blended bilinearly per fragment:
+  // still.rs corner_lighting / corner_weights. Corner q's coefficients times the shell's
+  // scale are uCR[7 q + j] (texture j's four channels), its offsets' sum uB[q].
+  const CORNER_GLSL = `uniform vec4 uCR[28], uCG[28], uCB[28]; uniform vec3 uB[4]; uniform vec2 uVP;
+  vec3 radiance(vec4 q[7]) {
+    float sx = gl_FragCoord.x / uVP.x, sy = 1.0 - gl_FragCoord.y / uVP.y;
+    vec4 w = vec4((1.0 - sx) * (1.0 - sy), sx * (1.0 - sy), (1.0 - sx) * sy, sx * sy);
+    vec3 c = vec3(0.0);
+    for (int k = 0; k < 4; k++) {
+      vec3 ck = uB[k];
+      for (int j = 0; j < 7; j++) ck += vec3(dot(q[j], uCR[7 * k + j]), dot(q[j], uCG[7 * k + j]), dot(q[j], uCB[7 * k + j]));
+      c += w[k] * ck;
+    }
+    return c;
+  }`;
   const SHELL = program(`#version 300 es
   in vec2 pos; uniform mat4 uMVP; uniform float uY; out vec2 xz; out vec3 wp;
   void main() { xz = pos; wp = vec3(pos.x, uY, pos.y); gl_Position = uMVP * vec4(wp, 1.0); }`, `#version 300 es
   precision highp float; precision highp sampler2DArray;
   in vec2 xz; in vec3 wp; out vec4 o;
   uniform sampler2DArray uTex; uniform int uBase; uniform vec3 uEye;
-  uniform vec4 uCR[7], uCG[7], uCB[7]; uniform vec3 uB; uniform vec2 uAlpha;
+  ${CORNER_GLSL}
+  uniform vec2 uAlpha;
   void main() {
     // The coverage first: an empty texel (all four filtered neighbours empty) adds
     // nothing, so it skips the other six fetches (most texels of the upper shells).
-    vec4 q6 = texture(uTex, vec3(xz, float(uBase + 6)));
-    float a = uAlpha.x + uAlpha.y * q6.y;
+    vec4 q[7];
+    q[6] = texture(uTex, vec3(xz, float(uBase + 6)));
+    float a = uAlpha.x + uAlpha.y * q[6].y;
     if (a <= 0.0) discard;
     // Seen at a slant the slab is thicker: 1 - (1 - a)^(1 / |d_y|) (still.rs slant_alpha).
     float slant = 1.0 / max(abs(normalize(wp - uEye).y), 0.1);
     a = 1.0 - pow(1.0 - clamp(a, 0.0, 1.0), slant);
-    vec3 c = uB + vec3(dot(q6, uCR[6]), dot(q6, uCG[6]), dot(q6, uCB[6]));
-    for (int j = 0; j < 6; j++) {
-      vec4 q = texture(uTex, vec3(xz, float(uBase + j)));
-      c += vec3(dot(q, uCR[j]), dot(q, uCG[j]), dot(q, uCB[j]));
-    }
-    o = vec4(c * a, a);
+    for (int j = 0; j < 6; j++) q[j] = texture(uTex, vec3(xz, float(uBase + j)));
+    o = vec4(radiance(q) * a, a);
   }`);
   // Fins (src/view/fins.rs): one strip per shell band of each border wall, coverage from
   // the fin texture, radiance of that band's shell at the fragment's place.
@@ -196,7 +210,7 @@
   in vec3 wp; out vec4 o;
   uniform sampler2DArray uTex, uFin; uniform int uBase, uAxis, uWall; uniform vec3 uEye, uN;
   uniform float uH, uMinCos;
-  uniform vec4 uCR[7], uCG[7], uCB[7]; uniform vec3 uB;
+  ${CORNER_GLSL}
   void main() {
     float along = uAxis == 0 ? wp.z : wp.x;
     float cov = texture(uFin, vec3(along, wp.y / uH, float(uWall))).r;
@@ -204,12 +218,9 @@
     float fv = abs(dot(normalize(wp - uEye), uN));
     float a = smoothstep(0.15, 0.5, fv) * (1.0 - pow(1.0 - clamp(cov, 0.0, 1.0), 1.0 / max(fv, uMinCos)));
     if (a <= 0.0) discard;
-    vec3 c = uB;
-    for (int j = 0; j < 7; j++) {
-      vec4 q = texture(uTex, vec3(wp.x, wp.z, float(uBase + j)));
-      c += vec3(dot(q, uCR[j]), dot(q, uCG[j]), dot(q, uCB[j]));
-    }
-    o = vec4(c * a, a);
+    vec4 q[7];
+    for (int j = 0; j < 7; j++) q[j] = texture(uTex, vec3(wp.x, wp.z, float(uBase + j)));
+    o = vec4(radiance(q) * a, a);
   }`);
   const TONE = program(FULL_VS, `#version 300 es
   precision highp float;
@@ -296,6 +307,7 @@
     gl.uniform1i(FIN.u.uTex, 0); gl.uniform1i(FIN.u.uFin, 2);
     gl.uniformMatrix4fv(FIN.u.uMVP, false, mvp(c));
     gl.uniform3fv(FIN.u.uEye, c.eye);
+    gl.uniform2f(FIN.u.uVP, W, H);
     gl.uniform1f(FIN.u.uE, D.extent); gl.uniform1f(FIN.u.uH, D.height); gl.uniform1f(FIN.u.uMinCos, D.slant_min_cos);
     // Fins and shells are drawn back to front with "over" blending: back walls, shells, front walls.
     for (const w of walls) {
@@ -319,8 +331,11 @@
     const c = camera(), sp = D.species[st.species], L = D.lights[st.light];
     const R = orientation(st.lightDir[0], st.lightDir[1]);
     const light = L.coeffs.map((ch) => shRotate(ch, R));
-    const wo = norm(sub(c.eye, D.target));
-    const cf = frameLighting(sp, light, wo, D.comb);
+    // The corners' view directions: the reversed rays through them (BG's ray formula).
+    const cfs = [[-1, 1], [1, 1], [-1, -1], [1, -1]].map(([x, y]) => {
+      const d = norm([0, 1, 2].map((i) => c.f[i] + c.r[i] * (x * c.tan * W / H) + c.u[i] * (y * c.tan)));
+      return frameLighting(sp, light, d.map((v) => -v), D.comb);
+    });
     const cpuMs = performance.now() - tc;
     gl.bindFramebuffer(gl.FRAMEBUFFER, fbo);
     gl.viewport(0, 0, W, H);
@@ -335,12 +350,14 @@
     // Per shell: the frame's lighting times the shell's dequantisation (scale, offset).
     const coef = [];
     for (let s = 0; s < D.shells; s++) {
-      const cr = new Float32Array(28), cg = new Float32Array(28), cb = new Float32Array(28), b = [0, 0, 0];
-      for (let k = 0; k < 25; k++) {
-        const sc = D.scale[s * 28 + k], of = D.offset[s * 28 + k];
-        cr[k] = cf[0][k] * sc; cg[k] = cf[1][k] * sc; cb[k] = cf[2][k] * sc;
-        b[0] += cf[0][k] * of; b[1] += cf[1][k] * of; b[2] += cf[2][k] * of;
-      }
+      const cr = new Float32Array(112), cg = new Float32Array(112), cb = new Float32Array(112), b = new Float32Array(12);
+      cfs.forEach((cf, q) => {
+        for (let k = 0; k < 25; k++) {
+          const sc = D.scale[s * 28 + k], of = D.offset[s * 28 + k];
+          cr[28 * q + k] = cf[0][k] * sc; cg[28 * q + k] = cf[1][k] * sc; cb[28 * q + k] = cf[2][k] * sc;
+          b[3 * q] += cf[0][k] * of; b[3 * q + 1] += cf[1][k] * of; b[3 * q + 2] += cf[2][k] * of;
+        }
+      });
       coef.push({ cr, cg, cb, b });
     }
     if (st.fins) drawFins(c, coef, wallOrder(c.eye, true));
@@ -350,6 +367,7 @@
     gl.uniform1i(SHELL.u.uTex, 0);
     gl.uniformMatrix4fv(SHELL.u.uMVP, false, mvp(c));
     gl.uniform3fv(SHELL.u.uEye, c.eye);
+    gl.uniform2f(SHELL.u.uVP, W, H);
     for (const s of shellOrder(c.eye[1])) {
       const { cr, cg, cb, b } = coef[s];
       gl.uniform4fv(SHELL.u.uCR, cr); gl.uniform4fv(SHELL.u.uCG, cg); gl.uniform4fv(SHELL.u.uCB, cb);
