@@ -23,6 +23,7 @@ use super::bsdf::{
 };
 use super::bvh::{Bvh, DirTree};
 use super::math::{luminance, Rgb, V3};
+use super::qmc::{PixelSample, SOBOL_DEPTHS};
 use super::scene::{Camera, DirectionalLight, Environment};
 use crate::model::multiscale;
 use rand::Rng;
@@ -129,8 +130,16 @@ impl<B: Bcsdf> Integrator<'_, B> {
         }
     }
 
-    /// Trace one path through image position (`px`, `py`).
-    pub fn trace(&self, px: f64, py: f64, rng: &mut Xoshiro256PlusPlus) -> PathResult {
+    /// Trace one path through image position (`px`, `py`). With `sobol` the BCSDF samples
+    /// of the first [`SOBOL_DEPTHS`] vertices take their uniforms from its streams
+    /// ([`super::qmc`]), every other number from `rng`.
+    pub fn trace(
+        &self,
+        px: f64,
+        py: f64,
+        rng: &mut Xoshiro256PlusPlus,
+        sobol: Option<&PixelSample>,
+    ) -> PathResult {
         let mut res = PathResult::default();
         let cam = self.camera;
         let mut dir = cam.ray_dir(px, py);
@@ -226,7 +235,14 @@ impl<B: Bcsdf> Integrator<'_, B> {
             }
 
             // Continue the path by sampling the BCSDF.
-            let u = [rng.random(), rng.random(), rng.random(), rng.random()];
+            let u = match sobol {
+                Some(q) if depth < SOBOL_DEPTHS => {
+                    let d = depth as u32;
+                    let ([a, b], [c, e]) = (q.pair(1 + 2 * d, rng), q.pair(2 + 2 * d, rng));
+                    [a, b, c, e]
+                }
+                _ => [rng.random(), rng.random(), rng.random(), rng.random()],
+            };
             let s = match self.bsdf.sample(&side, hr, u) {
                 Some(s) => s,
                 None => break,
