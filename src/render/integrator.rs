@@ -130,7 +130,7 @@ impl<B: Bcsdf> Integrator<'_, B> {
         }
     }
 
-    /// Trace one path through image position (`px`, `py`). With `sobol` the BCSDF samples
+    /// Trace one path through image position (`px`, `py`). With `strata` the BCSDF samples
     /// of the first [`SOBOL_DEPTHS`] vertices take their uniforms from its streams
     /// ([`super::qmc`]), every other number from `rng`.
     pub fn trace(
@@ -138,7 +138,7 @@ impl<B: Bcsdf> Integrator<'_, B> {
         px: f64,
         py: f64,
         rng: &mut Xoshiro256PlusPlus,
-        sobol: Option<&PixelSample>,
+        strata: Option<&PixelSample>,
     ) -> PathResult {
         let mut res = PathResult::default();
         let cam = self.camera;
@@ -235,7 +235,7 @@ impl<B: Bcsdf> Integrator<'_, B> {
             }
 
             // Continue the path by sampling the BCSDF.
-            let u = match sobol {
+            let u = match strata {
                 Some(q) if depth < SOBOL_DEPTHS => {
                     let d = depth as u32;
                     let ([a, b], [c, e]) = (q.pair(1 + 2 * d, rng), q.pair(2 + 2 * d, rng));
