@@ -107,6 +107,23 @@ fn power_heuristic(a: f64, b: f64) -> f64 {
     }
 }
 
+/// The four uniforms of the BCSDF sample at vertex `depth`: from the pixel's streams
+/// ([`super::qmc`]) at the first [`SOBOL_DEPTHS`] vertices, else from `rng`.
+fn bsdf_uniforms(
+    strata: Option<&PixelSample>,
+    depth: usize,
+    rng: &mut Xoshiro256PlusPlus,
+) -> [f64; 4] {
+    match strata {
+        Some(q) if depth < SOBOL_DEPTHS => {
+            let d = depth as u32;
+            let ([a, b], [c, e]) = (q.pair(1 + 2 * d, rng), q.pair(2 + 2 * d, rng));
+            [a, b, c, e]
+        }
+        _ => [rng.random(), rng.random(), rng.random(), rng.random()],
+    }
+}
+
 /// Where the last BCSDF sample came from, to compute its MIS pdf on an env hit.
 struct PrevSample<B: Bcsdf> {
     theta: f64,
@@ -235,14 +252,7 @@ impl<B: Bcsdf> Integrator<'_, B> {
             }
 
             // Continue the path by sampling the BCSDF.
-            let u = match strata {
-                Some(q) if depth < SOBOL_DEPTHS => {
-                    let d = depth as u32;
-                    let ([a, b], [c, e]) = (q.pair(1 + 2 * d, rng), q.pair(2 + 2 * d, rng));
-                    [a, b, c, e]
-                }
-                _ => [rng.random(), rng.random(), rng.random(), rng.random()],
-            };
+            let u = bsdf_uniforms(strata, depth, rng);
             let s = match self.bsdf.sample(&side, hr, u) {
                 Some(s) => s,
                 None => break,

@@ -57,6 +57,8 @@ pub enum PixelSampling {
 }
 
 impl PixelSampling {
+    /// The option's value (`independent`, `sobol`, `stratified`), case-insensitive; an
+    /// unknown name is an error listing the known ones.
     pub fn parse(s: &str) -> crate::Result<PixelSampling> {
         match s.trim().to_ascii_lowercase().as_str() {
             "independent" => Ok(PixelSampling::Independent),
@@ -68,6 +70,7 @@ impl PixelSampling {
         }
     }
 
+    /// The option's value of this sampling.
     pub fn name(self) -> &'static str {
         match self {
             PixelSampling::Independent => "independent",
@@ -82,9 +85,13 @@ impl PixelSampling {
 /// [`PixelSampling::Stratified`]) its streams use.
 #[derive(Clone, Copy, Debug)]
 pub struct PixelSample {
+    /// The construction of the streams (not [`PixelSampling::Independent`]).
     pub kind: PixelSampling,
+    /// The pixel's seed, hashed into one key per stream.
     pub seed: u64,
+    /// This sample's number among the pixel's, from 0.
     pub index: u32,
+    /// The pixel's sample count (the strata of a stratified stream).
     pub count: u32,
     /// The stratified grid `nx x ny = count` ([`grid`]).
     pub grid: (u32, u32),
