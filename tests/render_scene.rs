@@ -5,6 +5,7 @@ use furfit::params::FurParams;
 use furfit::render::bsdf::{MedullaEnergy, Mode, Tint};
 use furfit::render::ishair::Sampling;
 use furfit::render::math::V3;
+use furfit::render::qmc::PixelSampling;
 use furfit::render::scene::{DirectionalLight, Environment, StrandSpec};
 use furfit::render::{render_scene, RenderSettings, Scene};
 
@@ -58,6 +59,10 @@ fn furnace() -> RenderSettings {
     s.tint = Tint::GREY;
     s.spp = 16;
     s.sampling = Sampling::Lobes;
+    // The per-pixel bound is a statistic of 16 independent samples: stratified pixels
+    // (the default) are as unbiased (`pixel_samplings_leave_the_mean_image_unchanged`)
+    // but their rare high-throughput paths land differently (a pixel reached 1.60 here).
+    s.pixel_sampling = PixelSampling::Independent;
     s
 }
 
@@ -194,6 +199,81 @@ fn environment_estimators_agree() {
         "BCSDF sampling {a} vs NEE + MIS {b} (se {se})"
     );
     assert!(a > 0.02, "scene too dark to compare: {a}");
+}
+
+/// Per-block means over `seeds` renders: the image cut into 4 x 4 blocks, green channel.
+fn block_means(
+    scene: &Scene,
+    s: &RenderSettings,
+    seeds: std::ops::Range<u64>,
+) -> (Vec<f64>, Vec<f64>) {
+    let n = (seeds.end - seeds.start) as f64;
+    let per_seed: Vec<Vec<f64>> = seeds
+        .map(|seed| {
+            let mut s = s.clone();
+            s.seed = seed;
+            let img = render_scene(scene, &fur(), &s).unwrap().beauty;
+            let (bw, bh) = (img.width / 4, img.height / 4);
+            let mut b = vec![0.0; 16];
+            for (i, c) in img.data.iter().enumerate() {
+                let (x, y) = (i % img.width, i / img.width);
+                b[(y / bh) * 4 + x / bw] += c[1] / (bw * bh) as f64;
+            }
+            b
+        })
+        .collect();
+    let mean: Vec<f64> = (0..16)
+        .map(|k| per_seed.iter().map(|b| b[k]).sum::<f64>() / n)
+        .collect();
+    let var_of_mean = (0..16)
+        .map(|k| {
+            per_seed
+                .iter()
+                .map(|b| (b[k] - mean[k]).powi(2))
+                .sum::<f64>()
+                / (n - 1.0)
+                / n
+        })
+        .collect();
+    (mean, var_of_mean)
+}
+
+/// The stratified and Sobol pixel samplings ([`furfit::render::qmc`]) only correlate the
+/// samples of a pixel: the mean image is the independent sampler's. Over 8 seeds each
+/// (16 spp, the default scene: key light, environment, multiple scattering), the 16 block
+/// means of each agree with the independent sampler's in near field and multi-scale
+/// within 5 standard errors of their difference (estimated from 8 seeds each, a t of ~14
+/// degrees of freedom: 5 is beyond its 99.9th percentile over the 64 blocks), and their
+/// sum within 4.
+#[test]
+fn pixel_samplings_leave_the_mean_image_unchanged() {
+    let scene = Scene::build(&small(Mode::Near).strand);
+    for mode in [Mode::Near, Mode::Multiscale] {
+        let mut s = small(mode);
+        s.spp = 16;
+        s.pixel_sampling = PixelSampling::Independent;
+        let (a, va) = block_means(&scene, &s, 300..308);
+        for p in [PixelSampling::Sobol, PixelSampling::Stratified] {
+            s.pixel_sampling = p;
+            let (b, vb) = block_means(&scene, &s, 300..308);
+            for k in 0..16 {
+                let se = (va[k] + vb[k]).sqrt();
+                assert!(
+                    (a[k] - b[k]).abs() <= 5.0 * se,
+                    "{mode:?} block {k}: independent {} vs {p:?} {} (se {se})",
+                    a[k],
+                    b[k]
+                );
+            }
+            let (sa, sb) = (a.iter().sum::<f64>(), b.iter().sum::<f64>());
+            let se = (va.iter().sum::<f64>() + vb.iter().sum::<f64>()).sqrt();
+            assert!(
+                (sa - sb).abs() <= 4.0 * se,
+                "{mode:?} image: independent {sa} vs {p:?} {sb} (se {se})"
+            );
+            assert!(sa > 0.05, "{mode:?}: scene too dark to compare: {sa}");
+        }
+    }
 }
 
 #[test]
@@ -561,6 +641,7 @@ fn later_vertices_light_goes_to_the_first_vertex_lobe() {
     s.sampling = Sampling::Lobes;
     s.env = Environment::constant(0.0);
     s.spp = 1;
+    s.pixel_sampling = PixelSampling::Independent;
     let scene = Scene::build(&s.strand);
     let full_depth = s.max_depth;
     for lobe in [furfit::model::Lobe::R, furfit::model::Lobe::TT] {

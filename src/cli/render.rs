@@ -103,6 +103,10 @@ pub struct Args {
     /// BCSDF sampling: lobes (the lobes' Gaussians), ishair (Cauchy proposals) or uniform (baseline).
     #[arg(long, default_value = "lobes")]
     pub sampling: String,
+    /// Pixel position and first vertices' BCSDF uniforms: stratified (jittered strata),
+    /// sobol (scrambled Sobol streams) or independent (the pixel's RNG alone).
+    #[arg(long, default_value = "stratified")]
+    pub pixel_sampling: String,
     /// Skip the per-lobe AOV images.
     #[arg(long)]
     pub no_aovs: bool,
@@ -229,6 +233,8 @@ pub fn settings_from(a: &Args) -> anyhow::Result<RenderSettings> {
         medulla_energy: MedullaEnergy::parse(&a.medulla_energy).context("--medulla-energy")?,
         energy_weights: a.energy_weights.clone(),
         sampling: crate::render::ishair::Sampling::parse(&a.sampling).context("--sampling")?,
+        pixel_sampling: crate::render::qmc::PixelSampling::parse(&a.pixel_sampling)
+            .context("--pixel-sampling")?,
         ..RenderSettings::default()
     };
     s.camera.dist = a.cam_dist;

@@ -62,6 +62,9 @@ pub struct Args {
     /// BCSDF samplers to compare (lobes, ishair, uniform); the first one's curves are the report's.
     #[arg(long, default_value = "lobes")]
     pub samplings: String,
+    /// Pixel position and first vertices' BCSDF uniforms: stratified, sobol or independent (as `furfit render`).
+    #[arg(long, default_value = "stratified")]
+    pub pixel_sampling: String,
     /// Also time the full --frame at 64 spp, multiscale against near field.
     #[arg(long, conflicts_with_all = ["culling_study", "noise_budget"])]
     pub preview: bool,
@@ -86,6 +89,8 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         }
         samplings.push(m);
     }
+    let pixel_sampling =
+        crate::render::qmc::PixelSampling::parse(&a.pixel_sampling).context("--pixel-sampling")?;
     let mut modes: Vec<Mode> = Vec::new();
     for m in a.modes.split(',') {
         let m = Mode::parse(m.trim()).with_context(|| format!("--modes '{}'", a.modes))?;
@@ -125,6 +130,7 @@ pub fn run(a: Args) -> anyhow::Result<()> {
         ref_spp: a.ref_spp,
         modes,
         samplings,
+        pixel_sampling,
         seed: a.seed,
         repeats: a.repeats,
         threads: a.threads,
@@ -155,7 +161,7 @@ fn command_line(a: &Args, (pw, ph): (usize, usize), (fw, fh): (usize, usize)) ->
     };
     format!(
         "furfit render-convergence{variant} --params {} --size {pw}x{ph} --frame {fw}x{fh} \
-         --max-spp {} --ref-spp {}{modes} --seed {} --repeats {} --threads {}{} --samplings {}{} --out {}",
+         --max-spp {} --ref-spp {}{modes} --seed {} --repeats {} --threads {}{} --samplings {} --pixel-sampling {}{} --out {}",
         super::shell_quote(&a.params),
         a.max_spp,
         a.ref_spp,
@@ -164,6 +170,7 @@ fn command_line(a: &Args, (pw, ph): (usize, usize), (fw, fh): (usize, usize)) ->
         a.threads,
         if a.env_nee { " --env-nee" } else { "" },
         super::shell_quote(&a.samplings),
+        super::shell_quote(&a.pixel_sampling),
         if a.preview { " --preview" } else { "" },
         super::shell_quote(&a.out.display().to_string())
     )

@@ -23,6 +23,7 @@ use super::bsdf::{
 };
 use super::bvh::{Bvh, DirTree};
 use super::math::{luminance, Rgb, V3};
+use super::qmc::{PixelSample, SOBOL_DEPTHS};
 use super::scene::{Camera, DirectionalLight, Environment};
 use crate::model::multiscale;
 use rand::Rng;
@@ -121,6 +122,23 @@ fn power_heuristic(a: f64, b: f64) -> f64 {
     }
 }
 
+/// The four uniforms of the BCSDF sample at vertex `depth`: from the pixel's streams
+/// ([`super::qmc`]) at the first [`SOBOL_DEPTHS`] vertices, else from `rng`.
+fn bsdf_uniforms(
+    strata: Option<&PixelSample>,
+    depth: usize,
+    rng: &mut Xoshiro256PlusPlus,
+) -> [f64; 4] {
+    match strata {
+        Some(q) if depth < SOBOL_DEPTHS => {
+            let d = depth as u32;
+            let ([a, b], [c, e]) = (q.pair(1 + 2 * d, rng), q.pair(2 + 2 * d, rng));
+            [a, b, c, e]
+        }
+        _ => [rng.random(), rng.random(), rng.random(), rng.random()],
+    }
+}
+
 /// Where the last BCSDF sample came from, to compute its MIS pdf on an env hit.
 struct PrevSample<B: Bcsdf> {
     theta: f64,
@@ -144,8 +162,16 @@ impl<B: Bcsdf> Integrator<'_, B> {
         }
     }
 
-    /// Trace one path through image position (`px`, `py`).
-    pub fn trace(&self, px: f64, py: f64, rng: &mut Xoshiro256PlusPlus) -> PathResult {
+    /// Trace one path through image position (`px`, `py`). With `strata` the BCSDF samples
+    /// of the first [`SOBOL_DEPTHS`] vertices take their uniforms from its streams
+    /// ([`super::qmc`]), every other number from `rng`.
+    pub fn trace(
+        &self,
+        px: f64,
+        py: f64,
+        rng: &mut Xoshiro256PlusPlus,
+        strata: Option<&PixelSample>,
+    ) -> PathResult {
         let mut res = PathResult::default();
         let cam = self.camera;
         let mut dir = cam.ray_dir(px, py);
@@ -241,7 +267,7 @@ impl<B: Bcsdf> Integrator<'_, B> {
             }
 
             // Continue the path by sampling the BCSDF.
-            let u = [rng.random(), rng.random(), rng.random(), rng.random()];
+            let u = bsdf_uniforms(strata, depth, rng);
             let s = match self.bsdf.sample(&side, hr, u) {
                 Some(s) => s,
                 None => break,

@@ -29,12 +29,12 @@ use std::f64::consts::{FRAC_PI_2, PI};
 pub enum Sampling {
     /// Truncated Gaussians in `theta` and wrapped Gaussians in `phi`: the lobes' own shapes.
     /// The default of renders: over both test locks it is the more efficient in the
-    /// default multi-scale mode (ISHair's equal-quality ratio to it: red fox 1.10x, human
-    /// 0.63x; far field 1.20x and 0.74x; near field 0.98x and 1.09x;
+    /// default multi-scale mode (ISHair's equal-quality ratio to it with stratified pixels:
+    /// red fox 0.97x, human 0.84x; far field 0.97x and 0.76x; near field 1.02x and 0.86x;
     /// `reports/render_convergence.md`, `reports/convergence_human/`).
     #[default]
     Lobes,
-    /// Cauchy proposals (module doc): an option, ahead on the red fox lock, behind on the
+    /// Cauchy proposals (module doc): an option, level on the red fox lock, behind on the
     /// human one (see [`Sampling::Lobes`]).
     Ishair,
     /// Uniform over the sphere (pdf `1/(4 pi)` per solid angle): the seed's baseline.

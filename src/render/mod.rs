@@ -12,7 +12,8 @@
 //!   `furfit render-convergence` run (the study of its options, its report files);
 //! * [`batch`]: one `furfit render` run (its images, their files, the contact sheet).
 //!
-//! Determinism: every pixel has its own RNG seeded from (`seed`, pixel index), so an image
+//! Determinism: every pixel has its own RNG (and with `--pixel-sampling` its own stream
+//! seeds, [`qmc`]) seeded from (`seed`, pixel index), so an image
 //! depends on the seed only, not on the number of threads.
 
 // Per-channel / per-lobe loops over fixed [_; 3] and [_; 5] arrays index several arrays at
@@ -29,6 +30,7 @@ pub mod math;
 pub mod model_bsdf;
 pub mod ntable;
 pub mod output;
+pub mod qmc;
 pub mod sampler_study;
 pub mod scene;
 pub mod select;
@@ -189,6 +191,9 @@ pub struct RenderSettings {
     pub energy_weights: Option<std::path::PathBuf>,
     /// The BCSDF sampler's proposal ([`ishair::Sampling`]).
     pub sampling: ishair::Sampling,
+    /// Where the pixel position and the first vertices' BCSDF uniforms come from
+    /// ([`qmc::PixelSampling`]).
+    pub pixel_sampling: qmc::PixelSampling,
     /// Set from another thread, ends the render with [`crate::Error::Interrupted`] after
     /// the image rows in progress (the default token is never set).
     pub cancel: crate::cancel::Cancel,
@@ -226,6 +231,7 @@ impl Default for RenderSettings {
             medulla_energy: bsdf::MedullaEnergy::Strand,
             energy_weights: None,
             sampling: ishair::Sampling::default(),
+            pixel_sampling: qmc::PixelSampling::default(),
             cancel: Default::default(),
         }
     }
@@ -394,6 +400,13 @@ fn frame_pool(s: &RenderSettings) -> crate::Result<rayon::ThreadPool> {
             "image size and spp must be positive".into(),
         ));
     }
+    // A pixel's stratified samples are numbered in 32 bits ([`qmc::PixelSample`]).
+    if s.spp > MAX_SPP {
+        return Err(crate::Error::Invalid(format!(
+            "spp {} is above the largest accepted, {MAX_SPP}",
+            s.spp
+        )));
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(s.threads)
         .build()
@@ -552,12 +565,22 @@ fn trace_frame<B: Bcsdf>(
                 for i in 0..w {
                     let (px, py) = (x0 + i, y0 + j);
                     let idx = (py * s.width + px) as u64;
-                    let mut rng = Xoshiro256PlusPlus::seed_from_u64(pixel_seed(s.seed, idx));
+                    let pixel_seed = pixel_seed(s.seed, idx);
+                    let mut rng = Xoshiro256PlusPlus::seed_from_u64(pixel_seed);
+                    let kind = s.pixel_sampling;
                     let mut acc = integrator::PathResult::default();
-                    for _ in 0..s.spp {
+                    for k in 0..s.spp {
                         use rand::Rng;
-                        let (jx, jy): (f64, f64) = (rng.random(), rng.random());
-                        let r = integ.trace(px as f64 + jx, py as f64 + jy, &mut rng);
+                        // Past 2^32 samples the index would repeat: still unbiased (each
+                        // sample is uniform on its own), and far above MAX_SPP anyway.
+                        let q = (kind != qmc::PixelSampling::Independent).then(|| {
+                            qmc::PixelSample::new(kind, pixel_seed, k as u32, s.spp as u32)
+                        });
+                        let [jx, jy] = match &q {
+                            Some(q) => q.pair(0, &mut rng),
+                            None => [rng.random(), rng.random()],
+                        };
+                        let r = integ.trace(px as f64 + jx, py as f64 + jy, &mut rng, q.as_ref());
                         for c in 0..3 {
                             acc.beauty[c] += r.beauty[c];
                             for l in 0..5 {

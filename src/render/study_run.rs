@@ -5,6 +5,7 @@
 
 use super::bsdf::Mode;
 use super::ishair::Sampling;
+use super::qmc::PixelSampling;
 use super::sampler_study::{preview_ratio, sampler_study, SamplerStudy};
 use super::study::{
     convergence, culling_study, noise_budget, noise_budget_markdown, plot_convergence_bytes,
@@ -47,6 +48,8 @@ pub struct StudyOptions {
     pub modes: Vec<Mode>,
     /// The BCSDF samplers compared (the first one's curves are the report's).
     pub samplings: Vec<Sampling>,
+    /// Where the pixel position and the first BCSDF uniforms come from.
+    pub pixel_sampling: PixelSampling,
     /// Seed of the first repeat's renders.
     pub seed: u64,
     /// Independent renders (seeds) per spp.
@@ -104,6 +107,7 @@ pub fn run(o: &StudyOptions, params: &FurParams, mut say: impl FnMut(&str)) -> R
         region: Some(((fw - pw) / 2, (fh - ph) / 2, pw, ph)),
         env_nee: o.env_nee,
         sampling: o.samplings[0],
+        pixel_sampling: o.pixel_sampling,
         ..RenderSettings::default()
     };
     if o.kind == StudyKind::Culling {

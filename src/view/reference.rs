@@ -131,7 +131,8 @@ pub fn render(
                             });
                         }
                         let (jx, jy): (f64, f64) = (rng.random(), rng.random());
-                        let res: PathResult = integ.trace(px as f64 + jx, py as f64 + jy, &mut rng);
+                        let res: PathResult =
+                            integ.trace(px as f64 + jx, py as f64 + jy, &mut rng, None);
                         for c in 0..3 {
                             acc[c] += res.beauty[c];
                         }
