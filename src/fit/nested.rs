@@ -197,14 +197,12 @@ pub(super) fn probe(
     // C0 and C1 must be optima of the same cost: the reduced fit was solved on all
     // samples, the probe runs on the subsample, whose optimum lies a little away.
     // Re-solved here, so that shift is not counted as the full model's gain.
-    let polished = run_lm(
+    let probe_run = |prob: &LogResidualProblem, u: DVector<f64>| {
+        run_lm(prob, u, PROBE_ITERS, PROBE_FTOL, None, opts.broyden, clock)
+    };
+    let polished = probe_run(
         &small,
         DVector::from_vec(r_opts.layout.to_u(&reduced.params.to_file_units())),
-        PROBE_ITERS,
-        PROBE_FTOL,
-        None,
-        opts.broyden,
-        clock,
     )?;
     let c0 = polished.cost;
     let base = r_opts.layout.file_values(polished.u.as_slice());
@@ -242,15 +240,7 @@ pub(super) fn probe(
     let first = (0..hybrids.len())
         .min_by(|&a, &b| scores[a].total_cmp(&scores[b]).then(a.cmp(&b)))
         .expect("at least one hybrid");
-    let run = run_lm(
-        &full,
-        hybrids[first].clone(),
-        PROBE_ITERS,
-        PROBE_FTOL,
-        None,
-        opts.broyden,
-        clock,
-    )?;
+    let run = probe_run(&full, hybrids[first].clone())?;
     let evaluations = hybrids.len() as u64 + polished.evals + run.evals;
     let c1 = run.cost.min(c0);
     let q = red.fixed.len();
