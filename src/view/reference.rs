@@ -107,6 +107,26 @@ pub fn render(
         secondary_spread: 1.0,
         env_nee: false,
     };
+    Ok(per_pixel(s, |px, py, rng| {
+        let mut integ = base_copy(&base);
+        if let Some(e) = lobe {
+            integ.light = Some(DirectionalLight {
+                dir: lobe_dir(&rot, rng),
+                irradiance: e,
+            });
+        }
+        let (jx, jy): (f64, f64) = (rng.random(), rng.random());
+        let res: PathResult = integ.trace(px + jx, py + jy, rng, None);
+        res.beauty
+    }))
+}
+
+/// The mean of `s.spp` samples `sample(px, py, rng)` per pixel, each pixel's generator
+/// seeded from `s.seed` and its index (the same image on any thread count).
+fn per_pixel(
+    s: &RefSettings,
+    sample: impl Fn(f64, f64, &mut Xoshiro256PlusPlus) -> [f64; 3] + Sync,
+) -> Image {
     let rows: Vec<Vec<[f64; 3]>> = (0..s.height)
         .into_par_iter()
         .map(|py| {
@@ -118,35 +138,30 @@ pub fn render(
                     );
                     let mut acc = [0.0; 3];
                     for _ in 0..s.spp {
-                        let mut integ = base_copy(&base);
-                        if let Some(e) = lobe {
-                            let (u1, u2): (f64, f64) = (rng.random(), rng.random());
-                            let c = 2.0 * u1.powf(0.2) - 1.0;
-                            let r = (1.0 - c * c).max(0.0).sqrt();
-                            let a = std::f64::consts::TAU * u2;
-                            let d = sh::mat_vec(&rot, [r * a.cos(), c, r * a.sin()]);
-                            integ.light = Some(DirectionalLight {
-                                dir: V3::new(d[0], d[1], d[2]).normalized(),
-                                irradiance: e,
-                            });
-                        }
-                        let (jx, jy): (f64, f64) = (rng.random(), rng.random());
-                        let res: PathResult =
-                            integ.trace(px as f64 + jx, py as f64 + jy, &mut rng, None);
-                        for c in 0..3 {
-                            acc[c] += res.beauty[c];
-                        }
+                        let v = sample(px as f64, py as f64, &mut rng);
+                        (0..3).for_each(|c| acc[c] += v[c]);
                     }
                     acc.map(|v| v / s.spp as f64)
                 })
                 .collect()
         })
         .collect();
-    Ok(Image {
+    Image {
         width: s.width,
         height: s.height,
         data: rows.into_iter().flatten().collect(),
-    })
+    }
+}
+
+/// A direction of the lobe light (density `(1 + cos) ^ 4` about its axis, `rot` the
+/// light's rotation), from two uniforms of `rng`.
+fn lobe_dir(rot: &sh::Mat3, rng: &mut Xoshiro256PlusPlus) -> V3 {
+    let (u1, u2): (f64, f64) = (rng.random(), rng.random());
+    let c = 2.0 * u1.powf(0.2) - 1.0;
+    let r = (1.0 - c * c).max(0.0).sqrt();
+    let a = std::f64::consts::TAU * u2;
+    let d = sh::mat_vec(rot, [r * a.cos(), c, r * a.sin()]);
+    V3::new(d[0], d[1], d[2]).normalized()
 }
 
 /// Single scattering with nothing in the light's way: the first fiber on the camera ray
@@ -163,59 +178,32 @@ fn unshadowed(
     s: &RefSettings,
 ) -> Image {
     use crate::render::bsdf::{lobe_sum, Frame, HRange, MIN_COS};
-    let rows: Vec<Vec<[f64; 3]>> = (0..s.height)
-        .into_par_iter()
-        .map(|py| {
-            (0..s.width)
-                .map(|px| {
-                    let idx = (py * s.width + px) as u64;
-                    let mut rng = Xoshiro256PlusPlus::seed_from_u64(
-                        s.seed ^ idx.wrapping_mul(0x9E37_79B9_7F4A_7C15),
-                    );
-                    let mut acc = [0.0; 3];
-                    for _ in 0..s.spp {
-                        let (jx, jy): (f64, f64) = (rng.random(), rng.random());
-                        let dir = cam.ray_dir(px as f64 + jx, py as f64 + jy);
-                        let Some(hit) = bvh.intersect(cam.eye, dir, 0.0, f64::INFINITY, None)
-                        else {
-                            let le = env.radiance(dir);
-                            (0..3).for_each(|c| acc[c] += le[c]);
-                            continue;
-                        };
-                        let frame = Frame::new(hit.u, -dir);
-                        let theta_o = frame.to_local(-dir).0;
-                        let hr = HRange::Span(-1.0, 1.0);
-                        if let Some(e) = lobe {
-                            let (u1, u2): (f64, f64) = (rng.random(), rng.random());
-                            let c = 2.0 * u1.powf(0.2) - 1.0;
-                            let r = (1.0 - c * c).max(0.0).sqrt();
-                            let a = std::f64::consts::TAU * u2;
-                            let d = sh::mat_vec(rot, [r * a.cos(), c, r * a.sin()]);
-                            let ld = V3::new(d[0], d[1], d[2]).normalized();
-                            let (tl, pl) = frame.to_local(ld);
-                            let mn = lobe_sum(&bsdf.eval(theta_o, tl, pl, hr));
-                            let k = 1.0 / tl.cos().max(MIN_COS);
-                            (0..3).for_each(|c| acc[c] += mn[c] * e[c] * k);
-                        } else {
-                            let side = bsdf.camera_side(theta_o);
-                            let u = [rng.random(), rng.random(), rng.random(), rng.random()];
-                            if let Some(smp) = bsdf.sample(&side, hr, u) {
-                                let w = lobe_sum(&smp.weight);
-                                let le = env.radiance(frame.to_world(smp.theta, smp.phi));
-                                (0..3).for_each(|c| acc[c] += w[c] * le[c]);
-                            }
-                        }
-                    }
-                    acc.map(|v| v / s.spp as f64)
-                })
-                .collect()
-        })
-        .collect();
-    Image {
-        width: s.width,
-        height: s.height,
-        data: rows.into_iter().flatten().collect(),
-    }
+    per_pixel(s, |px, py, rng| {
+        let (jx, jy): (f64, f64) = (rng.random(), rng.random());
+        let dir = cam.ray_dir(px + jx, py + jy);
+        let Some(hit) = bvh.intersect(cam.eye, dir, 0.0, f64::INFINITY, None) else {
+            return env.radiance(dir);
+        };
+        let frame = Frame::new(hit.u, -dir);
+        let theta_o = frame.to_local(-dir).0;
+        let hr = HRange::Span(-1.0, 1.0);
+        if let Some(e) = lobe {
+            let (tl, pl) = frame.to_local(lobe_dir(rot, rng));
+            let mn = lobe_sum(&bsdf.eval(theta_o, tl, pl, hr));
+            let k = 1.0 / tl.cos().max(MIN_COS);
+            return [0, 1, 2].map(|c| mn[c] * e[c] * k);
+        }
+        let side = bsdf.camera_side(theta_o);
+        let u = [rng.random(), rng.random(), rng.random(), rng.random()];
+        match bsdf.sample(&side, hr, u) {
+            Some(smp) => {
+                let w = lobe_sum(&smp.weight);
+                let le = env.radiance(frame.to_world(smp.theta, smp.phi));
+                [0, 1, 2].map(|c| w[c] * le[c])
+            }
+            None => [0.0; 3],
+        }
+    })
 }
 
 fn base_copy<'a>(b: &Integrator<'a>) -> Integrator<'a> {
