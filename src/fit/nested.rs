@@ -114,46 +114,36 @@ pub(super) fn precheck(
         opts.n_global,
         opts.seed,
     ));
-    let r_layout = reduced_options(opts, red).layout;
-    let score = |layout: &super::problem::ParamLayout, c: &[f64]| {
-        if opts.cancel.is_cancelled() {
-            return f64::INFINITY;
-        }
-        let c = LogResidualProblem::new(sub.data, layout.clone(), sub.far).cost(&layout.to_u(c));
-        if c.is_finite() {
-            c
-        } else {
-            f64::INFINITY
-        }
-    };
+    let small = LogResidualProblem::new(sub.data, reduced_options(opts, red).layout, sub.far);
     // The presets and the first Halton points only: enough to see a plain signal and to
     // seed the probe; the full fit scores the rest itself (NaN: not scored).
     let n_scored = (cands.len() - opts.n_global + PRECHECK_HALTON).min(cands.len());
-    let full: Vec<f64> = (0..cands.len())
-        .into_par_iter()
-        .map(|i| {
-            if i < n_scored {
-                score(&opts.layout, &cands[i])
-            } else {
-                f64::NAN
-            }
-        })
-        .collect();
-    opts.cancel.check()?;
+    let design = |prob: &LogResidualProblem| -> Result<Vec<f64>> {
+        let costs = (0..cands.len())
+            .into_par_iter()
+            .map(|i| {
+                if i >= n_scored {
+                    f64::NAN
+                } else if opts.cancel.is_cancelled() {
+                    f64::INFINITY
+                } else {
+                    let c = prob.cost(&prob.layout.to_u(&cands[i]));
+                    if c.is_finite() {
+                        c
+                    } else {
+                        f64::INFINITY
+                    }
+                }
+            })
+            .collect();
+        opts.cancel.check()?;
+        Ok(costs)
+    };
+    let full = design(sub)?;
     let mut order: Vec<usize> = (0..n_scored).collect();
     order.sort_by(|&a, &b| full[a].total_cmp(&full[b]).then(a.cmp(&b)));
     let best_full = full[order[0]];
-    let reduced: Vec<f64> = (0..cands.len())
-        .into_par_iter()
-        .map(|i| {
-            if i < n_scored {
-                score(&r_layout, &cands[i])
-            } else {
-                f64::NAN
-            }
-        })
-        .collect();
-    opts.cancel.check()?;
+    let reduced = design(&small)?;
     let best_reduced = reduced[..n_scored]
         .iter()
         .copied()
