@@ -127,8 +127,7 @@ pub fn fit_data(
         return Ok(done(fit_layout(data, &full_opts, clock, &say)?, test, 0));
     }
     say(&format!("nested model first: {}", red.name));
-    let mut r_opts = nested::reduced_options(opts, red);
-    r_opts.design_costs = Some(pre.costs_reduced.clone());
+    let r_opts = nested::reduced_design(opts, red, &pre);
     let reduced = fit_layout(data, &r_opts, clock, &say)?;
     let (mut test, best) = nested::probe(&sub_data, opts, &reduced, &pre, red, clock)?;
     test.evaluations += pre.evaluations;

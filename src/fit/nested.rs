@@ -69,6 +69,21 @@ pub(super) fn reduced_options(opts: &FitOptions, red: &Reduction) -> FitOptions 
     o
 }
 
+/// The reduced fit's options: the reduction's parameters held, and its global design the
+/// one the precheck scored already (the presets and the first [`PRECHECK_HALTON`] Halton
+/// points, a prefix of the full design), so its global stage evaluates nothing new. Six
+/// free parameters need fewer starts than ten: on the three hair profiles of
+/// `bench/fit_speed` the same optimum, 96 fewer evaluations (`reports/fit_speed.md`).
+pub(super) fn reduced_design(opts: &FitOptions, red: &Reduction, pre: &Precheck) -> FitOptions {
+    let mut o = reduced_options(opts, red);
+    o.n_global = opts.n_global.min(PRECHECK_HALTON);
+    let n_presets = pre.costs_reduced.len() - opts.n_global;
+    o.design_costs = Some(Arc::new(
+        pre.costs_reduced[..n_presets + o.n_global].to_vec(),
+    ));
+    o
+}
+
 /// The global stage's view of the two models: the start of the full model's design (its
 /// presets and first [`PRECHECK_HALTON`] Halton points) scored on the subsample, and the
 /// same points with the reduction applied. When the best full start beats the best
