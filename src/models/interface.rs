@@ -368,27 +368,6 @@ pub fn parse_lobes(names: &[&str], s: &str) -> crate::Result<LobeSet> {
     Ok(set)
 }
 
-/// A parameter's spec in a model's static table: `bounds` is `(lower, lower_open, upper,
-/// upper_open)` in file units.
-pub(crate) const fn spec(
-    name: &'static str,
-    meaning: &'static str,
-    unit: &'static str,
-    bounds: (f64, bool, f64, bool),
-    is_angle: bool,
-) -> ParamSpec {
-    ParamSpec {
-        name,
-        meaning,
-        unit,
-        lower: bounds.0,
-        lower_open: bounds.1,
-        upper: bounds.2,
-        upper_open: bounds.3,
-        is_angle,
-    }
-}
-
 /// Clamp of the solver coordinate for sigmoid and exp maps (sigmoid(30) = 1 - 9.4e-14:
 /// representable below 1).
 pub const U_MAX: f64 = 30.0;

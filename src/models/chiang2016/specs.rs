@@ -2,7 +2,7 @@
 //! and hard bounds. A leaf of the room, so that `far` and `bsdf` read the positions without
 //! importing the model's `mod.rs`, which imports them.
 
-use crate::models::interface::spec;
+use crate::params::spec;
 use crate::params::ParamSpec;
 
 /// Parameter vector positions.

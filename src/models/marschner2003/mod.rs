@@ -25,9 +25,9 @@ use crate::model::far::FarOptions;
 use crate::model::LobeSet;
 use crate::models::dual::{Dual, Real};
 use crate::models::factored::{Factored, FactoredTerms, Factors};
-use crate::models::interface::{spec, FiberModel, Integral, Map, ModelTerms, Prediction, Preset};
+use crate::models::interface::{FiberModel, Integral, Map, ModelTerms, Prediction, Preset};
 use crate::models::points::{Points, SlicePlan as Plan};
-use crate::params::ParamSpec;
+use crate::params::{spec, ParamSpec};
 use lobes::{Glints, RootFinder, Section, LOBES};
 use std::sync::Arc;
 
