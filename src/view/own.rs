@@ -109,14 +109,12 @@ impl Kernel {
 }
 
 /// What the march along a fiber needs of one sweep direction
-/// ([`super::prt`]'s `Step`): its kernel, its whole-texel shift per shell, `1 / |d_y|`.
+/// ([`super::prt`]'s `Step`): its kernel and its whole-texel shift per shell.
 pub struct Sweep {
     /// The fractional-step kernel.
     pub kernel: Kernel,
     /// Whole texels moved per shell, `(x, z)`.
     pub shift: (i64, i64),
-    /// `1 / |d_y|`: the path length per shell along the direction.
-    pub inv_cos: f32,
 }
 
 /// The fibers of every texel, for [`Shadowing::Others`](super::prt::Shadowing::Others).
@@ -137,12 +135,14 @@ impl<'a> Own<'a> {
 
     /// Replace `e` (row `j` of shell `s`, `exp(-tau)` per texel) by the texel's fibers'
     /// mean transmittance through the other fibers (module doc), for sweep direction
-    /// `st` (`up`: toward `+y`). Texels no fiber covers keep `exp(-tau)`.
+    /// `st` (`up`: toward `+y`; each piece's depth along it is its vertical one times
+    /// its entry of `factors`, [`Pieces::factors`]), `tau` holding `half` of the texel's
+    /// own shell's depth. Texels no fiber covers keep `exp(-tau)`.
     pub fn transmittance(
         &self,
         e: &mut [f32],
         tau: &[f32],
-        st: &Sweep,
+        (st, factors, half): (&Sweep, &[f32], f32),
         s: usize,
         j: usize,
         up: bool,
@@ -157,7 +157,10 @@ impl<'a> Own<'a> {
             }
             let (mut acc, mut wsum) = (0.0f32, 0.0f32);
             for &(f, w) in ents {
-                let tf = self.tau_own(f as usize, s, (i, j), st, up);
+                let f = f as usize;
+                let shells = self.pieces.shells;
+                let here = half * w * factors[f * shells + s];
+                let tf = self.tau_own(f, s, (i, j), (st, factors), up) + here;
                 acc += w * (-(tau[i] - tf).max(0.0)).exp();
                 wsum += w;
             }
@@ -167,7 +170,14 @@ impl<'a> Own<'a> {
 
     /// `tau_f`: fiber `f`'s own optical depth on the sweep's ray from texel `x` of shell
     /// `s` (module doc).
-    pub fn tau_own(&self, f: usize, s: usize, x: (usize, usize), st: &Sweep, up: bool) -> f32 {
+    pub fn tau_own(
+        &self,
+        f: usize,
+        s: usize,
+        x: (usize, usize),
+        (st, factors): (&Sweep, &[f32]),
+        up: bool,
+    ) -> f32 {
         let p = self.pieces;
         let kern = &st.kernel;
         let res = p.res as i64;
@@ -195,7 +205,7 @@ impl<'a> Own<'a> {
                 let ki = k as i64;
                 kern.apply(k, xi + ki * ox, xj + ki * oz, q, &p.vals)
             };
-            tau += v;
+            tau += v * factors[f * p.shells + s2];
             if v > TAIL {
                 misses = 0;
             } else {
@@ -205,7 +215,7 @@ impl<'a> Own<'a> {
                 }
             }
         }
-        tau * st.inv_cos
+        tau
     }
 }
 

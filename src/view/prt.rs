@@ -10,8 +10,9 @@
 //!
 //! * `T(x, .)` depends on the texel, not on the camera: it is projected per texel onto the
 //!   25 SH functions (`v_k(x)`, [`transfer`]), with transmittance ray-marched through the
-//!   shells' density (seed Eq. 4), by default without the texel's own fibers
-//!   ([`Shadowing::Others`]).
+//!   shells' density (seed Eq. 4). By default ([`Shadowing::Others`]) a texel's own
+//!   fibers do not shadow it, and each fiber piece's depth along a ray is that of the
+//!   tube it is, not its vertical coverage over `|w_y|` ([`Depth::Tubes`]).
 //! * `P` depends on the camera, not on the texel (the swatch is combed: one tangent): for
 //!   each camera inclination `theta_o` to the fiber the 25x25 matrix
 //!   `B_jk(theta_o) = ∫∫ P Y_j Y_k dtheta dphi` is tabulated in the fiber frame
@@ -68,7 +69,8 @@ pub enum Shadowing {
     All,
     /// The other fibers' pieces only: a fiber is a convex tube and does not shadow
     /// itself (the path tracer skips the hit fiber for its shadow rays). The texel's own
-    /// fibers are known from [`super::shells::Pieces`]; see [`super::own`].
+    /// fibers are known from [`super::shells::Pieces`]; see [`super::own`]. Depth per
+    /// piece as a tube ([`Depth::Tubes`], [`super::shells::Pieces::factor`]).
     Others,
 }
 
@@ -122,7 +124,14 @@ pub fn transfer(spec: &FurSpec, cov: &[Vec<f32>], rule: &Rule) -> Transfer {
         .iter()
         .map(|c| c.iter().map(|a| -(1.0 - a.min(0.9999)).ln()).collect())
         .collect();
-    sweep(spec, &od, None, rule, &sh_weights(rule), N_COEFFS)
+    sweep(
+        spec,
+        Depth::Vertical(&od),
+        None,
+        rule,
+        &sh_weights(rule),
+        N_COEFFS,
+    )
 }
 
 /// The transfer of the fibers' `pieces` with `shadowing`, weighted per sweep direction
@@ -137,32 +146,72 @@ pub fn transfer_pieces(
 ) -> Transfer {
     let (res, shells) = (spec.res, spec.shells);
     let n = res * res;
-    if shadowing == Shadowing::Off {
-        // T = 1: every texel gets the weights' sums.
-        let sums: Vec<f32> = (0..k).map(|c| weights.iter().map(|w| w[c]).sum()).collect();
-        let mut v = vec![0.0f32; shells * k * n];
-        for (i, plane) in v.chunks_mut(n).enumerate() {
-            plane.fill(sums[i % k]);
+    match shadowing {
+        Shadowing::Off => {
+            // T = 1: every texel gets the weights' sums.
+            let sums: Vec<f32> = (0..k).map(|c| weights.iter().map(|w| w[c]).sum()).collect();
+            let mut v = vec![0.0f32; shells * k * n];
+            for (i, plane) in v.chunks_mut(n).enumerate() {
+                plane.fill(sums[i % k]);
+            }
+            Transfer { res, shells, k, v }
         }
-        return Transfer { res, shells, k, v };
+        Shadowing::All => {
+            let od: Vec<Vec<f32>> = pieces
+                .optical_depth()
+                .iter()
+                .map(|p| p.iter().map(|&o| o as f32).collect())
+                .collect();
+            sweep(spec, Depth::Vertical(&od), None, rule, weights, k)
+        }
+        Shadowing::Others => {
+            let own = Own::new(pieces);
+            sweep(spec, Depth::Tubes(pieces), Some(&own), rule, weights, k)
+        }
     }
-    let od: Vec<Vec<f32>> = pieces
-        .optical_depth()
-        .iter()
-        .map(|p| p.iter().map(|&o| o as f32).collect())
-        .collect();
-    let own = (shadowing == Shadowing::Others).then(|| Own::new(pieces));
-    sweep(spec, &od, own.as_ref(), rule, weights, k)
 }
 
-/// Transmittance toward `w` from shell `s` multiplies `(1 - alpha)^(1 / |w_y|)` (optical
-/// depth `od / |w_y|`) of every shell the ray crosses above (`w_y > 0`) or below, at the
-/// texel it crosses, read bilinearly with wrap: a sweep shell by shell keeps it O(1) per
-/// texel and direction. A fiber does not shadow the shell it is in. With `own`, each
-/// texel's own fibers' share of that depth is taken out again ([`Own`]).
+/// A shell's optical depth along a sweep direction, per slab crossed.
+#[derive(Clone, Copy)]
+enum Depth<'a> {
+    /// Seed 003 Eq. 4: the shells' vertical optical depth `od / |d_y|` (from coverage,
+    /// `(1 - alpha)^(1 / |d_y|)`); a texel's own shell does not shadow it.
+    Vertical(&'a [Vec<f32>]),
+    /// Each fiber piece as the tube it is ([`Pieces::factor`]); a texel's fibers sit
+    /// in the middle of their slab, so half the slab's depth lies on their way out.
+    Tubes(&'a Pieces),
+}
+
+impl Depth<'_> {
+    /// Shell `s`'s depth along `st`'s direction into `out`.
+    fn along(&self, s: usize, st: &Step, out: &mut [f32]) {
+        match self {
+            Depth::Vertical(od) => {
+                let k = 1.0 / st.dir[1].abs();
+                for (o, v) in out.iter_mut().zip(&od[s]) {
+                    *o = v * k;
+                }
+            }
+            Depth::Tubes(p) => p.along(s, &st.factors, out),
+        }
+    }
+
+    /// The share of a texel's own slab on its rays.
+    fn own_slab(&self) -> f32 {
+        match self {
+            Depth::Vertical(_) => 0.0,
+            Depth::Tubes(_) => 0.5,
+        }
+    }
+}
+
+/// Transmittance toward `w` from shell `s` multiplies the transmittance of every shell
+/// the ray crosses above (`w_y > 0`) or below ([`Depth`]), at the texel it crosses, read
+/// bilinearly with wrap: a sweep shell by shell keeps it O(1) per texel and direction.
+/// With `own`, each texel's own fibers' share of that depth is taken out again ([`Own`]).
 fn sweep(
     spec: &FurSpec,
-    od: &[Vec<f32>],
+    depth: Depth,
     own: Option<&Own>,
     rule: &Rule,
     weights: &[Vec<f32>],
@@ -179,26 +228,36 @@ fn sweep(
         if pass.is_empty() {
             continue;
         }
-        let steps: Vec<Step> = pass
+        let mut steps: Vec<Step> = pass
             .iter()
             .map(|&i| Step::new(dirs[i].0, weights[i].clone(), spec, own.is_some()))
             .collect();
+        if let Depth::Tubes(p) = depth {
+            steps
+                .par_iter_mut()
+                .for_each(|st| st.factors = p.factors(st.dir));
+        }
         let mut taus = vec![vec![0.0f32; n]; steps.len()];
+        let mut here = vec![vec![0.0f32; n]; steps.len()];
         let order: Vec<usize> = if up {
             (0..shells).rev().collect()
         } else {
             (0..shells).collect()
         };
         for (i, &s) in order.iter().enumerate() {
-            if i > 0 {
-                let prev = order[i - 1];
-                taus.par_iter_mut().zip(&steps).for_each(|(tau, st)| {
-                    st.advance(tau, &od[prev], res);
-                });
-            }
+            here.par_iter_mut()
+                .zip(&steps)
+                .for_each(|(h, st)| depth.along(s, st, h));
             let block = &mut v[s * k * n..(s + 1) * k * n];
             let own_s = own.map(|o| (o, s, up));
-            accumulate(block, &taus, &steps, res, k, own_s);
+            let rays = (taus.as_slice(), here.as_slice(), depth.own_slab());
+            accumulate(block, rays, &steps, res, k, own_s);
+            if i + 1 < order.len() {
+                taus.par_iter_mut()
+                    .zip(&here)
+                    .zip(&steps)
+                    .for_each(|((tau, h), st)| st.advance(tau, h, res));
+            }
         }
     }
     Transfer { res, shells, k, v }
@@ -207,7 +266,9 @@ fn sweep(
 /// One sweep direction: its weights and the per-shell shift in texels.
 struct Step {
     w: Vec<f32>,
-    inv_cos: f32,
+    dir: [f32; 3],
+    /// [`Pieces::factors`] along `dir` ([`Depth::Tubes`]; empty otherwise).
+    factors: Vec<f32>,
     /// Integer and fractional shift in `x` (`i`) and `z` (`j`).
     shift: (i64, f32, i64, f32),
     /// The repeated bilinear resampling as a kernel ([`super::own`]), if needed.
@@ -225,26 +286,23 @@ impl Step {
             sz.floor() as i64,
             (sz - sz.floor()) as f32,
         );
+        let dir = d.map(|c| c as f32);
         Step {
             w,
-            inv_cos: (1.0 / ay) as f32,
+            dir,
+            factors: Vec::new(),
             shift,
             own: kernel.then(|| own::Sweep {
                 kernel: own::Kernel::new(shift.1, shift.3, spec.shells),
                 shift: (shift.0, shift.2),
-                inv_cos: (1.0 / ay) as f32,
             }),
         }
     }
 
-    /// `tau` of the previous shell to this one: add the previous shell's optical depth
-    /// along the ray, then move to where the ray crosses it (bilinear, wrapped).
-    fn advance(&self, tau: &mut [f32], od_prev: &[f32], res: usize) {
-        let src: Vec<f32> = tau
-            .iter()
-            .zip(od_prev)
-            .map(|(t, o)| t + o * self.inv_cos)
-            .collect();
+    /// `tau` of this shell to the next: add this shell's optical depth along the ray
+    /// (`here`), then move to where the ray crosses the next (bilinear, wrapped).
+    fn advance(&self, tau: &mut [f32], here: &[f32], res: usize) {
+        let src: Vec<f32> = tau.iter().zip(here).map(|(t, o)| t + o).collect();
         let (ox, fx, oz, fz) = self.shift;
         let r = res as i64;
         let wrap = |a: i64| a.rem_euclid(r) as usize;
@@ -265,11 +323,12 @@ impl Step {
 }
 
 /// `block[c][texel] += sum_dirs w_c(d) T_d(texel)`, row-parallel, with
-/// `T_d = exp(-tau_d)`, or with `own = (fibers, shell, up)` the texel's fibers' mean
-/// transmittance through the others ([`Own::transmittance`]).
+/// `T_d = exp(-tau_d)`, `tau_d` the depth of the shells crossed plus `half` of the
+/// texel's own shell's (`rays = (taus, here, half)`), or with `own = (fibers, shell, up)`
+/// the texel's fibers' mean transmittance through the others ([`Own::transmittance`]).
 fn accumulate(
     block: &mut [f32],
-    taus: &[Vec<f32>],
+    (taus, here, half): (&[Vec<f32>], &[Vec<f32>], f32),
     steps: &[Step],
     res: usize,
     k: usize,
@@ -281,13 +340,17 @@ fn accumulate(
         .map(|j| {
             let mut acc = vec![0.0f32; k * res];
             let mut e = vec![0.0f32; res];
-            for (tau, st) in taus.iter().zip(steps) {
-                let row = &tau[j * res..(j + 1) * res];
-                for (ei, t) in e.iter_mut().zip(row) {
+            let mut row = vec![0.0f32; res];
+            for ((tau, h), st) in taus.iter().zip(here).zip(steps) {
+                let (t0, h0) = (&tau[j * res..(j + 1) * res], &h[j * res..(j + 1) * res]);
+                for ((r, t), hv) in row.iter_mut().zip(t0).zip(h0) {
+                    *r = t + half * hv;
+                }
+                for (ei, t) in e.iter_mut().zip(&row) {
                     *ei = (-t).exp();
                 }
                 if let (Some((o, s, up)), Some(sw)) = (own, &st.own) {
-                    o.transmittance(&mut e, row, sw, s, j, up);
+                    o.transmittance(&mut e, &row, (sw, &st.factors, half), s, j, up);
                 }
                 for c in 0..k {
                     let wc = st.w[c];
@@ -570,6 +633,92 @@ mod tests {
             }
         }
         assert!((got / want - 1.0).abs() < 0.02, "{got} vs {want}");
+    }
+
+    /// The fiber-weighted mean transmittance of `shadowing` per polar node of the rule,
+    /// and the same from shadow rays through the very fibers (points on the fibers' axes,
+    /// their own fiber skipped, as the path tracer does).
+    fn node_means(spec: &FurSpec, shadowing: Shadowing) -> Vec<(f64, f64, f64)> {
+        use crate::render::bvh::Bvh;
+        use rand::{Rng, SeedableRng};
+        let fibers = super::super::shells::grow(spec);
+        let pieces = super::super::shells::pieces(spec, &fibers);
+        let (nz, nphi) = (8, 16);
+        let rule = Rule::product(nz, nphi);
+        let dirs = sweep_dirs(&rule);
+        let weights: Vec<Vec<f32>> = (0..dirs.len())
+            .map(|i| {
+                let mut w = vec![0.0f32; nz];
+                w[i / nphi] = 1.0 / nphi as f32;
+                w
+            })
+            .collect();
+        let tr = transfer_pieces(spec, &pieces, &rule, shadowing, &weights, nz);
+        let od = pieces.optical_depth();
+        // Per shell and node: the texels' mean, weighted by the fibers' depth there.
+        let sweep: Vec<Vec<f64>> = (0..spec.shells)
+            .map(|s| {
+                (0..nz)
+                    .map(|b| {
+                        let pairs = od[s].iter().zip(tr.at(s, b));
+                        let num: f64 = pairs.clone().map(|(o, t)| o * *t as f64).sum();
+                        num / od[s].iter().sum::<f64>()
+                    })
+                    .collect()
+            })
+            .collect();
+        let segs = super::super::shells::segments(spec, &fibers, 1.0);
+        let ids: Vec<u32> = fibers
+            .iter()
+            .map(|f| segs.iter().find(|s| s.a == f[0]).map_or(0, |s| s.fiber))
+            .collect();
+        let bvh = Bvh::build(segs);
+        let mut rng = rand_xoshiro::Xoshiro256PlusPlus::seed_from_u64(7);
+        // Per node: (exact, the sweep's at the same points' shells), summed.
+        let (mut exact, mut at) = (vec![(0.0, 0.0); nz], vec![0.0; nz]);
+        for _ in 0..3000 {
+            let f = rng.random_range(0..fibers.len());
+            let (poly, seg) = (&fibers[f], rng.random_range(0..spec.segments));
+            let p = poly[seg] + (poly[seg + 1] - poly[seg]) * rng.random::<f64>();
+            let len = (poly[seg + 1] - poly[seg]).length();
+            let s = ((p.y / spec.dy()) as usize).min(spec.shells - 1);
+            for (i, (d, _)) in dirs.iter().enumerate() {
+                let d = V3::new(d[0], d[1], d[2]);
+                let seen = !bvh.occluded(p, d, 1e-9, f64::INFINITY, Some(ids[f]));
+                exact[i / nphi].0 += if seen { len } else { 0.0 };
+                exact[i / nphi].1 += len;
+                at[i / nphi] += len * sweep[s][i / nphi];
+            }
+        }
+        (0..nz)
+            .map(|b| {
+                let wy = dirs[b * nphi].0[1];
+                (wy, at[b] / exact[b].1, exact[b].0 / exact[b].1)
+            })
+            .collect()
+    }
+
+    /// The tube depth ([`Depth::Tubes`], `Others`) gives about the transmittance that
+    /// shadow rays through the same fibers see, per polar node of the sweep: within 0.06
+    /// absolute (measured 0.042 on the default fur, worst at |w_y| = 0.53, where the
+    /// texel-scale coverage model is least exact; the run is seeded, so the margin only
+    /// guards changes). The seed's vertical depth (`All`) misses by 0.20 (steep light,
+    /// darkened about twofold), so the test tells the two apart.
+    #[test]
+    fn tube_depth_matches_shadow_rays() {
+        let spec = FurSpec::default();
+        let tubes = node_means(&spec, Shadowing::Others);
+        let worst = tubes
+            .iter()
+            .map(|(_, a, e)| (a - e).abs())
+            .fold(0.0, f64::max);
+        assert!(worst < 0.06, "{tubes:?}");
+        let seed = node_means(&spec, Shadowing::All);
+        let worst = seed
+            .iter()
+            .map(|(_, a, e)| (a - e).abs())
+            .fold(0.0, f64::max);
+        assert!(worst > 0.15, "{seed:?}");
     }
 
     /// An empty volume transmits everything: v = projection of 1 = (sqrt(4 pi), 0, ...).

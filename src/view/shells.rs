@@ -211,6 +211,11 @@ pub struct Patch {
     pub h: usize,
     /// Offset of its first value in [`Pieces::vals`].
     pub at: usize,
+    /// The piece's mean unit tangent (its parts' chords summed).
+    pub tangent: [f32; 3],
+    /// The piece's cross-section per unit `|t x d|` (`2 r L`) over its vertical
+    /// footprint's area: [`Pieces::factor`].
+    pub cross: f32,
 }
 
 /// Every fiber's pieces, shell by shell: what [`coverage`] combines, kept apart so the
@@ -229,6 +234,9 @@ pub struct Pieces {
     pub vals: Vec<f32>,
 }
 
+/// Largest coverage of a texel by one piece (keeps its depth finite, [`MAX_OD`]).
+const MAX_COVER: f32 = 0.9999;
+
 /// A fully covered texel stays finite: 1 - 1e-4 at most per piece (and per texel).
 pub const MAX_OD: f64 = 9.210_340_371_976_182; // -ln(1e-4)
 
@@ -241,6 +249,63 @@ impl Pieces {
     /// Number of fibers.
     pub fn fibers(&self) -> usize {
         self.patches.len() / self.shells.max(1)
+    }
+
+    /// What turns the vertical optical depth of patch `i`'s piece into its depth along
+    /// `d` per slab crossed. A tube of radius `r` and length `L` with tangent `t` blocks
+    /// `2 r L |t x d|` of a beam along `d`, and a beam of unit cross-section crosses
+    /// `1 / |d_y|` of horizontal area; seen from above the piece covers its vertical
+    /// footprint instead, which counts its end caps (`pi r^2`) again in every shell. For
+    /// the comb's 30 degrees the plain `od / |d_y|` of seed 003 Eq. 4 over-shadows steep
+    /// light about twofold (a ray along a steep fiber meets its caps once, not per
+    /// shell). So each texel's coverage `c` is scaled by the ratio of the two areas,
+    /// `g = cross |t x d| / |d_y|`, and turned back into depth, `-ln(1 - g c)`: summed
+    /// over the patch, over its vertical depth. Measured against shadow rays through the
+    /// same fibers (`reports/viewer/prt_error.md`, "Tube depth").
+    pub fn factor(&self, i: usize, d: [f32; 3]) -> f32 {
+        let p = &self.patches[i];
+        let vals = &self.vals[p.at..p.at + p.w * p.h];
+        let t = p.tangent;
+        let c = t[0] * d[0] + t[1] * d[1] + t[2] * d[2];
+        let g = p.cross * (1.0 - c * c).max(0.0).sqrt() / d[1].abs();
+        let (mut num, mut den) = (0.0f32, 0.0f32);
+        for &v in vals {
+            let cv = 1.0 - (-v).exp();
+            num -= (1.0 - (cv * g).min(MAX_COVER)).ln();
+            den += v;
+        }
+        if den > 0.0 {
+            num / den
+        } else {
+            0.0
+        }
+    }
+
+    /// [`Self::factor`] of every patch (`[fiber * shells + shell]`) for direction `d`.
+    pub fn factors(&self, d: [f32; 3]) -> Vec<f32> {
+        (0..self.patches.len()).map(|i| self.factor(i, d)).collect()
+    }
+
+    /// The optical depth of shell `s` along the direction of `factors` ([`Self::factors`])
+    /// per texel, wrapped, into `out`.
+    pub fn along(&self, s: usize, factors: &[f32], out: &mut [f32]) {
+        let res = self.res;
+        out.fill(0.0);
+        for f in 0..self.fibers() {
+            let p = self.patch(f, s);
+            if p.w == 0 {
+                continue;
+            }
+            let k = factors[f * self.shells + s];
+            for b in 0..p.h {
+                let j = (p.j0 + b as i64).rem_euclid(res as i64) as usize;
+                let row = &self.vals[p.at + b * p.w..p.at + (b + 1) * p.w];
+                for (a, v) in row.iter().enumerate() {
+                    let i = (p.i0 + a as i64).rem_euclid(res as i64) as usize;
+                    out[j * res + i] += v * k;
+                }
+            }
+        }
     }
 
     /// The shells' optical depth `[shell][texel]`: the pieces summed (wrapped), at most
@@ -326,6 +391,8 @@ pub fn pieces(spec: &FurSpec, fibers: &[Vec<V3>]) -> Pieces {
                     let (lo, hi) = (s as f64 * dy, (s + 1) as f64 * dy);
                     // (i, j) unwrapped -> log(1 - c), summed over the fiber's pieces.
                     let mut cells: Vec<((i64, i64), f64)> = Vec::new();
+                    // The parts' chords summed, and their cross-section 2 r L.
+                    let (mut chord, mut xs) = (V3::new(0.0, 0.0, 0.0), 0.0);
                     for (i, w) in f.windows(2).enumerate() {
                         let (a, b) = (w[0], w[1]);
                         let (ya, yb) = (a.y.min(b.y), a.y.max(b.y));
@@ -333,19 +400,28 @@ pub fn pieces(spec: &FurSpec, fibers: &[Vec<V3>]) -> Pieces {
                             continue;
                         }
                         // The part of the segment inside the slab.
-                        let clip = |y: f64| {
-                            if (b.y - a.y).abs() < 1e-12 {
-                                0.5
-                            } else {
-                                ((y - a.y) / (b.y - a.y)).clamp(0.0, 1.0)
-                            }
+                        let clip = |y: f64| ((y - a.y) / (b.y - a.y)).clamp(0.0, 1.0);
+                        // A level segment lies wholly in its slab.
+                        let (t0, t1) = if (b.y - a.y).abs() < 1e-12 {
+                            (0.0, 1.0)
+                        } else {
+                            (clip(lo), clip(hi))
                         };
-                        let (t0, t1) = (clip(lo), clip(hi));
                         let (p, q) = (a + (b - a) * t0.min(t1), a + (b - a) * t0.max(t1));
                         let r = spec.radius * (1.0 - 0.5 * (i as f64 + 0.5) / n);
                         splat_capsule(&mut cells, res, p, q, r);
+                        chord = chord + (q - p);
+                        xs += 2.0 * r * (q - p).length();
                     }
-                    to_patch(&cells)
+                    let (mut patch, vals) = to_patch(&cells);
+                    // The vertical footprint's area, in texels.
+                    let area: f64 = vals.iter().map(|&v| 1.0 - (-(v as f64)).exp()).sum();
+                    if area > 0.0 && chord.length() > 0.0 {
+                        let t = chord.normalized();
+                        patch.tangent = [t.x as f32, t.y as f32, t.z as f32];
+                        patch.cross = (xs * (res * res) as f64 / area) as f32;
+                    }
+                    (patch, vals)
                 })
                 .collect()
         })
@@ -384,7 +460,7 @@ fn to_patch(cells: &[((i64, i64), f64)]) -> (Patch, Vec<f32>) {
         j0,
         w,
         h,
-        at: 0,
+        ..Patch::default()
     };
     (p, v.iter().map(|x| x.min(MAX_OD) as f32).collect())
 }
