@@ -286,15 +286,19 @@ impl FurModel {
     }
 
     /// The lobes whose azimuthal term `N_p` (near or far field) can change when parameter
-    /// `id` changes. `alpha` and `beta_m` enter only `M_p` (seed Eq. 5, Table 2) and `g`
-    /// only the medulla tables of TTs/TRTs (Eqs. 18-19); every other parameter reaches all
-    /// five lobes through `eta'`, the path geometry or the attenuations. The fitter's
-    /// finite differences use this to reuse the unchanged terms.
+    /// `id` changes. `alpha` and `beta_m` enter only `M_p` (seed Eq. 5, Table 2), `g`
+    /// only the medulla tables of TTs/TRTs (Eqs. 18-19) and `beta_n` only the width of the
+    /// unscattered lobes' `D_p` (Eq. 7; the scattered lobes' `D^s_p` is the table's `C^N`,
+    /// Eq. 10, and the far field reads `beta_p` only in the R, TT and TRT builders); every
+    /// other parameter reaches all five lobes through `eta'`, the path geometry or the
+    /// attenuations. The fitter's finite differences use this to reuse the unchanged
+    /// terms (bit for bit: test `reused_terms_equal_full_evaluation`).
     pub fn azimuthal_dependence(id: crate::params::ParamId) -> LobeSet {
         use crate::params::ParamId;
         match id {
             ParamId::Alpha | ParamId::BetaM => LobeSet::NONE,
             ParamId::G => LobeSet::SCATTERED,
+            ParamId::BetaN => LobeSet::UNSCATTERED,
             _ => LobeSet::ALL,
         }
     }

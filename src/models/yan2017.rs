@@ -244,7 +244,7 @@ impl FurTerms {
     /// the decisions of `self` replayed, [`Decisions`]) and reusing the others. With
     /// `dep = FurModel::azimuthal_dependence(changed)` this equals [`FurTerms::new`] at
     /// `params` unless the step tips a refinement decision (tested), at a fraction of the
-    /// cost for `alpha`, `beta_m` and `g`.
+    /// cost for `alpha`, `beta_m`, `g` and `beta_n`.
     pub fn with_lobes(
         &self,
         params: &FurParams,
